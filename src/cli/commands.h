@@ -1,0 +1,20 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+
+namespace occ::cli {
+
+// Each subcommand registers itself and its options on the app and returns the action to run
+// when it is chosen. Actions return the process exit status; errors are thrown (InputError, UsageError).
+struct Command {
+    CLI::App* app;
+    std::function<int()> run;
+};
+
+Command addInfoCommand(CLI::App& app);
+Command addGenCommand(CLI::App& app);
+
+}  // namespace occ::cli

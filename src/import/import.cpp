@@ -1,0 +1,40 @@
+// SPDX-License-Identifier: MIT
+#include "import/import.h"
+
+#include "scene/errors.h"
+
+#include <algorithm>
+#include <filesystem>
+
+namespace occ {
+
+namespace {
+
+std::string lowerExtension(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return ext;
+}
+
+}  // namespace
+
+Scene importModel(const std::string& path) {
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) throw InputError(path, "missing: no such file");
+    if (std::filesystem::is_directory(path, ec)) throw InputError(path, "is a directory, not a model file");
+
+    const std::string ext = lowerExtension(path);
+    Scene scene;
+    if (ext == ".gltf" || ext == ".glb")
+        scene = importGltf(path);
+    else if (ext == ".obj" || ext == ".ply" || ext == ".off" || ext == ".stl")
+        scene = importWithOpenMesh(path);
+    else
+        throw InputError(path, "unsupported file extension '" + ext +
+                                   "' (expected .gltf, .glb, .obj, .ply, .off or .stl)");
+
+    if (scene.triangleCount() == 0) throw InputError(path, "no triangles in the scene (empty model)");
+    return scene;
+}
+
+}  // namespace occ
