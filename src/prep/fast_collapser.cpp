@@ -1,0 +1,305 @@
+// SPDX-License-Identifier: MIT
+#include "prep/fast_collapser.h"
+
+#include <algorithm>
+#include <cmath>
+#include <queue>
+
+namespace occ {
+
+namespace {
+
+// Symmetric 4x4 error quadric of Garland & Heckbert 1997, "Surface simplification using
+// quadric error metrics": the sum of squared distances to a set of planes, area weighted.
+struct Quadric {
+    double a00 = 0, a01 = 0, a02 = 0, a11 = 0, a12 = 0, a22 = 0, b0 = 0, b1 = 0, b2 = 0, c = 0;
+
+    void addPlane(const glm::dvec3& n, double d, double w) {
+        a00 += w * n.x * n.x, a01 += w * n.x * n.y, a02 += w * n.x * n.z;
+        a11 += w * n.y * n.y, a12 += w * n.y * n.z, a22 += w * n.z * n.z;
+        b0 += w * n.x * d, b1 += w * n.y * d, b2 += w * n.z * d;
+        c += w * d * d;
+    }
+    void add(const Quadric& q) {
+        a00 += q.a00, a01 += q.a01, a02 += q.a02, a11 += q.a11, a12 += q.a12, a22 += q.a22;
+        b0 += q.b0, b1 += q.b1, b2 += q.b2, c += q.c;
+    }
+    double eval(const glm::vec3& pf) const {
+        const double x = pf.x, y = pf.y, z = pf.z;
+        return x * (a00 * x + 2 * (a01 * y + a02 * z + b0)) + y * (a11 * y + 2 * (a12 * z + b1)) +
+               z * (a22 * z + 2 * b2) + c;
+    }
+};
+
+struct Candidate {
+    float cost;
+    uint32_t removed, kept, stamp;
+    bool operator>(const Candidate& o) const { return cost > o.cost; }
+};
+
+constexpr uint32_t kNone = UINT32_MAX;
+
+class FastCollapser {
+public:
+    FastCollapser(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& triangles, CollapseCost cost)
+        : pos_(positions), corner_(triangles), cost_kind_(cost), n_(uint32_t(positions.size())),
+          t_(uint32_t(triangles.size() / 3)) {}
+
+    CollapseSequence run() {
+        buildIncidence();
+        lockNonManifoldEdges();
+        if (cost_kind_ == CollapseCost::Quadric) buildQuadrics();
+        for (uint32_t u = 0; u < n_; ++u)
+            if (!locked_[u]) pushBest(u);
+        while (!heap_.empty()) {
+            const Candidate top = heap_.top();
+            heap_.pop();
+            if (removed_[top.removed] || top.stamp != stamp_[top.removed]) continue;
+            if (removed_[top.kept] || !isLegal(top.removed, top.kept)) {
+                // Another neighbour may still be legal; the next change around u retries anyway.
+                retryWithLegalTarget(top.removed);
+                continue;
+            }
+            collapse(top.removed, top.kept, top.cost);
+        }
+        return std::move(sequence_);
+    }
+
+private:
+    // Vertex -> triangle incidence as linked lists in one pool, so that moving all triangles of a
+    // removed vertex to the kept one is O(1) (splice); dead triangles are dropped lazily.
+    void buildIncidence() {
+        head_.assign(n_, kNone);
+        tail_.assign(n_, kNone);
+        node_tri_.resize(size_t(t_) * 3);
+        node_next_.assign(size_t(t_) * 3, kNone);
+        for (uint32_t t = 0; t < t_; ++t)
+            for (int c = 0; c < 3; ++c) {
+                const uint32_t node = 3 * t + uint32_t(c), v = corner_[node];
+                node_tri_[node] = t;
+                if (head_[v] == kNone)
+                    head_[v] = node;
+                else
+                    node_next_[tail_[v]] = node;
+                tail_[v] = node;
+            }
+        alive_.assign(t_, 1);
+        removed_.assign(n_, 0);
+        locked_.assign(n_, 0);
+        stamp_.assign(n_, 0);
+        mark_.assign(n_, 0);
+        second_mark_.assign(n_, 0);
+    }
+
+    // An edge used by one triangle is a boundary, by three or more a non-manifold seam: both
+    // ends stay, so open CAD sheets keep their outline and non-manifold input stays intact.
+    void lockNonManifoldEdges() {
+        std::vector<uint64_t> edges;
+        edges.reserve(size_t(t_) * 3);
+        for (uint32_t t = 0; t < t_; ++t)
+            for (int c = 0; c < 3; ++c) {
+                const uint32_t a = corner_[3 * t + c], b = corner_[3 * t + (c + 1) % 3];
+                edges.push_back((uint64_t(std::min(a, b)) << 32) | std::max(a, b));
+            }
+        std::sort(edges.begin(), edges.end());
+        for (size_t i = 0; i < edges.size();) {
+            size_t j = i;
+            while (j < edges.size() && edges[j] == edges[i]) ++j;
+            if (j - i != 2) {
+                locked_[edges[i] >> 32] = 1;
+                locked_[edges[i] & 0xFFFFFFFFu] = 1;
+            }
+            i = j;
+        }
+        // A vertex used by no triangle has nothing to collapse along.
+        for (uint32_t v = 0; v < n_; ++v)
+            if (head_[v] == kNone) locked_[v] = 1;
+    }
+
+    void buildQuadrics() {
+        quadric_.assign(n_, Quadric{});
+        for (uint32_t t = 0; t < t_; ++t) {
+            const glm::dvec3 p0 = pos_[corner_[3 * t]], p1 = pos_[corner_[3 * t + 1]], p2 = pos_[corner_[3 * t + 2]];
+            const glm::dvec3 n = glm::cross(p1 - p0, p2 - p0);
+            const double len = glm::length(n);
+            if (len <= 0.0) continue;
+            const glm::dvec3 unit = n / len;
+            Quadric q;
+            q.addPlane(unit, -glm::dot(unit, p0), 0.5 * len);
+            for (int c = 0; c < 3; ++c) quadric_[corner_[3 * t + c]].add(q);
+        }
+    }
+
+    float cost(uint32_t u, uint32_t v) const {
+        if (cost_kind_ == CollapseCost::EdgeLength) return glm::length(pos_[u] - pos_[v]);
+        Quadric q = quadric_[u];
+        q.add(quadric_[v]);
+        return float(std::max(0.0, q.eval(pos_[v])));
+    }
+
+    bool contains(uint32_t t, uint32_t v) const {
+        return corner_[3 * t] == v || corner_[3 * t + 1] == v || corner_[3 * t + 2] == v;
+    }
+
+    // Calls f(t) for every live triangle around v and unlinks dead ones on the way.
+    template <class F>
+    void forTriangles(uint32_t v, F&& f) {
+        uint32_t prev = kNone;
+        for (uint32_t node = head_[v]; node != kNone;) {
+            const uint32_t next = node_next_[node];
+            if (!alive_[node_tri_[node]]) {
+                if (prev == kNone)
+                    head_[v] = next;
+                else
+                    node_next_[prev] = next;
+                if (tail_[v] == node) tail_[v] = prev;
+            } else {
+                f(node_tri_[node]);
+                prev = node;
+            }
+            node = next;
+        }
+    }
+
+    // Marks the neighbours of v with a fresh mark and returns it.
+    uint32_t markNeighbours(uint32_t v, std::vector<uint32_t>* out) {
+        const uint32_t m = ++mark_id_;
+        forTriangles(v, [&](uint32_t t) {
+            for (int c = 0; c < 3; ++c) {
+                const uint32_t w = corner_[3 * t + c];
+                if (w != v && mark_[w] != m) {
+                    mark_[w] = m;
+                    if (out) out->push_back(w);
+                }
+            }
+        });
+        return m;
+    }
+
+    void pushBest(uint32_t u) {
+        float best = INFINITY;
+        uint32_t target = kNone;
+        forTriangles(u, [&](uint32_t t) {
+            for (int c = 0; c < 3; ++c) {
+                const uint32_t w = corner_[3 * t + c];
+                if (w == u) continue;
+                const float e = cost(u, w);
+                if (e < best) best = e, target = w;
+            }
+        });
+        if (target != kNone) heap_.push({best, u, target, stamp_[u]});
+    }
+
+    void retryWithLegalTarget(uint32_t u) {
+        neighbours_.clear();
+        markNeighbours(u, &neighbours_);
+        float best = INFINITY;
+        uint32_t target = kNone;
+        for (uint32_t w : neighbours_) {
+            const float e = cost(u, w);
+            if (e < best && isLegal(u, w)) best = e, target = w;
+        }
+        ++stamp_[u];
+        if (target != kNone) heap_.push({best, u, target, stamp_[u]});
+    }
+
+    // Legal half-edge collapse u -> v (v keeps its place): the link condition (common
+    // neighbours of u and v are exactly the apexes of the triangles on edge uv), no surviving
+    // triangle becomes a copy of one v already has (the tetrahedron case the link condition
+    // misses), and no surviving triangle of u flips or degenerates when u moves onto v.
+    bool isLegal(uint32_t u, uint32_t v) {
+        const uint32_t mv = markNeighbours(v, nullptr);
+        if (mark_[u] != mv) return false;  // no longer an edge
+        uint32_t shared = 0, common = 0;
+        const uint32_t mu = ++second_mark_id_;
+        forTriangles(u, [&](uint32_t t) {
+            shared += contains(t, v);
+            for (int c = 0; c < 3; ++c) {
+                const uint32_t w = corner_[3 * t + c];
+                if (w != u && second_mark_[w] != mu) {
+                    second_mark_[w] = mu;
+                    common += mark_[w] == mv;
+                }
+            }
+        });
+        if (common != shared) return false;
+
+        bool ok = true;
+        const glm::vec3 pu = pos_[u], pv = pos_[v];
+        forTriangles(u, [&](uint32_t t) {
+            if (!ok || contains(t, v)) return;
+            const uint32_t* c = &corner_[3 * t];
+            const int k = c[0] == u ? 0 : (c[1] == u ? 1 : 2);
+            const uint32_t a = c[(k + 1) % 3], b = c[(k + 2) % 3];
+            const glm::vec3 n_old = glm::cross(pos_[a] - pu, pos_[b] - pu);
+            const glm::vec3 n_new = glm::cross(pos_[a] - pv, pos_[b] - pv);
+            if (glm::dot(n_old, n_new) <= 0.0f) {
+                ok = false;
+                return;
+            }
+            if (mark_[a] == mv && mark_[b] == mv)
+                forTriangles(v, [&](uint32_t s) { ok = ok && !(contains(s, a) && contains(s, b)); });
+        });
+        return ok;
+    }
+
+    void collapse(uint32_t u, uint32_t v, float cost_value) {
+        removed_tris_.clear();
+        forTriangles(u, [&](uint32_t t) {
+            if (contains(t, v)) {
+                alive_[t] = 0;
+                removed_tris_.push_back(t);
+            } else {
+                for (int c = 0; c < 3; ++c)
+                    if (corner_[3 * t + c] == u) corner_[3 * t + c] = v;
+            }
+        });
+        std::sort(removed_tris_.begin(), removed_tris_.end());
+        // Splice u's incidence list onto v's: those triangles now use v.
+        if (head_[u] != kNone) {
+            if (head_[v] == kNone)
+                head_[v] = head_[u];
+            else
+                node_next_[tail_[v]] = head_[u];
+            tail_[v] = tail_[u];
+        }
+        head_[u] = tail_[u] = kNone;
+        removed_[u] = 1;
+        if (cost_kind_ == CollapseCost::Quadric) quadric_[v].add(quadric_[u]);
+        sequence_.push(u, v, cost_kind_ == CollapseCost::Quadric ? std::sqrt(cost_value) : cost_value,
+                       removed_tris_.data(), removed_tris_.size());
+
+        // Costs change for v (new quadric, new neighbours) and every neighbour of v.
+        neighbours_.clear();
+        markNeighbours(v, &neighbours_);
+        neighbours_.push_back(v);
+        for (uint32_t w : neighbours_) {
+            if (locked_[w] || removed_[w]) continue;
+            ++stamp_[w];
+            pushBest(w);
+        }
+    }
+
+    const std::vector<glm::vec3>& pos_;
+    std::vector<uint32_t> corner_;
+    const CollapseCost cost_kind_;
+    const uint32_t n_, t_;
+
+    std::vector<uint32_t> head_, tail_, node_tri_, node_next_;
+    std::vector<uint8_t> alive_, removed_, locked_;
+    std::vector<uint32_t> stamp_, mark_, second_mark_;
+    uint32_t mark_id_ = 0, second_mark_id_ = 0;
+    std::vector<Quadric> quadric_;
+    std::priority_queue<Candidate, std::vector<Candidate>, std::greater<Candidate>> heap_;
+    std::vector<uint32_t> neighbours_, removed_tris_;
+    CollapseSequence sequence_;
+};
+
+}  // namespace
+
+CollapseSequence fastCollapseSequence(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& triangles,
+                                      CollapseCost cost) {
+    return FastCollapser(positions, triangles, cost).run();
+}
+
+}  // namespace occ

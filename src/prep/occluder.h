@@ -1,0 +1,71 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "scene/prepared_scene.h"
+
+#include <glm/glm.hpp>
+
+#include <cstdint>
+#include <vector>
+
+namespace occ {
+
+// What occluder qualification (Peng 2014, §5.1) needs to know about one mesh, in its local space.
+struct OccluderData {
+    OrientedBox oobb;                          // tight oriented bounding box (OOBB)
+    glm::vec3 largest_face_normal{0, 0, 1};    // oobb.axis[2]: normal of the OOBB's largest face (Eq. 3's N)
+    float compactness = 0.0f;                  // Eq. 2, in [0, 1]
+};
+
+// Computes the OOBB, its largest face's normal and the compactness of one triangle mesh.
+//
+// positions are the mesh's vertices and triangles its triangle list, both in local space;
+// positions must be finite. Every position counts for the box, referenced by a triangle or not;
+// a triangle with an index >= positions.size() is ignored, and so are trailing indices when
+// triangles.size() is not a multiple of 3. Either vector may be empty.
+//
+// The OOBB contains every position. Its axes are orthonormal and right-handed
+// (axis[0] x axis[1] = axis[2]) and sorted by decreasing half extent, so axis[2] is the normal
+// of the largest face. It is the smallest-volume box among: the local axis-aligned box, the
+// principal axes of the surface (area-weighted triangle covariance, so uneven tessellation
+// does not tilt it), and, for each of several fixed axes (local x/y/z, the principal axes, the
+// normals of the largest triangles, then the best box's own axes), the minimum-area rectangle
+// of the projection onto the plane across that axis (rotating calipers over its 2D convex
+// hull). That is exact for boxes and cylinders; in general it is a heuristic, not the optimum.
+// Half extents are padded by a few float ulps so that float rounding cannot leave a vertex
+// outside. Flat and line-like meshes get zero half extents across them; an empty mesh gets a
+// zero box at the origin with the identity axes.
+//
+// compactness follows Eq. 2 of Peng & Cao 2013 ("Integrating occlusion culling with parallel
+// LOD for rendering complex 3D environments on GPU", I3D): for each OOBB axis a, A_a is the
+// area of the OOBB face across a, R_a the pixels of a raster spanning that face and P_a the
+// pixels the mesh's triangles cover when projected orthographically along a:
+//     compactness = (sum_a A_a * P_a / R_a) / (sum_a A_a)
+// A solid box gives 1, a sphere about pi/4, a thin rod across its box's diagonal nearly 0.
+// resolution is the raster's pixel count along the longer side of each face (the shorter side
+// gets the proportional count, at least 1); it is clamped to [1, 4096]. Pixels are sampled at
+// their centres with exact fixed-point edge functions (1/256 pixel) and a top-left rule, so
+// triangles sharing an edge leave no cracks. Faces of zero area (A_a = 0, e.g. across a flat
+// mesh's thin axis) drop out of both sums; a mesh whose faces all have zero area, or that has
+// no triangles, gets 0.
+//
+// Runs in O(positions + triangles) time (plus the raster of resolution^2 pixels per axis) on
+// the calling thread; callers parallelise over meshes.
+OccluderData computeOccluderData(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& triangles,
+                                 int resolution = 64);
+
+// The box that contains `local` mapped through the affine transform `world` (its bottom row is
+// taken to be 0, 0, 0, 1). Exact when world maps the box's axes to mutually orthogonal
+// directions: rotations, reflections, translations, uniform scale, and non-uniform scale along
+// the box's axes. Otherwise (shear, or non-uniform scale across the box's axes) the image is a
+// parallelepiped, and the result is the smallest of the boxes aligned with a Gram-Schmidt frame
+// of its edges (all six orders tried) that contain it: conservative, not minimal. A singular
+// world gives zero half extents along the collapsed directions. The result's axes follow
+// computeOccluderData's convention (orthonormal, right-handed, decreasing half extent), and
+// half extents are padded by a few float ulps like computeOccluderData's.
+OrientedBox transformBox(const OrientedBox& local, const glm::mat4& world);
+
+// 8 * hx * hy * hz.
+float boxVolume(const OrientedBox& box);
+
+}  // namespace occ
