@@ -2,10 +2,12 @@
 #include "cli/commands.h"
 
 #include "import/import.h"
+#include "scene/oss_file.h"
 
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 
@@ -19,7 +21,55 @@ struct InfoOptions {
 
 nlohmann::json vec3Json(const glm::vec3& v) { return {v.x, v.y, v.z}; }
 
+// Summary of a preprocessed scene: counts, occluders, how much can simplify, section sizes.
+int runOssInfo(const std::string& path) {
+    const OssFile file = OssFile::open(path);
+    uint64_t q_sum = 0, n_sum = 0, refused = 0, instanced_triangles = 0;
+    float error_min = INFINITY, error_max = 0.0f;
+    for (uint32_t m = 0; m < file.meshCount(); ++m) {
+        const OssFile::MeshView mesh = file.mesh(m);
+        q_sum += mesh.q;
+        n_sum += mesh.vertexCount();
+        refused += mesh.refused_faces;
+        for (uint32_t v = mesh.q; v < mesh.vertexCount(); ++v) {
+            error_min = std::min(error_min, mesh.error[v]);
+            error_max = std::max(error_max, mesh.error[v]);
+        }
+    }
+    Bounds bounds;
+    for (const oss::ObjectDisk& o : file.objects()) {
+        instanced_triangles += file.mesh(o.mesh).triangleCount();
+        bounds.extend(glm::vec3(o.aabb_min[0], o.aabb_min[1], o.aabb_min[2]));
+        bounds.extend(glm::vec3(o.aabb_max[0], o.aabb_max[1], o.aabb_max[2]));
+    }
+    const float diagonal = glm::length(bounds.max - bounds.min);
+
+    nlohmann::ordered_json j;
+    j["file"] = path;
+    j["format_bytes"] = file.fileSize();
+    j["objects"] = file.objectCount();
+    j["meshes"] = file.meshCount();
+    j["vertices"] = file.vertexCount();
+    j["triangles"] = file.triangleCount();
+    j["triangles_with_instances"] = instanced_triangles;
+    j["cos"] = file.cos().size();
+    j["ct"] = file.ct();
+    j["boundary_vertex_share"] = n_sum ? double(q_sum) / double(n_sum) : 0.0;
+    j["refused_faces"] = refused;
+    j["bounds"] = {{"min", vec3Json(bounds.min)}, {"max", vec3Json(bounds.max)}};
+    if (error_min <= error_max)
+        j["simplification_error"] = {{"min", error_min}, {"max", error_max},
+                                     {"max_relative_to_diagonal", diagonal > 0 ? error_max / diagonal : 0.0f}};
+    nlohmann::ordered_json sections = nlohmann::ordered_json::object();
+    for (const OssFile::SectionInfo& s : file.sections())
+        sections[s.name] = {{"offset", s.offset}, {"bytes", s.size}, {"count", s.count}};
+    j["sections"] = sections;
+    std::cout << j.dump(2) << std::endl;
+    return 0;
+}
+
 int runInfo(const InfoOptions& o) {
+    if (std::filesystem::path(o.file).extension() == ".oss") return runOssInfo(o.file);
     const auto start = std::chrono::steady_clock::now();
     const Scene scene = importModel(o.file);
     const Bounds bounds = scene.worldBounds();
@@ -44,8 +94,9 @@ int runInfo(const InfoOptions& o) {
 
 Command addInfoCommand(CLI::App& app) {
     auto options = std::make_shared<InfoOptions>();
-    CLI::App* sub = app.add_subcommand("info", "Print a JSON summary of a model (glTF, GLB, OBJ, PLY, OFF, STL):\n"
-                                               "objects, meshes, triangles, vertices, bounds, skipped primitives.");
+    CLI::App* sub = app.add_subcommand("info", "Print a JSON summary of a model (glTF, GLB, OBJ, PLY, OFF, STL): objects, meshes,\n"
+                                               "triangles, vertices, bounds, skipped primitives; or of a .oss scene: counts, |COS|,\n"
+                                               "boundary-vertex share, simplification error range, section sizes.");
     sub->add_option("file", options->file, "model file")->required();
     return {sub, [options] { return runInfo(*options); }};
 }

@@ -16,5 +16,7 @@ struct Command {
 
 Command addInfoCommand(CLI::App& app);
 Command addGenCommand(CLI::App& app);
+Command addPrepCommand(CLI::App& app);
+Command addVerifyCommand(CLI::App& app);
 
 }  // namespace occ::cli

@@ -18,7 +18,8 @@ int main(int argc, char** argv) {
     app.require_subcommand(1);
     app.set_version_flag("--version", std::string("occswitch 0.1"));
 
-    const std::vector<occ::cli::Command> commands{occ::cli::addInfoCommand(app), occ::cli::addGenCommand(app)};
+    const std::vector<occ::cli::Command> commands{occ::cli::addInfoCommand(app), occ::cli::addGenCommand(app),
+                                                   occ::cli::addPrepCommand(app), occ::cli::addVerifyCommand(app)};
 
     try {
         app.parse(argc, argv);

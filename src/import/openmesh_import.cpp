@@ -106,26 +106,27 @@ public:
     void add_texture_information(int, std::string) override {}
 };
 
-// OpenMesh reports problems on its global omerr/omlog streams. They are redirected into a
-// buffer while a file is read, so the first complaint can go into our one-line error and
-// nothing else reaches the terminal. The streams are global, hence the lock.
+// OpenMesh reports problems on its global omerr/omlog streams. They are redirected, once per
+// process, into a buffer, so that the first complaint can go into our one-line error and
+// nothing else reaches the terminal. (OpenMesh never frees a target it disconnects, hence once;
+// the streams are global, hence the lock.)
 class CapturedOpenMeshLog {
 public:
     CapturedOpenMeshLog() : lock_(mutex()) {
-        omerr().disconnect(std::cerr);
-        omlog().disconnect(std::cerr);
-        omerr().connect(buffer_);
-        omlog().disconnect(std::clog);
-    }
-    ~CapturedOpenMeshLog() {
-        omerr().flush();
-        omerr().disconnect(buffer_);
-        omerr().connect(std::cerr);
+        static const bool redirected = [] {
+            omerr().disconnect(std::cerr);
+            omlog().disconnect(std::cerr);
+            omlog().disconnect(std::clog);
+            omerr().connect(buffer());
+            return true;
+        }();
+        (void)redirected;
+        buffer().str("");
     }
     std::string firstLine() {
         omerr().flush();
         std::string line;
-        std::istringstream in(buffer_.str());
+        std::istringstream in(buffer().str());
         while (std::getline(in, line))
             if (!line.empty()) return line;
         return "";
@@ -136,8 +137,11 @@ private:
         static std::mutex m;
         return m;
     }
+    static std::ostringstream& buffer() {
+        static std::ostringstream b;
+        return b;
+    }
     std::lock_guard<std::mutex> lock_;
-    std::ostringstream buffer_;
 };
 
 // OpenMesh's OBJ reader has no notion of groups, but it reports faces in file order, so the

@@ -13,8 +13,10 @@ namespace {
 // quadric error metrics": the sum of squared distances to a set of planes, area weighted.
 struct Quadric {
     double a00 = 0, a01 = 0, a02 = 0, a11 = 0, a12 = 0, a22 = 0, b0 = 0, b1 = 0, b2 = 0, c = 0;
+    double weight = 0;  // total plane weight (area), to turn a sum of squares into a mean
 
     void addPlane(const glm::dvec3& n, double d, double w) {
+        weight += w;
         a00 += w * n.x * n.x, a01 += w * n.x * n.y, a02 += w * n.x * n.z;
         a11 += w * n.y * n.y, a12 += w * n.y * n.z, a22 += w * n.z * n.z;
         b0 += w * n.x * d, b1 += w * n.y * d, b2 += w * n.z * d;
@@ -23,6 +25,7 @@ struct Quadric {
     void add(const Quadric& q) {
         a00 += q.a00, a01 += q.a01, a02 += q.a02, a11 += q.a11, a12 += q.a12, a22 += q.a22;
         b0 += q.b0, b1 += q.b1, b2 += q.b2, c += q.c;
+        weight += q.weight;
     }
     double eval(const glm::vec3& pf) const {
         const double x = pf.x, y = pf.y, z = pf.z;
@@ -34,7 +37,13 @@ struct Quadric {
 struct Candidate {
     float cost;
     uint32_t removed, kept, stamp;
-    bool operator>(const Candidate& o) const { return cost > o.cost; }
+    // Ties (flat regions all cost 0, symmetric lengths) go to the lower vertex ids, so the
+    // sequence is a function of the mesh alone.
+    bool operator>(const Candidate& o) const {
+        if (cost != o.cost) return cost > o.cost;
+        if (removed != o.removed) return removed > o.removed;
+        return kept > o.kept;
+    }
 };
 
 constexpr uint32_t kNone = UINT32_MAX;
@@ -87,6 +96,8 @@ private:
         removed_.assign(n_, 0);
         locked_.assign(n_, 0);
         stamp_.assign(n_, 0);
+        best_cost_.assign(n_, INFINITY);
+        best_target_.assign(n_, kNone);
         mark_.assign(n_, 0);
         second_mark_.assign(n_, 0);
     }
@@ -184,9 +195,12 @@ private:
                 const uint32_t w = corner_[3 * t + c];
                 if (w == u) continue;
                 const float e = cost(u, w);
-                if (e < best) best = e, target = w;
+                if (e < best || (e == best && w < target)) best = e, target = w;
             }
         });
+        ++stamp_[u];
+        best_cost_[u] = best;
+        best_target_[u] = target;
         if (target != kNone) heap_.push({best, u, target, stamp_[u]});
     }
 
@@ -197,9 +211,11 @@ private:
         uint32_t target = kNone;
         for (uint32_t w : neighbours_) {
             const float e = cost(u, w);
-            if (e < best && isLegal(u, w)) best = e, target = w;
+            if ((e < best || (e == best && w < target)) && isLegal(u, w)) best = e, target = w;
         }
         ++stamp_[u];
+        best_cost_[u] = best;
+        best_target_[u] = target;
         if (target != kNone) heap_.push({best, u, target, stamp_[u]});
     }
 
@@ -265,18 +281,35 @@ private:
         }
         head_[u] = tail_[u] = kNone;
         removed_[u] = 1;
-        if (cost_kind_ == CollapseCost::Quadric) quadric_[v].add(quadric_[u]);
-        sequence_.push(u, v, cost_kind_ == CollapseCost::Quadric ? std::sqrt(cost_value) : cost_value,
-                       removed_tris_.data(), removed_tris_.size());
+        float recorded = cost_value;
+        if (cost_kind_ == CollapseCost::Quadric) {
+            // Recorded as a distance: the root mean square distance of the kept position to the
+            // planes both vertices stand for (area weighted).
+            const double weight = quadric_[u].weight + quadric_[v].weight;
+            recorded = weight > 0 ? float(std::sqrt(cost_value / weight)) : 0.0f;
+            quadric_[v].add(quadric_[u]);
+        }
+        sequence_.push(u, v, recorded, removed_tris_.data(), removed_tris_.size());
 
-        // Costs change for v (new quadric, new neighbours) and every neighbour of v.
+        // v has a new quadric and new neighbours: all its candidates change. A neighbour w
+        // only sees its edge to v change (w's other neighbours and quadrics are as they were),
+        // unless its best target was u or v; then it needs a full look.
+        if (!locked_[v]) pushBest(v);
         neighbours_.clear();
         markNeighbours(v, &neighbours_);
-        neighbours_.push_back(v);
         for (uint32_t w : neighbours_) {
-            if (locked_[w] || removed_[w]) continue;
-            ++stamp_[w];
-            pushBest(w);
+            if (locked_[w]) continue;
+            if (best_target_[w] == u || best_target_[w] == v || best_target_[w] == kNone) {
+                pushBest(w);
+                continue;
+            }
+            const float e = cost(w, v);
+            if (e < best_cost_[w] || (e == best_cost_[w] && v < best_target_[w])) {
+                ++stamp_[w];
+                best_cost_[w] = e;
+                best_target_[w] = v;
+                heap_.push({e, w, v, stamp_[w]});
+            }
         }
     }
 
@@ -288,6 +321,8 @@ private:
     std::vector<uint32_t> head_, tail_, node_tri_, node_next_;
     std::vector<uint8_t> alive_, removed_, locked_;
     std::vector<uint32_t> stamp_, mark_, second_mark_;
+    std::vector<float> best_cost_;       // cost of the candidate currently queued for each vertex
+    std::vector<uint32_t> best_target_;  // its kept vertex, kNone if none
     uint32_t mark_id_ = 0, second_mark_id_ = 0;
     std::vector<Quadric> quadric_;
     std::priority_queue<Candidate, std::vector<Candidate>, std::greater<Candidate>> heap_;

@@ -12,9 +12,9 @@ namespace occ {
 
 // What occluder qualification (Peng 2014, §5.1) needs to know about one mesh, in its local space.
 struct OccluderData {
-    OrientedBox oobb;                          // tight oriented bounding box (OOBB)
-    glm::vec3 largest_face_normal{0, 0, 1};    // oobb.axis[2]: normal of the OOBB's largest face (Eq. 3's N)
-    float compactness = 0.0f;                  // Eq. 2, in [0, 1]
+    OrientedBox oobb;                        // tight oriented bounding box (OOBB)
+    glm::vec3 largest_face_normal{0, 0, 1};  // oobb.axis[2]: normal of the OOBB's largest face (Eq. 3's N)
+    float compactness = 0.0f;                // Eq. 2, in [0, 1]
 };
 
 // Computes the OOBB, its largest face's normal and the compactness of one triangle mesh.
@@ -31,7 +31,8 @@ struct OccluderData {
 // does not tilt it), and, for each of several fixed axes (local x/y/z, the principal axes, the
 // normals of the largest triangles, then the best box's own axes), the minimum-area rectangle
 // of the projection onto the plane across that axis (rotating calipers over its 2D convex
-// hull). That is exact for boxes and cylinders; in general it is a heuristic, not the optimum.
+// hull). Boxes and prisms (cylinders) come out with their true volume, up to float rounding,
+// whatever their orientation; in general it is a heuristic, not the optimum.
 // Half extents are padded by a few float ulps so that float rounding cannot leave a vertex
 // outside. Flat and line-like meshes get zero half extents across them; an empty mesh gets a
 // zero box at the origin with the identity axes.
@@ -46,8 +47,10 @@ struct OccluderData {
 // gets the proportional count, at least 1); it is clamped to [1, 4096]. Pixels are sampled at
 // their centres with exact fixed-point edge functions (1/256 pixel) and a top-left rule, so
 // triangles sharing an edge leave no cracks. Faces of zero area (A_a = 0, e.g. across a flat
-// mesh's thin axis) drop out of both sums; a mesh whose faces all have zero area, or that has
-// no triangles, gets 0.
+// mesh's thin axis) drop out of both sums; a mesh whose faces all have zero area (all points on
+// a line), or that has no triangles, gets 0. Extents below 1e-5 of the longest one, or within
+// 16 float ulps of the coordinates' magnitude, count as zero here, since float positions of a
+// flat or straight mesh scatter by about that much.
 //
 // Runs in O(positions + triangles) time (plus the raster of resolution^2 pixels per axis) on
 // the calling thread; callers parallelise over meshes.

@@ -14,7 +14,8 @@ namespace occ {
 struct CollapseSequence {
     std::vector<uint32_t> removed;
     std::vector<uint32_t> kept;
-    std::vector<float> error;                // cost of each collapse (quadric error or length)
+    std::vector<float> error;                // cost of each collapse as a distance: RMS distance to the
+                                             // quadric's planes (fast), sqrt of the quadric (OpenMesh), or length
     std::vector<uint32_t> triangle_offsets{0};  // collapse i removed triangles[offsets[i], offsets[i+1])
     std::vector<uint32_t> triangles;
     uint32_t refused_faces = 0;              // faces the collapser kept as they are (never removed)

@@ -1,0 +1,58 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <glm/glm.hpp>
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace occ {
+
+// The point of triangle abc closest to p (Ericson 2005, Real-Time Collision Detection,
+// §5.1.5: Voronoi regions of the three vertices, then of the three edges, then the face).
+// Degenerate triangles (collinear or coincident corners) are handled: the result is then the
+// closest point of the segments, never NaN.
+glm::vec3 closestPointOnTriangle(const glm::vec3& p, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
+
+struct HausdorffOptions {
+    uint32_t samples = 20000;  // area-uniform samples per surface, on top of its vertices
+    uint64_t seed = 1;         // same seed, same meshes: same samples, same result
+};
+
+// Distances between two surfaces A and B, measured at sample points. A one-sided distance is
+// the largest distance from a sample of one surface to the closest point of the other; each
+// is a lower bound of the exact one-sided Hausdorff distance and converges to it as samples
+// grow (exact wherever the farthest point is a vertex or the two surfaces are parallel).
+struct HausdorffDistance {
+    double max = 0.0;         // symmetric Hausdorff distance: max(a_to_b, b_to_a)
+    double mean = 0.0;        // mean distance over the samples of both directions
+    double a_to_b = 0.0;      // largest distance from a sample of A to B
+    double b_to_a = 0.0;      // largest distance from a sample of B to A
+    uint64_t samples = 0;     // sample points measured, both directions
+};
+
+// Points on a surface: every vertex some triangle uses, once each, in order of first use, then
+// `count` area-uniform points (stratified along the cumulative area, jittered with a seeded
+// generator, so large triangles get samples in proportion and results repeat exactly).
+// Triangles of zero area get no area samples; with no area at all only vertices are returned.
+// triangles: 3 indices per triangle, each < positions.size(); may be empty (no points).
+std::vector<glm::vec3> sampleSurface(std::span<const glm::vec3> positions, std::span<const uint32_t> triangles,
+                                     uint32_t count, uint64_t seed);
+
+// Sampled symmetric Hausdorff distance between triangle meshes A and B: the samples of each
+// (sampleSurface with options.samples and options.seed) are measured against the other's
+// triangles exactly (closestPointOnTriangle), through a bounding volume hierarchy, so 20 000
+// samples against 20 000 triangles take milliseconds. Single-threaded; callers parallelise
+// over mesh pairs.
+// Empty meshes (no triangles): both empty gives all zeros. One empty gives +infinity for
+// max, mean and the direction from the non-empty surface (every point is infinitely far from
+// nothing), and 0 for the direction from the empty one (a maximum over no samples).
+// Callers that want a finite score for a vanished LOD cap it themselves (the bench counts it
+// as one bounding-box diagonal, the farthest any non-empty subset of the box can be).
+// Triangles: 3 indices per triangle, each < its positions.size(); unused positions are ignored.
+HausdorffDistance sampledHausdorff(std::span<const glm::vec3> a_positions, std::span<const uint32_t> a_triangles,
+                                   std::span<const glm::vec3> b_positions, std::span<const uint32_t> b_triangles,
+                                   const HausdorffOptions& options = {});
+
+}  // namespace occ

@@ -1,0 +1,789 @@
+// SPDX-License-Identifier: MIT
+#include "scene/oss_file.h"
+
+#include "scene/errors.h"
+
+#include <glm/gtc/type_ptr.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <xxhash.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <utility>
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+namespace occ {
+
+namespace oss {
+
+namespace {
+
+struct SectionKind {
+    const char* name;
+    uint32_t element_size;
+};
+
+// Indexed by SectionId - 1.
+constexpr SectionKind kKinds[kSectionCount] = {
+    {"MESHES", sizeof(MeshRecord)}, {"POSITIONS", 3 * sizeof(float)}, {"ECOL", sizeof(int32_t)},
+    {"ERROR", sizeof(float)},        {"TRIANGLES", 3 * sizeof(uint32_t)}, {"MAP", sizeof(uint32_t)},
+    {"OBJECTS", sizeof(ObjectDisk)}, {"COS", sizeof(uint32_t)},
+};
+
+}  // namespace
+
+const char* sectionName(SectionId id) {
+    const uint32_t i = uint32_t(id) - 1;
+    return i < kSectionCount ? kKinds[i].name : "UNKNOWN";
+}
+
+ObjectDisk toDisk(const ObjectRecord& o) {
+    ObjectDisk d{};
+    d.mesh = o.mesh;
+    std::memcpy(d.color, glm::value_ptr(o.color), sizeof d.color);
+    std::memcpy(d.world, glm::value_ptr(o.world), sizeof d.world);
+    std::memcpy(d.aabb_min, glm::value_ptr(o.aabb.min), sizeof d.aabb_min);
+    std::memcpy(d.aabb_max, glm::value_ptr(o.aabb.max), sizeof d.aabb_max);
+    std::memcpy(d.oobb_center, glm::value_ptr(o.oobb.center), sizeof d.oobb_center);
+    for (int a = 0; a < 3; ++a) std::memcpy(d.oobb_axis[a], glm::value_ptr(o.oobb.axis[a]), sizeof d.oobb_axis[a]);
+    std::memcpy(d.oobb_half_extent, glm::value_ptr(o.oobb.half_extent), sizeof d.oobb_half_extent);
+    std::memcpy(d.occluder_normal, glm::value_ptr(o.occluder_normal), sizeof d.occluder_normal);
+    d.compactness = o.compactness;
+    return d;
+}
+
+ObjectRecord fromDisk(const ObjectDisk& d) {
+    ObjectRecord o;
+    o.mesh = d.mesh;
+    o.color = glm::make_vec4(d.color);
+    o.world = glm::make_mat4(d.world);
+    o.aabb.min = glm::make_vec3(d.aabb_min);
+    o.aabb.max = glm::make_vec3(d.aabb_max);
+    o.oobb.center = glm::make_vec3(d.oobb_center);
+    for (int a = 0; a < 3; ++a) o.oobb.axis[a] = glm::make_vec3(d.oobb_axis[a]);
+    o.oobb.half_extent = glm::make_vec3(d.oobb_half_extent);
+    o.occluder_normal = glm::make_vec3(d.occluder_normal);
+    o.compactness = d.compactness;
+    return o;
+}
+
+}  // namespace oss
+
+using namespace oss;
+
+namespace {
+
+constexpr uint64_t alignUp(uint64_t x) { return (x + kAlignment - 1) / kAlignment * kAlignment; }
+
+constexpr uint64_t kHeaderChecksummedBytes = offsetof(Header, header_checksum);
+
+std::string str(uint64_t v) { return std::to_string(v); }
+std::string str(uint32_t v) { return std::to_string(v); }
+std::string str(int32_t v) { return std::to_string(v); }
+std::string str(float v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.9g", double(v));
+    return buf;
+}
+std::string hexByte(std::byte b) {
+    char buf[8];
+    std::snprintf(buf, sizeof buf, "0x%02x", unsigned(b));
+    return buf;
+}
+
+// A violation found in a file: which section, the byte offset of the bad field, what is wrong.
+struct Failure {
+    const char* section;
+    uint64_t offset;
+    std::string what;
+};
+
+[[noreturn]] void raise(const std::string& path, const Failure& f) {
+    throw InputError(path, std::string("section ") + f.section + " at offset " + str(f.offset) + ": " + f.what);
+}
+
+// Runs check(i) for i in [0, count) in parallel and returns the failure of the lowest i that
+// fails, so that the reported error does not depend on scheduling.
+std::optional<Failure> lowestFailure(uint32_t count, const std::function<std::optional<Failure>(uint32_t)>& check) {
+    std::mutex mutex;
+    std::atomic<uint32_t> lowest{count};
+    std::optional<Failure> result;
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, count), [&](const tbb::blocked_range<uint32_t>& r) {
+        for (uint32_t i = r.begin(); i != r.end(); ++i) {
+            if (i >= lowest.load(std::memory_order_relaxed)) return;
+            if (std::optional<Failure> f = check(i)) {
+                std::lock_guard lock(mutex);
+                if (i < lowest.load(std::memory_order_relaxed)) {
+                    lowest.store(i, std::memory_order_relaxed);
+                    result = std::move(f);
+                }
+                return;
+            }
+        }
+    });
+    return result;
+}
+
+// The temporary file writeOss fills, with a running XXH3 of the current section. Removes the
+// temporary unless commit() renamed it into place.
+class TempFileWriter {
+public:
+    explicit TempFileWriter(const std::string& path) : path_(path), state_(XXH3_createState(), &XXH3_freeState) {
+        if (!state_) throw std::bad_alloc();
+        static std::atomic<uint64_t> counter{0};
+        for (int attempt = 0;; ++attempt) {
+            tmp_ = path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++);
+            fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+            if (fd_ >= 0) break;
+            if (errno != EEXIST || attempt == 100)
+                throw InputError(path_, "cannot create temporary file " + tmp_ + ": " + std::strerror(errno));
+        }
+        buffer_.reserve(kBufferSize);
+    }
+    ~TempFileWriter() {
+        if (fd_ >= 0) ::close(fd_);
+        if (!committed_) ::unlink(tmp_.c_str());
+    }
+    TempFileWriter(const TempFileWriter&) = delete;
+    TempFileWriter& operator=(const TempFileWriter&) = delete;
+
+    uint64_t position() const { return position_; }
+
+    void zeros(uint64_t n) {
+        static const std::byte kZeros[kAlignment * 8] = {};
+        while (n > 0) {
+            const uint64_t chunk = std::min<uint64_t>(n, sizeof kZeros);
+            append(kZeros, chunk);
+            n -= chunk;
+        }
+    }
+    void padToAlignment() { zeros(alignUp(position_) - position_); }
+
+    void beginSection() {
+        padToAlignment();
+        section_offset_ = position_;
+        XXH3_64bits_reset(state_.get());
+    }
+    void put(const void* data, uint64_t n) {
+        if (n == 0) return;
+        XXH3_64bits_update(state_.get(), data, n);
+        append(data, n);
+    }
+    SectionEntry endSection(SectionId id) {
+        return {uint32_t(id), kKinds[uint32_t(id) - 1].element_size, section_offset_, position_ - section_offset_,
+                XXH3_64bits_digest(state_.get())};
+    }
+
+    // Writes the header over the placeholder at offset 0, syncs, and renames into place.
+    void commit(const Header& header) {
+        flush();
+        const auto* p = reinterpret_cast<const std::byte*>(&header);
+        for (uint64_t done = 0; done < sizeof header;) {
+            const ssize_t n = ::pwrite(fd_, p + done, sizeof header - done, off_t(done));
+            if (n < 0 && errno == EINTR) continue;
+            if (n <= 0) ioFailure("cannot write");
+            done += uint64_t(n);
+        }
+        if (::fsync(fd_) != 0) ioFailure("cannot sync");
+        const int fd = std::exchange(fd_, -1);
+        if (::close(fd) != 0) ioFailure("cannot close");
+        if (::rename(tmp_.c_str(), path_.c_str()) != 0)
+            throw InputError(path_, "cannot rename " + tmp_ + " into place: " + std::strerror(errno));
+        committed_ = true;
+        // The rename is durable only once the directory is synced. The new file is already in
+        // place, so a failure here is not reported as a failed write.
+        std::string dir = std::filesystem::path(path_).parent_path().string();
+        if (dir.empty()) dir = ".";
+        const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+        if (dfd >= 0) {
+            ::fsync(dfd);
+            ::close(dfd);
+        }
+    }
+
+private:
+    static constexpr uint64_t kBufferSize = 1 << 20;
+
+    [[noreturn]] void ioFailure(const char* action) {
+        throw InputError(path_, std::string(action) + " temporary file " + tmp_ + ": " + std::strerror(errno));
+    }
+    void append(const void* data, uint64_t n) {
+        position_ += n;
+        if (buffer_.size() + n > kBufferSize) flush();
+        if (n >= kBufferSize) {
+            writeAll(static_cast<const std::byte*>(data), n);
+        } else {
+            const auto* p = static_cast<const std::byte*>(data);
+            buffer_.insert(buffer_.end(), p, p + n);
+        }
+    }
+    void flush() {
+        writeAll(buffer_.data(), buffer_.size());
+        buffer_.clear();
+    }
+    void writeAll(const std::byte* p, uint64_t n) {
+        while (n > 0) {
+            const ssize_t w = ::write(fd_, p, std::min<uint64_t>(n, 1u << 30));
+            if (w < 0 && errno == EINTR) continue;
+            if (w <= 0) ioFailure("cannot write");
+            p += w;
+            n -= uint64_t(w);
+        }
+    }
+
+    std::string path_, tmp_;
+    std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state_;
+    int fd_ = -1;
+    bool committed_ = false;
+    std::vector<std::byte> buffer_;
+    uint64_t position_ = 0;
+    uint64_t section_offset_ = 0;
+};
+
+void requireLayoutInputs(const PreparedScene& scene) {
+    constexpr uint64_t kMax32 = std::numeric_limits<uint32_t>::max();
+    auto bad = [](const std::string& what) { throw std::invalid_argument("writeOss: " + what); };
+    if (scene.meshes.size() > kMax32) bad(str(uint64_t(scene.meshes.size())) + " meshes do not fit in 32 bits");
+    if (scene.objects.size() > kMax32) bad(str(uint64_t(scene.objects.size())) + " objects do not fit in 32 bits");
+    if (scene.cos.size() > kMax32) bad(str(uint64_t(scene.cos.size())) + " COS entries do not fit in 32 bits");
+    for (size_t i = 0; i < scene.meshes.size(); ++i) {
+        const ProgressiveMesh& m = scene.meshes[i];
+        const std::string mesh = "mesh " + str(uint64_t(i)) + ": ";
+        const uint64_t n = m.positions.size();
+        if (n >= kMax32) bad(mesh + str(n) + " vertices do not fit in 32 bits");
+        if (m.triangles.size() % 3 != 0) bad(mesh + "triangle index count is not a multiple of 3");
+        if (m.triangles.size() / 3 > kMax32) bad(mesh + "triangle count does not fit in 32 bits");
+        if (m.ecol.size() != n) bad(mesh + "ecol has " + str(uint64_t(m.ecol.size())) + " entries, expected " + str(n));
+        if (m.error.size() != n) bad(mesh + "error has " + str(uint64_t(m.error.size())) + " entries, expected " + str(n));
+        if (m.map.size() != n + 1) bad(mesh + "map has " + str(uint64_t(m.map.size())) + " entries, expected " + str(n + 1));
+    }
+}
+
+}  // namespace
+
+void writeOss(const std::string& path, const PreparedScene& scene) {
+    requireLayoutInputs(scene);
+
+    TempFileWriter w(path);
+    Header h{};
+    w.zeros(sizeof h);  // placeholder; the header is written last, once the checksums are known
+
+    uint64_t vertex_count = 0, triangle_count = 0;
+    w.beginSection();
+    for (size_t i = 0; i < scene.meshes.size(); ++i) {
+        const ProgressiveMesh& m = scene.meshes[i];
+        const MeshRecord r{vertex_count,      triangle_count,    vertex_count + i, m.vertexCount(),
+                           m.triangleCount(), m.q,               m.refused_faces,  m.source_vertices,
+                           m.dropped_triangles};
+        w.put(&r, sizeof r);
+        vertex_count += m.vertexCount();
+        triangle_count += m.triangleCount();
+    }
+    h.sections[0] = w.endSection(SectionId::meshes);
+
+    w.beginSection();
+    for (const ProgressiveMesh& m : scene.meshes) w.put(m.positions.data(), m.positions.size() * sizeof(glm::vec3));
+    h.sections[1] = w.endSection(SectionId::positions);
+    w.beginSection();
+    for (const ProgressiveMesh& m : scene.meshes) w.put(m.ecol.data(), m.ecol.size() * sizeof(int32_t));
+    h.sections[2] = w.endSection(SectionId::ecol);
+    w.beginSection();
+    for (const ProgressiveMesh& m : scene.meshes) w.put(m.error.data(), m.error.size() * sizeof(float));
+    h.sections[3] = w.endSection(SectionId::error);
+    w.beginSection();
+    for (const ProgressiveMesh& m : scene.meshes) w.put(m.triangles.data(), m.triangles.size() * sizeof(uint32_t));
+    h.sections[4] = w.endSection(SectionId::triangles);
+    w.beginSection();
+    for (const ProgressiveMesh& m : scene.meshes) w.put(m.map.data(), m.map.size() * sizeof(uint32_t));
+    h.sections[5] = w.endSection(SectionId::map);
+    w.beginSection();
+    for (const ObjectRecord& o : scene.objects) {
+        const ObjectDisk d = toDisk(o);
+        w.put(&d, sizeof d);
+    }
+    h.sections[6] = w.endSection(SectionId::objects);
+    w.beginSection();
+    w.put(scene.cos.data(), scene.cos.size() * sizeof(uint32_t));
+    h.sections[7] = w.endSection(SectionId::cos);
+    w.padToAlignment();
+
+    std::memcpy(h.magic, kMagic, sizeof h.magic);
+    h.version = kVersion;
+    h.header_size = sizeof(Header);
+    h.file_size = w.position();
+    h.section_count = kSectionCount;
+    h.mesh_count = uint32_t(scene.meshes.size());
+    h.object_count = uint32_t(scene.objects.size());
+    h.cos_count = uint32_t(scene.cos.size());
+    h.vertex_count = vertex_count;
+    h.triangle_count = triangle_count;
+    h.ct = scene.ct;
+    h.header_checksum = XXH3_64bits(&h, kHeaderChecksummedBytes);
+    w.commit(h);
+}
+
+OssFile OssFile::open(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
+    struct stat st {};
+    if (::fstat(fd, &st) != 0) {
+        const int e = errno;
+        ::close(fd);
+        throw InputError(path, std::string("cannot stat: ") + std::strerror(e));
+    }
+    if (!S_ISREG(st.st_mode)) {
+        ::close(fd);
+        throw InputError(path, "not a regular file");
+    }
+    const uint64_t size = uint64_t(st.st_size);
+    if (size < sizeof(Header)) {
+        ::close(fd);
+        raise(path, {"HEADER", 0,
+                     "file is " + str(size) + " bytes, shorter than the " + str(uint64_t(sizeof(Header))) +
+                         "-byte header (truncated, or not an .oss file)"});
+    }
+    if (size > std::numeric_limits<size_t>::max()) {
+        ::close(fd);
+        throw InputError(path, "file of " + str(size) + " bytes cannot be mapped by this build");
+    }
+    void* p = ::mmap(nullptr, size_t(size), PROT_READ, MAP_PRIVATE, fd, 0);
+    const int map_errno = errno;
+    ::close(fd);  // the mapping keeps the file open
+    if (p == MAP_FAILED) throw InputError(path, std::string("cannot map: ") + std::strerror(map_errno));
+
+    OssFile f;
+    f.path_ = path;
+    f.base_ = static_cast<const std::byte*>(p);
+    f.size_ = size;
+    // Validation touches every byte once, front to back.
+    ::madvise(p, size_t(size), MADV_SEQUENTIAL);
+    f.validate();
+    ::madvise(p, size_t(size), MADV_NORMAL);
+    return f;
+}
+
+OssFile::OssFile(OssFile&& other) noexcept
+    : path_(std::move(other.path_)), base_(std::exchange(other.base_, nullptr)), size_(std::exchange(other.size_, 0)) {}
+
+OssFile& OssFile::operator=(OssFile&& other) noexcept {
+    if (this != &other) {
+        unmap();
+        path_ = std::move(other.path_);
+        base_ = std::exchange(other.base_, nullptr);
+        size_ = std::exchange(other.size_, 0);
+    }
+    return *this;
+}
+
+OssFile::~OssFile() { unmap(); }
+
+void OssFile::unmap() noexcept {
+    if (base_) ::munmap(const_cast<std::byte*>(base_), size_t(size_));
+    base_ = nullptr;
+    size_ = 0;
+}
+
+template <typename T>
+const T* OssFile::sectionData(SectionId id) const {
+    return reinterpret_cast<const T*>(base_ + header().sections[uint32_t(id) - 1].offset);
+}
+
+void OssFile::validate() const {
+    const Header& h = header();
+    auto fail = [&](const char* section, uint64_t offset, const std::string& what) {
+        raise(path_, {section, offset, what});
+    };
+
+    // Header. Magic and version come before the checksum so that another file type or a future
+    // version is named as such rather than reported as corrupt.
+    if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0) fail("HEADER", 0, "bad magic, not an .oss file");
+    if (h.version != kVersion)
+        fail("HEADER", offsetof(Header, version),
+             "format version " + str(h.version) + ", this build reads version " + str(kVersion));
+    if (XXH3_64bits(base_, kHeaderChecksummedBytes) != h.header_checksum)
+        fail("HEADER", offsetof(Header, header_checksum), "header checksum mismatch (corrupt header)");
+    if (h.header_size != sizeof(Header))
+        fail("HEADER", offsetof(Header, header_size),
+             "header size " + str(h.header_size) + ", expected " + str(uint64_t(sizeof(Header))));
+    if (h.file_size != size_)
+        fail("HEADER", offsetof(Header, file_size),
+             "the header says the file is " + str(h.file_size) + " bytes but it is " + str(size_) +
+                 (size_ < h.file_size ? " (truncated)" : " (data appended)"));
+    if (h.section_count != kSectionCount)
+        fail("HEADER", offsetof(Header, section_count),
+             str(h.section_count) + " sections, expected " + str(kSectionCount));
+    if (h.mesh_count == 0) fail("HEADER", offsetof(Header, mesh_count), "no meshes");
+    if (h.object_count == 0) fail("HEADER", offsetof(Header, object_count), "no objects");
+    if (h.cos_count > h.object_count)
+        fail("HEADER", offsetof(Header, cos_count),
+             "COS has " + str(h.cos_count) + " entries but there are only " + str(h.object_count) + " objects");
+    if (!(h.ct >= 0.0f && h.ct <= 1.0f))
+        fail("HEADER", offsetof(Header, ct), "compactness threshold ct = " + str(h.ct) + " is not in [0, 1]");
+    if (h.reserved0 != 0) fail("HEADER", offsetof(Header, reserved0), "reserved field is not 0");
+    for (uint64_t i = 0; i < sizeof h.reserved1; ++i)
+        if (h.reserved1[i] != 0) fail("HEADER", offsetof(Header, reserved1) + i, "reserved byte is not 0");
+
+    // Section table. Sections must sit at their canonical positions: in id order, each at the
+    // first multiple of 64 after the previous one, the file ending at the first multiple of 64
+    // after the last. With zero padding, every byte of the file is then covered by a checksum
+    // or must be zero, so that no flipped byte goes unnoticed.
+    uint64_t map_count = 0;
+    if (__builtin_add_overflow(h.vertex_count, uint64_t(h.mesh_count), &map_count))
+        fail("HEADER", offsetof(Header, vertex_count), "vertex count " + str(h.vertex_count) + " overflows");
+    const uint64_t counts[kSectionCount] = {h.mesh_count, h.vertex_count, h.vertex_count,  h.vertex_count,
+                                            h.triangle_count, map_count,  h.object_count, h.cos_count};
+    auto requireZeros = [&](const char* section, uint64_t from, uint64_t to, const char* where) {
+        for (uint64_t o = from; o < to; ++o)
+            if (base_[o] != std::byte{0})
+                fail(section, o, std::string("padding byte ") + where + " the section is " + hexByte(base_[o]) +
+                                     ", must be 0");
+    };
+    uint64_t previous_end = sizeof(Header);
+    for (uint32_t i = 0; i < kSectionCount; ++i) {
+        const SectionEntry& e = h.sections[i];
+        const SectionKind& kind = kKinds[i];
+        const uint64_t row = offsetof(Header, sections) + i * sizeof(SectionEntry);
+        if (e.id != i + 1)
+            fail(kind.name, row, "section table row " + str(i) + " has id " + str(e.id) + ", expected " + str(i + 1));
+        if (e.element_size != kind.element_size)
+            fail(kind.name, row + offsetof(SectionEntry, element_size),
+                 "element size " + str(e.element_size) + ", expected " + str(kind.element_size));
+        uint64_t bytes = 0;
+        if (__builtin_mul_overflow(counts[i], uint64_t(kind.element_size), &bytes))
+            fail(kind.name, row + offsetof(SectionEntry, size),
+                 str(counts[i]) + " elements of " + str(kind.element_size) + " bytes overflow 64 bits");
+        if (e.size != bytes)
+            fail(kind.name, row + offsetof(SectionEntry, size),
+                 "size " + str(e.size) + " bytes, expected " + str(counts[i]) + " elements * " +
+                     str(kind.element_size) + " bytes = " + str(bytes));
+        if (e.offset % kAlignment != 0)
+            fail(kind.name, e.offset, "offset is not a multiple of " + str(kAlignment));
+        uint64_t end = 0;
+        if (__builtin_add_overflow(e.offset, e.size, &end) || end > size_)
+            fail(kind.name, e.offset,
+                 "the section's " + str(e.size) + " bytes extend past the end of the file (" + str(size_) + " bytes)");
+        if (e.offset != alignUp(previous_end))
+            fail(kind.name, e.offset,
+                 "section starts at " + str(e.offset) + ", expected " + str(alignUp(previous_end)) +
+                     " (sections follow each other in id order, each at the next multiple of 64)");
+        requireZeros(kind.name, previous_end, e.offset, "before");
+        previous_end = end;
+    }
+    if (alignUp(previous_end) != size_)
+        fail(kKinds[kSectionCount - 1].name, previous_end,
+             "the file is " + str(size_) + " bytes, expected " + str(alignUp(previous_end)) +
+                 " (the last section padded to a multiple of 64)");
+    requireZeros(kKinds[kSectionCount - 1].name, previous_end, size_, "after");
+
+    for (uint32_t i = 0; i < kSectionCount; ++i) {
+        const SectionEntry& e = h.sections[i];
+        if (XXH3_64bits(base_ + e.offset, size_t(e.size)) != e.checksum)
+            fail(kKinds[i].name, e.offset, "checksum mismatch (corrupt data)");
+    }
+
+    // Every index and value. From here on the bytes are what a writer wrote; these checks catch
+    // a writer's bugs and hand-made files, and make every later access in bounds.
+    const MeshRecord* records = sectionData<MeshRecord>(SectionId::meshes);
+    const uint64_t meshes_offset = h.sections[0].offset;
+    uint64_t vertex_run = 0, triangle_run = 0;
+    for (uint32_t i = 0; i < h.mesh_count; ++i) {
+        const MeshRecord& r = records[i];
+        const uint64_t at = meshes_offset + uint64_t(i) * sizeof(MeshRecord);
+        const std::string mesh = "mesh " + str(i) + ": ";
+        if (r.vertex_first != vertex_run)
+            fail("MESHES", at + offsetof(MeshRecord, vertex_first),
+                 mesh + "vertex_first = " + str(r.vertex_first) + ", expected " + str(vertex_run) +
+                     " (meshes are stored back to back)");
+        if (r.triangle_first != triangle_run)
+            fail("MESHES", at + offsetof(MeshRecord, triangle_first),
+                 mesh + "triangle_first = " + str(r.triangle_first) + ", expected " + str(triangle_run) +
+                     " (meshes are stored back to back)");
+        if (r.map_first != vertex_run + i)
+            fail("MESHES", at + offsetof(MeshRecord, map_first),
+                 mesh + "map_first = " + str(r.map_first) + ", expected " + str(vertex_run + i));
+        if (r.vertex_count > h.vertex_count - vertex_run)
+            fail("MESHES", at + offsetof(MeshRecord, vertex_count),
+                 mesh + "vertices [" + str(vertex_run) + ", " + str(vertex_run + r.vertex_count) +
+                     ") extend past the " + str(h.vertex_count) + " vertices of the file");
+        if (r.triangle_count > h.triangle_count - triangle_run)
+            fail("MESHES", at + offsetof(MeshRecord, triangle_count),
+                 mesh + "triangles [" + str(triangle_run) + ", " + str(triangle_run + r.triangle_count) +
+                     ") extend past the " + str(h.triangle_count) + " triangles of the file");
+        if (r.q > r.vertex_count)
+            fail("MESHES", at + offsetof(MeshRecord, q),
+                 mesh + "q = " + str(r.q) + " exceeds the vertex count " + str(r.vertex_count));
+        if (r.q == 0 && r.vertex_count > 0)
+            fail("MESHES", at + offsetof(MeshRecord, q), mesh + "q = 0, but vertex 0 has no lower vertex to collapse to");
+        vertex_run += r.vertex_count;
+        triangle_run += r.triangle_count;
+    }
+    if (vertex_run != h.vertex_count)
+        fail("MESHES", meshes_offset,
+             "the meshes hold " + str(vertex_run) + " vertices, the file " + str(h.vertex_count));
+    if (triangle_run != h.triangle_count)
+        fail("MESHES", meshes_offset,
+             "the meshes hold " + str(triangle_run) + " triangles, the file " + str(h.triangle_count));
+
+    const auto section_offset = [&](SectionId id) { return h.sections[uint32_t(id) - 1].offset; };
+    const uint64_t positions_at = section_offset(SectionId::positions), ecol_at = section_offset(SectionId::ecol),
+                   error_at = section_offset(SectionId::error), triangles_at = section_offset(SectionId::triangles),
+                   map_at = section_offset(SectionId::map);
+    const std::optional<Failure> mesh_failure = lowestFailure(h.mesh_count, [&](uint32_t i) -> std::optional<Failure> {
+        const MeshRecord& r = records[i];
+        const MeshView m = mesh(i);
+        const uint32_t n = r.vertex_count;
+        const std::string name = "mesh " + str(i) + ": ";
+        for (uint32_t v = 0; v < n; ++v) {
+            const glm::vec3 p = m.positions[v];
+            if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+                return Failure{"POSITIONS", positions_at + (r.vertex_first + v) * 12,
+                               name + "position " + str(v) + " is not finite"};
+        }
+        for (uint32_t v = 0; v < n; ++v) {
+            const int32_t e = m.ecol[v];
+            const uint64_t at = ecol_at + (r.vertex_first + v) * 4;
+            if (v < r.q && e != -1)
+                return Failure{"ECOL", at, name + "ecol[" + str(v) + "] = " + str(e) + " but " + str(v) + " < q = " +
+                                               str(r.q) + " (never-collapsed vertices have ecol -1)"};
+            if (v >= r.q && e < 0)
+                return Failure{"ECOL", at, name + "ecol[" + str(v) + "] = " + str(e) + " is negative but " + str(v) +
+                                               " >= q = " + str(r.q)};
+            if (v >= r.q && uint32_t(e) >= v)
+                return Failure{"ECOL", at, name + "ecol[" + str(v) + "] = " + str(e) + " is not < " + str(v)};
+        }
+        for (uint32_t v = 0; v < n; ++v)
+            if (!std::isfinite(m.error[v]))
+                return Failure{"ERROR", error_at + (r.vertex_first + v) * 4,
+                               name + "error[" + str(v) + "] = " + str(m.error[v]) + " is not finite"};
+        for (uint64_t c = 0; c < m.triangles.size(); ++c)
+            if (m.triangles[c] >= n)
+                return Failure{"TRIANGLES", triangles_at + r.triangle_first * 12 + c * 4,
+                               name + "triangle " + str(c / 3) + " corner " + str(c % 3) + " = " + str(m.triangles[c]) +
+                                   " is not < vertex count " + str(n)};
+        const auto map_entry = [&](uint32_t k) { return map_at + (r.map_first + k) * 4; };
+        for (uint32_t k = 0; k < r.q; ++k)
+            if (m.map[k] != m.map[r.q])
+                return Failure{"MAP", map_entry(k), name + "map[" + str(k) + "] = " + str(m.map[k]) + " differs from map[q = " +
+                                                        str(r.q) + "] = " + str(m.map[r.q]) +
+                                                        " (entries below q repeat map[q])"};
+        for (uint32_t k = 1; k <= n; ++k)
+            if (m.map[k] < m.map[k - 1])
+                return Failure{"MAP", map_entry(k), name + "map[" + str(k) + "] = " + str(m.map[k]) + " < map[" +
+                                                        str(k - 1) + "] = " + str(m.map[k - 1]) +
+                                                        " (map must be non-decreasing)"};
+        if (m.map[n] != r.triangle_count)
+            return Failure{"MAP", map_entry(n), name + "map[" + str(n) + "] = " + str(m.map[n]) +
+                                                    ", expected the triangle count " + str(r.triangle_count)};
+        return std::nullopt;
+    });
+    if (mesh_failure) raise(path_, *mesh_failure);
+
+    // Object records: every float finite, so that culling and LOD never see a NaN.
+    struct FloatField {
+        const char* name;
+        uint32_t first, count;  // in floats after the mesh id
+    };
+    static constexpr FloatField kFields[] = {{"color", 0, 4},        {"world", 4, 16},        {"aabb_min", 20, 3},
+                                             {"aabb_max", 23, 3},    {"oobb_center", 26, 3},  {"oobb_axis", 29, 9},
+                                             {"oobb_half_extent", 38, 3}, {"occluder_normal", 41, 3},
+                                             {"compactness", 44, 1}};
+    constexpr uint32_t kFloats = (sizeof(ObjectDisk) - sizeof(uint32_t)) / sizeof(float);
+    static_assert(kFloats == 45);
+    const ObjectDisk* objs = sectionData<ObjectDisk>(SectionId::objects);
+    const uint64_t objects_at = section_offset(SectionId::objects);
+    const std::optional<Failure> object_failure = lowestFailure(h.object_count, [&](uint32_t i) -> std::optional<Failure> {
+        const ObjectDisk& d = objs[i];
+        const uint64_t at = objects_at + uint64_t(i) * sizeof(ObjectDisk);
+        const std::string name = "object " + str(i) + ": ";
+        if (d.mesh >= h.mesh_count)
+            return Failure{"OBJECTS", at, name + "mesh " + str(d.mesh) + " is not < mesh count " + str(h.mesh_count)};
+        float floats[kFloats];
+        std::memcpy(floats, reinterpret_cast<const std::byte*>(&d) + sizeof(uint32_t), sizeof floats);
+        for (const FloatField& f : kFields)
+            for (uint32_t j = 0; j < f.count; ++j)
+                if (!std::isfinite(floats[f.first + j]))
+                    return Failure{"OBJECTS", at + 4 + (f.first + j) * 4,
+                                   name + f.name + (f.count > 1 ? "[" + str(j) + "]" : std::string()) + " = " +
+                                       str(floats[f.first + j]) + " is not finite"};
+        if (!(d.compactness >= 0.0f && d.compactness <= 1.0f))
+            return Failure{"OBJECTS", at + offsetof(ObjectDisk, compactness),
+                           name + "compactness " + str(d.compactness) + " is not in [0, 1]"};
+        return std::nullopt;
+    });
+    if (object_failure) raise(path_, *object_failure);
+
+    const uint32_t* cos_ids = sectionData<uint32_t>(SectionId::cos);
+    const uint64_t cos_at = section_offset(SectionId::cos);
+    std::vector<bool> in_cos(h.object_count, false);
+    for (uint32_t j = 0; j < h.cos_count; ++j) {
+        const uint32_t id = cos_ids[j];
+        const uint64_t at = cos_at + uint64_t(j) * 4;
+        const std::string entry = "cos[" + str(j) + "] = " + str(id);
+        if (id >= h.object_count) fail("COS", at, entry + " is not < object count " + str(h.object_count));
+        if (in_cos[id]) fail("COS", at, entry + " appears twice");
+        in_cos[id] = true;
+        const float c = objs[id].compactness;
+        if (c < h.ct) fail("COS", at, entry + " has compactness " + str(c) + " < ct = " + str(h.ct));
+        if (j > 0 && c > objs[cos_ids[j - 1]].compactness)
+            fail("COS", at, entry + " has compactness " + str(c) + " > " + str(objs[cos_ids[j - 1]].compactness) +
+                                " of cos[" + str(j - 1) + "] (must be sorted highest first)");
+    }
+}
+
+OssFile::MeshView OssFile::mesh(uint32_t i) const {
+    if (i >= meshCount()) throw std::out_of_range("OssFile::mesh: " + str(i) + " >= mesh count " + str(meshCount()));
+    const MeshRecord& r = sectionData<MeshRecord>(SectionId::meshes)[i];
+    MeshView m;
+    m.positions = {sectionData<glm::vec3>(SectionId::positions) + r.vertex_first, r.vertex_count};
+    m.ecol = {sectionData<int32_t>(SectionId::ecol) + r.vertex_first, r.vertex_count};
+    m.error = {sectionData<float>(SectionId::error) + r.vertex_first, r.vertex_count};
+    m.triangles = {sectionData<uint32_t>(SectionId::triangles) + r.triangle_first * 3, size_t(r.triangle_count) * 3};
+    m.map = {sectionData<uint32_t>(SectionId::map) + r.map_first, size_t(r.vertex_count) + 1};
+    m.q = r.q;
+    m.refused_faces = r.refused_faces;
+    m.source_vertices = r.source_vertices;
+    m.dropped_triangles = r.dropped_triangles;
+    return m;
+}
+
+std::span<const ObjectDisk> OssFile::objects() const {
+    return {sectionData<ObjectDisk>(SectionId::objects), objectCount()};
+}
+
+ObjectRecord OssFile::object(uint32_t i) const {
+    if (i >= objectCount())
+        throw std::out_of_range("OssFile::object: " + str(i) + " >= object count " + str(objectCount()));
+    return fromDisk(objects()[i]);
+}
+
+std::span<const uint32_t> OssFile::cos() const { return {sectionData<uint32_t>(SectionId::cos), header().cos_count}; }
+
+std::vector<OssFile::SectionInfo> OssFile::sections() const {
+    std::vector<SectionInfo> out;
+    out.push_back({"HEADER", 0, sizeof(Header), 1});
+    for (uint32_t i = 0; i < kSectionCount; ++i) {
+        const SectionEntry& e = header().sections[i];
+        out.push_back({kKinds[i].name, e.offset, e.size, e.size / e.element_size});
+    }
+    return out;
+}
+
+namespace {
+
+// Reused per thread across meshes so that verifying 20 000 small meshes does not allocate 20 000 times.
+struct LodScratch {
+    std::vector<uint32_t> corners;                  // current (walked) corners, 3 per triangle
+    std::vector<uint8_t> degenerate;                // per triangle, at the current level
+    std::vector<std::vector<uint32_t>> triangles_of;  // per vertex: triangles that had it as a corner when pushed
+};
+
+}  // namespace
+
+void OssFile::verifyLodPrefix() const {
+    tbb::enumerable_thread_specific<LodScratch> scratch;
+    const uint64_t map_at = header().sections[uint32_t(SectionId::map) - 1].offset;
+    const std::optional<Failure> failure = lowestFailure(meshCount(), [&](uint32_t i) -> std::optional<Failure> {
+        const MeshView m = mesh(i);
+        const uint32_t n = m.vertexCount(), t_count = m.triangleCount();
+        const uint64_t map_first = sectionData<MeshRecord>(SectionId::meshes)[i].map_first;
+        const auto fail = [&](uint32_t k, const std::string& what) {
+            return Failure{"MAP", map_at + (map_first + k) * 4,
+                           "mesh " + str(i) + ": LOD prefix broken at k = " + str(k) + ": " + what};
+        };
+        LodScratch& s = scratch.local();
+        s.corners.assign(m.triangles.begin(), m.triangles.end());
+        s.degenerate.assign(t_count, 0);
+        if (s.triangles_of.size() < n) s.triangles_of.resize(n);
+        for (uint32_t v = 0; v < n; ++v) s.triangles_of[v].clear();
+
+        // Level n is the full mesh: map[n] = T was checked by open(), so every triangle must be
+        // non-degenerate.
+        for (uint32_t t = 0; t < t_count; ++t) {
+            const uint32_t* c = &s.corners[size_t(t) * 3];
+            if (c[0] == c[1] || c[1] == c[2] || c[0] == c[2])
+                return fail(n, "triangle " + str(t) + " (" + str(c[0]) + ", " + str(c[1]) + ", " + str(c[2]) +
+                                   ") is degenerate at full detail, but map[" + str(n) + "] = " + str(m.map[n]));
+            for (int j = 0; j < 3; ++j) s.triangles_of[c[j]].push_back(t);
+        }
+
+        // Invariant entering each step: the non-degenerate triangles are exactly [0, map[k]).
+        // Removing vertex k - 1 moves its corners onto ecol[k - 1]; the triangles that become
+        // degenerate must be exactly [map[k - 1], map[k]). A triangle is re-listed under the
+        // vertex it moved to only while it stays non-degenerate, so the work is the number of
+        // live corners moved, the sum of the collapsed vertices' valences.
+        for (uint32_t k = n; k > m.q; --k) {
+            const uint32_t v = k - 1, target = uint32_t(m.ecol[v]);
+            const uint32_t lo = m.map[k - 1], hi = m.map[k];
+            uint32_t removed = 0;
+            for (const uint32_t t : s.triangles_of[v]) {
+                if (s.degenerate[t]) continue;
+                uint32_t* c = &s.corners[size_t(t) * 3];
+                for (int j = 0; j < 3; ++j)
+                    if (c[j] == v) c[j] = target;
+                if (c[0] == c[1] || c[1] == c[2] || c[0] == c[2]) {
+                    if (t < lo)
+                        return fail(k - 1, "triangle " + str(t) + " degenerates when vertex " + str(v) +
+                                               " collapses into " + str(target) + ", but it is below map[" +
+                                               str(k - 1) + "] = " + str(lo));
+                    s.degenerate[t] = 1;
+                    ++removed;
+                } else {
+                    s.triangles_of[target].push_back(t);
+                }
+            }
+            s.triangles_of[v].clear();
+            if (removed != hi - lo) {
+                uint32_t survivor = lo;
+                while (survivor < hi && s.degenerate[survivor]) ++survivor;
+                return fail(k - 1, "collapsing vertex " + str(v) + " into " + str(target) + " removes " + str(removed) +
+                                       " triangles, but map[" + str(k) + "] - map[" + str(k - 1) + "] = " +
+                                       str(hi - lo) + "; triangle " + str(survivor) + " stays non-degenerate");
+            }
+        }
+        return std::nullopt;
+    });
+    if (failure) raise(path_, *failure);
+}
+
+PreparedScene OssFile::toPreparedScene() const {
+    PreparedScene scene;
+    scene.ct = ct();
+    scene.meshes.resize(meshCount());
+    for (uint32_t i = 0; i < meshCount(); ++i) {
+        const MeshView v = mesh(i);
+        ProgressiveMesh& m = scene.meshes[i];
+        m.positions.assign(v.positions.begin(), v.positions.end());
+        m.ecol.assign(v.ecol.begin(), v.ecol.end());
+        m.error.assign(v.error.begin(), v.error.end());
+        m.triangles.assign(v.triangles.begin(), v.triangles.end());
+        m.map.assign(v.map.begin(), v.map.end());
+        m.q = v.q;
+        m.refused_faces = v.refused_faces;
+        m.source_vertices = v.source_vertices;
+        m.dropped_triangles = v.dropped_triangles;
+    }
+    scene.objects.reserve(objectCount());
+    for (const ObjectDisk& d : objects()) scene.objects.push_back(fromDisk(d));
+    const std::span<const uint32_t> c = cos();
+    scene.cos.assign(c.begin(), c.end());
+    return scene;
+}
+
+}  // namespace occ

@@ -1,0 +1,202 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+// The .oss scene file: a PreparedScene laid out to be memory-mapped. docs/oss_format.md is the
+// byte-level reference; the structs below are that layout, defined once.
+
+#include "scene/prepared_scene.h"
+
+#include <glm/glm.hpp>
+
+#include <bit>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace occ {
+
+static_assert(std::endian::native == std::endian::little,
+              "the .oss file is little-endian and mapped as-is; a big-endian port needs byte swapping");
+
+namespace oss {
+
+inline constexpr char kMagic[8] = {'O', 'C', 'C', 'S', 'W', 'O', 'S', 'S'};
+inline constexpr uint32_t kVersion = 1;
+inline constexpr uint64_t kAlignment = 64;  // of every section, so any element type can be mapped
+
+// Section ids, also their order in the header's table and in the file.
+enum class SectionId : uint32_t {
+    meshes = 1,     // MeshRecord per mesh
+    positions = 2,  // float[3] per vertex, all meshes back to back
+    ecol = 3,       // int32 per vertex
+    error = 4,      // float per vertex
+    triangles = 5,  // uint32[3] per triangle
+    map = 6,        // uint32 per (vertex_count + 1) per mesh
+    objects = 7,    // ObjectDisk per object
+    cos = 8,        // uint32 object id per candidate occluder
+};
+inline constexpr uint32_t kSectionCount = 8;
+const char* sectionName(SectionId id);  // "MESHES", "POSITIONS", ...
+
+// One row of the header's section table.
+struct SectionEntry {
+    uint32_t id;            // SectionId, equal to row index + 1
+    uint32_t element_size;  // bytes per element, fixed per id
+    uint64_t offset;        // from the start of the file; a multiple of kAlignment
+    uint64_t size;          // bytes, = element count * element_size (padding excluded)
+    uint64_t checksum;      // XXH3_64bits (seed 0) of the `size` bytes at `offset`
+};
+static_assert(sizeof(SectionEntry) == 32);
+
+// The first 384 bytes of the file.
+struct Header {
+    char magic[8];              // kMagic
+    uint32_t version;           // kVersion
+    uint32_t header_size;       // sizeof(Header)
+    uint64_t file_size;         // bytes of the whole file
+    uint32_t section_count;     // kSectionCount
+    uint32_t mesh_count;        // >= 1
+    uint32_t object_count;      // >= 1
+    uint32_t cos_count;         // <= object_count
+    uint64_t vertex_count;      // over all meshes
+    uint64_t triangle_count;    // over all meshes
+    float ct;                   // compactness threshold the COS was built with, in [0, 1]
+    uint32_t reserved0;         // 0
+    SectionEntry sections[kSectionCount];
+    uint8_t reserved1[56];      // 0
+    uint64_t header_checksum;   // XXH3_64bits (seed 0) of the bytes before it
+};
+static_assert(sizeof(Header) == 384 && sizeof(Header) % kAlignment == 0);
+static_assert(offsetof(Header, version) == 8 && offsetof(Header, file_size) == 16);
+static_assert(offsetof(Header, section_count) == 24 && offsetof(Header, vertex_count) == 40);
+static_assert(offsetof(Header, ct) == 56 && offsetof(Header, sections) == 64);
+static_assert(offsetof(Header, reserved1) == 320 && offsetof(Header, header_checksum) == 376);
+
+// Where one mesh's elements start in the shared per-vertex / per-triangle / map sections. The
+// ranges of consecutive meshes are contiguous (first[i+1] = first[i] + count[i]), from 0.
+struct MeshRecord {
+    uint64_t vertex_first;       // index into POSITIONS, ECOL, ERROR
+    uint64_t triangle_first;     // index into TRIANGLES (in triangles, not indices)
+    uint64_t map_first;          // index into MAP; = vertex_first + mesh index
+    uint32_t vertex_count;       // n
+    uint32_t triangle_count;     // T
+    uint32_t q;                  // vertices never collapsed; 1 <= q <= n (0 only when n = 0)
+    uint32_t refused_faces;
+    uint32_t source_vertices;
+    uint32_t dropped_triangles;
+};
+static_assert(sizeof(MeshRecord) == 48 && offsetof(MeshRecord, vertex_count) == 24);
+
+// ObjectRecord with fixed-width fields and no padding. Every float is finite.
+struct ObjectDisk {
+    uint32_t mesh;               // < mesh_count
+    float color[4];
+    float world[16];             // column-major, as glm::mat4
+    float aabb_min[3];
+    float aabb_max[3];
+    float oobb_center[3];
+    float oobb_axis[3][3];       // three axes, each xyz
+    float oobb_half_extent[3];
+    float occluder_normal[3];
+    float compactness;           // in [0, 1]
+};
+static_assert(sizeof(ObjectDisk) == 184 && offsetof(ObjectDisk, world) == 20);
+static_assert(offsetof(ObjectDisk, aabb_min) == 84 && offsetof(ObjectDisk, oobb_axis) == 120);
+static_assert(offsetof(ObjectDisk, compactness) == 180);
+static_assert(sizeof(glm::vec3) == 12 && alignof(glm::vec3) <= 4, "positions are mapped as glm::vec3");
+
+ObjectDisk toDisk(const ObjectRecord& o);
+ObjectRecord fromDisk(const ObjectDisk& d);
+
+}  // namespace oss
+
+// Writes `scene` to `path` atomically: the bytes go to a new temporary file next to `path`
+// ("<path>.tmp.<pid>.<n>"), are fsync'ed, and the temporary is renamed over `path`; on any
+// failure the temporary is removed and an existing file at `path` is left as it was.
+// The scene's content is not validated (so that tests can write files the reader must reject),
+// only what the layout needs: per mesh ecol and error have one entry per position, map has
+// vertexCount() + 1, triangles a multiple of 3, and every count fits in 32 bits; otherwise
+// throws std::invalid_argument naming the mesh. Throws InputError(path, ...) on I/O failure.
+// Streams section by section, so its memory use does not grow with the scene.
+void writeOss(const std::string& path, const PreparedScene& scene);
+
+// A validated, read-only memory mapping of a .oss file. Views returned by it point into the
+// mapping and live as long as the OssFile. The file must not be modified in place while mapped
+// (writeOss never does: it replaces files by renaming).
+class OssFile {
+public:
+    // Maps `path` and checks, in this order, before returning: header size, magic, version,
+    // header checksum, header fields, the section table (id, element size, 64-byte alignment,
+    // size = count * element size, inside the file, canonical position so that sections are in
+    // order and do not overlap), zero padding between and after sections, every section's
+    // checksum, then every index and value (see docs/oss_format.md, "Validation"). Throws
+    // InputError(path, "section S at offset O: what"), O the byte offset of the bad field or element.
+    static OssFile open(const std::string& path);
+
+    OssFile(OssFile&& other) noexcept;
+    OssFile& operator=(OssFile&& other) noexcept;
+    OssFile(const OssFile&) = delete;
+    OssFile& operator=(const OssFile&) = delete;
+    ~OssFile();
+
+    const std::string& path() const { return path_; }
+    uint64_t fileSize() const { return size_; }
+    uint32_t meshCount() const { return header().mesh_count; }
+    uint32_t objectCount() const { return header().object_count; }
+    uint64_t vertexCount() const { return header().vertex_count; }      // over meshes, not instances
+    uint64_t triangleCount() const { return header().triangle_count; }  // over meshes, not instances
+    float ct() const { return header().ct; }
+
+    struct MeshView {
+        std::span<const glm::vec3> positions;
+        std::span<const int32_t> ecol;
+        std::span<const float> error;
+        std::span<const uint32_t> triangles;  // 3 corners per triangle
+        std::span<const uint32_t> map;        // positions.size() + 1 entries
+        uint32_t q = 0;
+        uint32_t refused_faces = 0;
+        uint32_t source_vertices = 0;
+        uint32_t dropped_triangles = 0;
+
+        uint32_t vertexCount() const { return uint32_t(positions.size()); }
+        uint32_t triangleCount() const { return uint32_t(triangles.size() / 3); }
+    };
+    MeshView mesh(uint32_t i) const;  // throws std::out_of_range if i >= meshCount()
+
+    std::span<const oss::ObjectDisk> objects() const;  // zero-copy, objectCount() records
+    ObjectRecord object(uint32_t i) const;             // throws std::out_of_range if i >= objectCount()
+    std::span<const uint32_t> cos() const;             // sorted by compactness, highest first
+
+    struct SectionInfo {
+        std::string name;
+        uint64_t offset = 0;
+        uint64_t size = 0;   // bytes, padding excluded
+        uint64_t count = 0;  // elements
+    };
+    std::vector<SectionInfo> sections() const;  // in file order, for `occswitch info`
+
+    // Checks the LOD prefix property of every mesh: for every k in [q, n], the first map[k]
+    // triangles with corners walked through ecol until < k are non-degenerate and every later
+    // triangle is degenerate. O(triangles + sum over collapses of the collapsed vertex's
+    // valence) per mesh, meshes in parallel. Throws InputError(path, "section MAP at offset O:
+    // mesh M: ...") for the lowest-numbered mesh that violates it.
+    void verifyLodPrefix() const;
+
+    PreparedScene toPreparedScene() const;  // a full copy
+
+private:
+    OssFile() = default;
+    const oss::Header& header() const { return *reinterpret_cast<const oss::Header*>(base_); }
+    template <typename T>
+    const T* sectionData(oss::SectionId id) const;
+    void validate() const;
+    void unmap() noexcept;
+
+    std::string path_;
+    const std::byte* base_ = nullptr;
+    uint64_t size_ = 0;
+};
+
+}  // namespace occ

@@ -1,0 +1,163 @@
+// SPDX-License-Identifier: MIT
+#include "import/import.h"
+#include "import/plant.h"
+#include "prep/collapse_recorder.h"
+#include "prep/fast_collapser.h"
+#include "prep/lod_prefix.h"
+#include "prep/prepare.h"
+#include "prep/rearrange.h"
+#include "prep/weld.h"
+#include "test_support.h"
+
+#include <gtest/gtest.h>
+
+namespace occ {
+namespace {
+
+// The size of Peng & Cao 2012's Figure 3/4 example: 7 vertices and 8 triangles, edge-length
+// cost. A 6x4 rectangle (corners 0-3, locked as boundary) around three interior vertices:
+//
+//   3 ----------------- 2
+//   |  \     t4     /  / |
+//   | t2 4 --- 5 --- 6 t6|        4 = (2, 2), 5 = (3.2, 2.5), 6 = (4, 2)
+//   |  /  t1  \ t0 /  \  |
+//   0 ----------------- 1
+struct FigureMesh {
+    std::vector<glm::vec3> positions{{0, 0, 0}, {6, 0, 0}, {6, 4, 0}, {0, 4, 0}, {2, 2, 0}, {3.2f, 2.5f, 0}, {4, 2, 0}};
+    std::vector<uint32_t> triangles{0, 1, 5, 0, 5, 4, 0, 4, 3, 4, 5, 3, 5, 2, 3, 1, 6, 5, 1, 2, 6, 6, 2, 5};
+};
+
+TEST(CollapseSequence, FigureExampleCollapsesShortestLegalEdgesFirst) {
+    const FigureMesh f;
+    const CollapseSequence s = fastCollapseSequence(f.positions, f.triangles, CollapseCost::EdgeLength);
+    // |5-6| = 0.943 (5 -> 6, tie with 6 -> 5 broken by lower id); then |4-6| = 2 (4 -> 6, tie
+    // with 6 -> 4); then |6-1| = |6-2| = 2.828 (6 -> 1, lower kept id). Corners are boundary.
+    ASSERT_EQ(s.size(), 3u);
+    EXPECT_EQ(s.removed, (std::vector<uint32_t>{5, 4, 6}));
+    EXPECT_EQ(s.kept, (std::vector<uint32_t>{6, 6, 1}));
+    EXPECT_NEAR(s.error[0], 0.9434f, 1e-3f);
+    EXPECT_NEAR(s.error[1], 2.0f, 1e-5f);
+    EXPECT_NEAR(s.error[2], 2.8284f, 1e-3f);
+    EXPECT_EQ(s.triangle_offsets, (std::vector<uint32_t>{0, 2, 4, 6}));
+    EXPECT_EQ(s.triangles, (std::vector<uint32_t>{5, 7, 1, 3, 0, 6}));
+}
+
+TEST(CollapseSequence, FigureExampleArraysOfSection42) {
+    const FigureMesh f;
+    const CollapseSequence s = fastCollapseSequence(f.positions, f.triangles, CollapseCost::EdgeLength);
+    const CollapseArrays a = recordCollapseArrays(7, 8, s);
+    // Collapse 1 (m = 7, t = 8): 5 -> position 6, triangles 5, 7 -> 7, 6; map[6] = 6.
+    // Collapse 2 (m = 6, t = 6): 4 -> position 5, triangles 1, 3 -> 5, 4; map[5] = 4.
+    // Collapse 3 (m = 5, t = 4): 6 -> position 4, triangles 0, 6 -> 3, 2; map[4] = 2.
+    // Survivors 0..3 and triangles 2, 4 keep the front in order.
+    EXPECT_EQ(a.q, 4u);
+    EXPECT_EQ(a.ecol, (std::vector<int32_t>{-1, -1, -1, -1, 6, 6, 1}));
+    EXPECT_EQ(a.permuteV, (std::vector<uint32_t>{0, 1, 2, 3, 5, 6, 4}));
+    EXPECT_EQ(a.permuteT, (std::vector<uint32_t>{3, 5, 0, 4, 1, 7, 2, 6}));
+    EXPECT_EQ(a.map, (std::vector<uint32_t>{2, 2, 2, 2, 2, 4, 6, 8}));
+}
+
+TEST(CollapseSequence, FigureExampleAfterAlgorithm1) {
+    const FigureMesh f;
+    const CollapseSequence s = fastCollapseSequence(f.positions, f.triangles, CollapseCost::EdgeLength);
+    const ProgressiveMesh pm = rearrange(f.positions, f.triangles, s, recordCollapseArrays(7, 8, s));
+    EXPECT_EQ(pm.ecol, (std::vector<int32_t>{-1, -1, -1, -1, 1, 4, 4}));
+    EXPECT_EQ(pm.positions[4], f.positions[6]);
+    EXPECT_EQ(pm.positions[5], f.positions[4]);
+    EXPECT_EQ(pm.positions[6], f.positions[5]);
+    EXPECT_EQ(pm.triangles, (std::vector<uint32_t>{0, 5, 3, 6, 2, 3, 1, 2, 4, 0, 1, 6, 5, 6, 3, 0, 6, 5, 4, 2, 6, 1, 4, 6}));
+    // The LOD with 4 vertices: the first map[4] = 2 triangles, corners walked below 4.
+    const auto walk = [&](uint32_t v, uint32_t k) {
+        while (v >= k) v = uint32_t(pm.ecol[v]);
+        return v;
+    };
+    std::vector<uint32_t> lod4;
+    for (uint32_t i = 0; i < 3 * pm.map[4]; ++i) lod4.push_back(walk(pm.triangles[i], 4));
+    EXPECT_EQ(lod4, (std::vector<uint32_t>{0, 1, 3, 1, 2, 3}));
+    EXPECT_EQ(checkLodPrefix(pm.vertexCount(), pm.ecol, pm.triangles, pm.map, pm.q), "");
+}
+
+TEST(LodPrefix, DetectsAMapOffByOne) {
+    const FigureMesh f;
+    const CollapseSequence s = fastCollapseSequence(f.positions, f.triangles, CollapseCost::EdgeLength);
+    ProgressiveMesh pm = rearrange(f.positions, f.triangles, s, recordCollapseArrays(7, 8, s));
+    pm.map[5] = 5;
+    EXPECT_NE(checkLodPrefix(pm.vertexCount(), pm.ecol, pm.triangles, pm.map, pm.q), "");
+}
+
+TEST(Weld, MergesSplitVerticesAndDropsTrianglesThatCollapse) {
+    // Two triangles of a quad with the diagonal split (as exporters do for hard edges), plus a
+    // sliver whose two corners sit at the same place.
+    const std::vector<glm::vec3> p{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 0, -0.0f}, {1, 1, 0}, {0, 1, 0}, {1, 0, 0}, {1, 0, 0}};
+    const std::vector<uint32_t> t{0, 1, 2, 3, 4, 5, 6, 7, 2};
+    const WeldedMesh w = weldPositions(p, t);
+    EXPECT_EQ(w.positions.size(), 4u);
+    EXPECT_EQ(w.triangles, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+    EXPECT_EQ(w.dropped_triangles, 1u);
+}
+
+// Every invariant of a progressive mesh that does not depend on which collapser made it.
+void expectValidProgressiveMesh(const ProgressiveMesh& pm) {
+    ASSERT_EQ(pm.map.size(), size_t(pm.vertexCount()) + 1);
+    for (uint32_t v = 0; v < pm.vertexCount(); ++v) {
+        if (v < pm.q)
+            ASSERT_EQ(pm.ecol[v], -1) << v;
+        else
+            ASSERT_LT(pm.ecol[v], int32_t(v)) << v;
+    }
+    for (uint32_t k = 1; k <= pm.vertexCount(); ++k) ASSERT_LE(pm.map[k - 1], pm.map[k]);
+    EXPECT_EQ(checkLodPrefix(pm.vertexCount(), pm.ecol, pm.triangles, pm.map, pm.q), "");
+}
+
+// Largest collapse error among the vertices removed to reach k vertices.
+float errorAtLevel(const ProgressiveMesh& pm, uint32_t k) {
+    float e = 0.0f;
+    for (uint32_t v = k; v < pm.vertexCount(); ++v) e = std::max(e, pm.error[v]);
+    return e;
+}
+
+TEST(Collapsers, FastAndOpenMeshGiveValidSequencesOfComparableErrorOnEngineParts) {
+    const Scene engine = importModel(test::kEngine);
+    uint64_t fast_collapses = 0, om_collapses = 0;
+    double fast_error = 0.0, om_error = 0.0;
+    for (const Mesh& mesh : engine.meshes) {
+        const ProgressiveMesh fast = buildProgressiveMesh(mesh, Collapser::Fast);
+        const ProgressiveMesh om = buildProgressiveMesh(mesh, Collapser::OpenMesh);
+        expectValidProgressiveMesh(fast);
+        expectValidProgressiveMesh(om);
+        ASSERT_EQ(fast.vertexCount(), om.vertexCount());  // same welded input
+        fast_collapses += fast.vertexCount() - fast.q;
+        om_collapses += om.vertexCount() - om.q;
+        // compare at 10 % of the collapsible vertices left
+        const uint32_t k = std::max(fast.q, om.q) + (fast.vertexCount() - std::max(fast.q, om.q)) / 10;
+        fast_error += errorAtLevel(fast, k);
+        om_error += errorAtLevel(om, k);
+    }
+    // Both simplify the same amount (within 5 %) ...
+    EXPECT_GT(fast_collapses, om_collapses * 95 / 100);
+    // ... and ours is not worse in quadric error summed over the parts (10 % slack).
+    EXPECT_LE(fast_error, om_error * 1.1) << "fast " << fast_error << " openmesh " << om_error;
+}
+
+TEST(Collapsers, ClosedPlantMeshesSimplifyToTheMinimum) {
+    const Scene plant = generatePlant({200, 3});
+    for (const Mesh& mesh : plant.meshes) {
+        const ProgressiveMesh pm = buildProgressiveMesh(mesh, Collapser::Fast);
+        expectValidProgressiveMesh(pm);
+        EXPECT_LE(pm.q, 8u) << mesh.name;  // closed meshes have no boundary to lock
+    }
+}
+
+TEST(Collapsers, NonManifoldEdgeIsKeptAndNeverCollapsed) {
+    // Three triangles share edge 0-1 (a "book" of three pages), plus a fan that can simplify.
+    std::vector<glm::vec3> p{{0, 0, 0}, {0, 0, 1}, {1, 0, 0.5f}, {-1, 0, 0.5f}, {0, 1, 0.5f}};
+    std::vector<uint32_t> t{0, 1, 2, 1, 0, 3, 0, 1, 4};
+    const CollapseSequence fast = fastCollapseSequence(p, t);
+    for (uint32_t u : fast.removed) EXPECT_TRUE(u != 0 && u != 1) << "collapsed a vertex of the non-manifold edge";
+    const CollapseSequence om = openMeshCollapseSequence(p, t);
+    EXPECT_EQ(om.refused_faces, 1u);  // OpenMesh cannot add the third page
+    for (uint32_t u : om.removed) EXPECT_TRUE(u != 0 && u != 1);
+}
+
+}  // namespace
+}  // namespace occ
