@@ -265,14 +265,14 @@ void requireLayoutInputs(const PreparedScene& scene) {
     if (scene.cos.size() > kMax32) bad(str(uint64_t(scene.cos.size())) + " COS entries do not fit in 32 bits");
     for (size_t i = 0; i < scene.meshes.size(); ++i) {
         const ProgressiveMesh& m = scene.meshes[i];
-        const std::string mesh = "mesh " + str(uint64_t(i)) + ": ";
+        const auto mesh = [&] { return "mesh " + str(uint64_t(i)) + ": "; };
         const uint64_t n = m.positions.size();
-        if (n >= kMax32) bad(mesh + str(n) + " vertices do not fit in 32 bits");
-        if (m.triangles.size() % 3 != 0) bad(mesh + "triangle index count is not a multiple of 3");
-        if (m.triangles.size() / 3 > kMax32) bad(mesh + "triangle count does not fit in 32 bits");
-        if (m.ecol.size() != n) bad(mesh + "ecol has " + str(uint64_t(m.ecol.size())) + " entries, expected " + str(n));
-        if (m.error.size() != n) bad(mesh + "error has " + str(uint64_t(m.error.size())) + " entries, expected " + str(n));
-        if (m.map.size() != n + 1) bad(mesh + "map has " + str(uint64_t(m.map.size())) + " entries, expected " + str(n + 1));
+        if (n >= kMax32) bad(mesh() + str(n) + " vertices do not fit in 32 bits");
+        if (m.triangles.size() % 3 != 0) bad(mesh() + "triangle index count is not a multiple of 3");
+        if (m.triangles.size() / 3 > kMax32) bad(mesh() + "triangle count does not fit in 32 bits");
+        if (m.ecol.size() != n) bad(mesh() + "ecol has " + str(uint64_t(m.ecol.size())) + " entries, expected " + str(n));
+        if (m.error.size() != n) bad(mesh() + "error has " + str(uint64_t(m.error.size())) + " entries, expected " + str(n));
+        if (m.map.size() != n + 1) bad(mesh() + "map has " + str(uint64_t(m.map.size())) + " entries, expected " + str(n + 1));
     }
 }
 
@@ -506,31 +506,33 @@ void OssFile::validate() const {
     for (uint32_t i = 0; i < h.mesh_count; ++i) {
         const MeshRecord& r = records[i];
         const uint64_t at = meshes_offset + uint64_t(i) * sizeof(MeshRecord);
-        const std::string mesh = "mesh " + str(i) + ": ";
+        const auto mesh = [&] { return "mesh " + str(i) + ": "; };  // messages are built only on failure
         if (r.vertex_first != vertex_run)
             fail("MESHES", at + offsetof(MeshRecord, vertex_first),
-                 mesh + "vertex_first = " + str(r.vertex_first) + ", expected " + str(vertex_run) +
+                 mesh() + "vertex_first = " + str(r.vertex_first) + ", expected " + str(vertex_run) +
                      " (meshes are stored back to back)");
         if (r.triangle_first != triangle_run)
             fail("MESHES", at + offsetof(MeshRecord, triangle_first),
-                 mesh + "triangle_first = " + str(r.triangle_first) + ", expected " + str(triangle_run) +
+                 mesh() + "triangle_first = " + str(r.triangle_first) + ", expected " + str(triangle_run) +
                      " (meshes are stored back to back)");
         if (r.map_first != vertex_run + i)
             fail("MESHES", at + offsetof(MeshRecord, map_first),
-                 mesh + "map_first = " + str(r.map_first) + ", expected " + str(vertex_run + i));
+                 mesh() + "map_first = " + str(r.map_first) + ", expected " + str(vertex_run + i));
+        if (r.vertex_count == std::numeric_limits<uint32_t>::max())  // map needs n + 1 entries
+            fail("MESHES", at + offsetof(MeshRecord, vertex_count), mesh() + "vertex count 2^32 - 1 is too large");
         if (r.vertex_count > h.vertex_count - vertex_run)
             fail("MESHES", at + offsetof(MeshRecord, vertex_count),
-                 mesh + "vertices [" + str(vertex_run) + ", " + str(vertex_run + r.vertex_count) +
+                 mesh() + "vertices [" + str(vertex_run) + ", " + str(vertex_run + r.vertex_count) +
                      ") extend past the " + str(h.vertex_count) + " vertices of the file");
         if (r.triangle_count > h.triangle_count - triangle_run)
             fail("MESHES", at + offsetof(MeshRecord, triangle_count),
-                 mesh + "triangles [" + str(triangle_run) + ", " + str(triangle_run + r.triangle_count) +
+                 mesh() + "triangles [" + str(triangle_run) + ", " + str(triangle_run + r.triangle_count) +
                      ") extend past the " + str(h.triangle_count) + " triangles of the file");
         if (r.q > r.vertex_count)
             fail("MESHES", at + offsetof(MeshRecord, q),
-                 mesh + "q = " + str(r.q) + " exceeds the vertex count " + str(r.vertex_count));
+                 mesh() + "q = " + str(r.q) + " exceeds the vertex count " + str(r.vertex_count));
         if (r.q == 0 && r.vertex_count > 0)
-            fail("MESHES", at + offsetof(MeshRecord, q), mesh + "q = 0, but vertex 0 has no lower vertex to collapse to");
+            fail("MESHES", at + offsetof(MeshRecord, q), mesh() + "q = 0, but vertex 0 has no lower vertex to collapse to");
         vertex_run += r.vertex_count;
         triangle_run += r.triangle_count;
     }
@@ -549,47 +551,47 @@ void OssFile::validate() const {
         const MeshRecord& r = records[i];
         const MeshView m = mesh(i);
         const uint32_t n = r.vertex_count;
-        const std::string name = "mesh " + str(i) + ": ";
+        const auto name = [&] { return "mesh " + str(i) + ": "; };
         for (uint32_t v = 0; v < n; ++v) {
             const glm::vec3 p = m.positions[v];
             if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
                 return Failure{"POSITIONS", positions_at + (r.vertex_first + v) * 12,
-                               name + "position " + str(v) + " is not finite"};
+                               name() + "position " + str(v) + " is not finite"};
         }
         for (uint32_t v = 0; v < n; ++v) {
             const int32_t e = m.ecol[v];
             const uint64_t at = ecol_at + (r.vertex_first + v) * 4;
             if (v < r.q && e != -1)
-                return Failure{"ECOL", at, name + "ecol[" + str(v) + "] = " + str(e) + " but " + str(v) + " < q = " +
+                return Failure{"ECOL", at, name() + "ecol[" + str(v) + "] = " + str(e) + " but " + str(v) + " < q = " +
                                                str(r.q) + " (never-collapsed vertices have ecol -1)"};
             if (v >= r.q && e < 0)
-                return Failure{"ECOL", at, name + "ecol[" + str(v) + "] = " + str(e) + " is negative but " + str(v) +
+                return Failure{"ECOL", at, name() + "ecol[" + str(v) + "] = " + str(e) + " is negative but " + str(v) +
                                                " >= q = " + str(r.q)};
             if (v >= r.q && uint32_t(e) >= v)
-                return Failure{"ECOL", at, name + "ecol[" + str(v) + "] = " + str(e) + " is not < " + str(v)};
+                return Failure{"ECOL", at, name() + "ecol[" + str(v) + "] = " + str(e) + " is not < " + str(v)};
         }
         for (uint32_t v = 0; v < n; ++v)
             if (!std::isfinite(m.error[v]))
                 return Failure{"ERROR", error_at + (r.vertex_first + v) * 4,
-                               name + "error[" + str(v) + "] = " + str(m.error[v]) + " is not finite"};
+                               name() + "error[" + str(v) + "] = " + str(m.error[v]) + " is not finite"};
         for (uint64_t c = 0; c < m.triangles.size(); ++c)
             if (m.triangles[c] >= n)
                 return Failure{"TRIANGLES", triangles_at + r.triangle_first * 12 + c * 4,
-                               name + "triangle " + str(c / 3) + " corner " + str(c % 3) + " = " + str(m.triangles[c]) +
+                               name() + "triangle " + str(c / 3) + " corner " + str(c % 3) + " = " + str(m.triangles[c]) +
                                    " is not < vertex count " + str(n)};
         const auto map_entry = [&](uint32_t k) { return map_at + (r.map_first + k) * 4; };
         for (uint32_t k = 0; k < r.q; ++k)
             if (m.map[k] != m.map[r.q])
-                return Failure{"MAP", map_entry(k), name + "map[" + str(k) + "] = " + str(m.map[k]) + " differs from map[q = " +
+                return Failure{"MAP", map_entry(k), name() + "map[" + str(k) + "] = " + str(m.map[k]) + " differs from map[q = " +
                                                         str(r.q) + "] = " + str(m.map[r.q]) +
                                                         " (entries below q repeat map[q])"};
         for (uint32_t k = 1; k <= n; ++k)
             if (m.map[k] < m.map[k - 1])
-                return Failure{"MAP", map_entry(k), name + "map[" + str(k) + "] = " + str(m.map[k]) + " < map[" +
+                return Failure{"MAP", map_entry(k), name() + "map[" + str(k) + "] = " + str(m.map[k]) + " < map[" +
                                                         str(k - 1) + "] = " + str(m.map[k - 1]) +
                                                         " (map must be non-decreasing)"};
         if (m.map[n] != r.triangle_count)
-            return Failure{"MAP", map_entry(n), name + "map[" + str(n) + "] = " + str(m.map[n]) +
+            return Failure{"MAP", map_entry(n), name() + "map[" + str(n) + "] = " + str(m.map[n]) +
                                                     ", expected the triangle count " + str(r.triangle_count)};
         return std::nullopt;
     });
@@ -611,20 +613,23 @@ void OssFile::validate() const {
     const std::optional<Failure> object_failure = lowestFailure(h.object_count, [&](uint32_t i) -> std::optional<Failure> {
         const ObjectDisk& d = objs[i];
         const uint64_t at = objects_at + uint64_t(i) * sizeof(ObjectDisk);
-        const std::string name = "object " + str(i) + ": ";
+        const auto name = [&] { return "object " + str(i) + ": "; };
         if (d.mesh >= h.mesh_count)
-            return Failure{"OBJECTS", at, name + "mesh " + str(d.mesh) + " is not < mesh count " + str(h.mesh_count)};
+            return Failure{"OBJECTS", at, name() + "mesh " + str(d.mesh) + " is not < mesh count " + str(h.mesh_count)};
         float floats[kFloats];
         std::memcpy(floats, reinterpret_cast<const std::byte*>(&d) + sizeof(uint32_t), sizeof floats);
-        for (const FloatField& f : kFields)
-            for (uint32_t j = 0; j < f.count; ++j)
-                if (!std::isfinite(floats[f.first + j]))
-                    return Failure{"OBJECTS", at + 4 + (f.first + j) * 4,
-                                   name + f.name + (f.count > 1 ? "[" + str(j) + "]" : std::string()) + " = " +
-                                       str(floats[f.first + j]) + " is not finite"};
+        bool all_finite = true;  // branch-free first: the field walk below is only for the message
+        for (const float x : floats) all_finite &= std::isfinite(x);
+        if (!all_finite)
+            for (const FloatField& f : kFields)
+                for (uint32_t j = 0; j < f.count; ++j)
+                    if (!std::isfinite(floats[f.first + j]))
+                        return Failure{"OBJECTS", at + 4 + (f.first + j) * 4,
+                                       name() + f.name + (f.count > 1 ? "[" + str(j) + "]" : std::string()) + " = " +
+                                           str(floats[f.first + j]) + " is not finite"};
         if (!(d.compactness >= 0.0f && d.compactness <= 1.0f))
             return Failure{"OBJECTS", at + offsetof(ObjectDisk, compactness),
-                           name + "compactness " + str(d.compactness) + " is not in [0, 1]"};
+                           name() + "compactness " + str(d.compactness) + " is not in [0, 1]"};
         return std::nullopt;
     });
     if (object_failure) raise(path_, *object_failure);
@@ -635,14 +640,14 @@ void OssFile::validate() const {
     for (uint32_t j = 0; j < h.cos_count; ++j) {
         const uint32_t id = cos_ids[j];
         const uint64_t at = cos_at + uint64_t(j) * 4;
-        const std::string entry = "cos[" + str(j) + "] = " + str(id);
-        if (id >= h.object_count) fail("COS", at, entry + " is not < object count " + str(h.object_count));
-        if (in_cos[id]) fail("COS", at, entry + " appears twice");
+        const auto entry = [&] { return "cos[" + str(j) + "] = " + str(id); };
+        if (id >= h.object_count) fail("COS", at, entry() + " is not < object count " + str(h.object_count));
+        if (in_cos[id]) fail("COS", at, entry() + " appears twice");
         in_cos[id] = true;
         const float c = objs[id].compactness;
-        if (c < h.ct) fail("COS", at, entry + " has compactness " + str(c) + " < ct = " + str(h.ct));
+        if (c < h.ct) fail("COS", at, entry() + " has compactness " + str(c) + " < ct = " + str(h.ct));
         if (j > 0 && c > objs[cos_ids[j - 1]].compactness)
-            fail("COS", at, entry + " has compactness " + str(c) + " > " + str(objs[cos_ids[j - 1]].compactness) +
+            fail("COS", at, entry() + " has compactness " + str(c) + " > " + str(objs[cos_ids[j - 1]].compactness) +
                                 " of cos[" + str(j - 1) + "] (must be sorted highest first)");
     }
 }

@@ -80,7 +80,7 @@ struct MeshRecord {
     uint64_t vertex_first;       // index into POSITIONS, ECOL, ERROR
     uint64_t triangle_first;     // index into TRIANGLES (in triangles, not indices)
     uint64_t map_first;          // index into MAP; = vertex_first + mesh index
-    uint32_t vertex_count;       // n
+    uint32_t vertex_count;       // n < 2^32 - 1
     uint32_t triangle_count;     // T
     uint32_t q;                  // vertices never collapsed; 1 <= q <= n (0 only when n = 0)
     uint32_t refused_faces;
