@@ -168,9 +168,17 @@ std::string csvField(const std::string& s) {
 }
 
 std::string format(const char* fmt, auto... args) {
-    char buffer[512];
-    std::snprintf(buffer, sizeof(buffer), fmt, args...);
-    return buffer;
+    std::string out(size_t(std::snprintf(nullptr, 0, fmt, args...)), '\0');
+    std::snprintf(out.data(), out.size() + 1, fmt, args...);
+    return out;
+}
+
+// The machine is shared: the load when the run starts says how far to trust wall times.
+std::string loadAverage() {
+    std::ifstream in("/proc/loadavg");
+    double one = 0, five = 0, fifteen = 0;
+    if (!(in >> one >> five >> fifteen)) return "unknown";
+    return format("%.2f %.2f %.2f", one, five, fifteen);
 }
 
 std::string percent(double fraction) { return format("%g %%", fraction * 100.0); }
@@ -202,10 +210,11 @@ int runBenchPrep(const BenchPrepOptions& o) {
         input_triangles += b.input_triangles;
         meshes.push_back(std::move(b));
     }
+    const std::string load = loadAverage();
     std::printf("occswitch bench prep: %s\n  %zu objects, %zu unique meshes, %llu unique input triangles; "
-                "%u hardware threads; times are the best of %u runs\n\n",
+                "%u hardware threads, load average %s at the start; times are the best of %u runs\n\n",
                 o.input.c_str(), scene.objects.size(), meshes.size(), (unsigned long long)input_triangles, hardware,
-                o.repeat);
+                load.c_str(), o.repeat);
 
     // a. Ours: the whole scene through prepareScene, all cores then one.
     PreparedScene prepared;
@@ -346,11 +355,11 @@ int runBenchPrep(const BenchPrepOptions& o) {
     // d. Report.
     std::ostringstream table;
     const auto rate = [](double triangles, double seconds) { return seconds > 0.0 ? triangles / seconds / 1e6 : 0.0; };
-    table << format("| %-52s | %9s | %9s | %s |\n", "throughput", "seconds", "M tri/s", "input");
+    table << format("| %-52s | %9s | %9s | %-34s |\n", "throughput", "seconds", "M tri/s", "input");
     table << format("|%s|%s|%s|%s|\n", std::string(54, '-').c_str(), std::string(11, '-').c_str(),
-                    std::string(11, '-').c_str(), std::string(20, '-').c_str());
+                    std::string(11, '-').c_str(), std::string(36, '-').c_str());
     const auto row = [&](const std::string& what, double seconds, double triangles, const std::string& input) {
-        table << format("| %-52s | %9.3f | %9.3f | %s |\n", what.c_str(), seconds, rate(triangles, seconds), input.c_str());
+        table << format("| %-52s | %9.3f | %9.3f | %-34s |\n", what.c_str(), seconds, rate(triangles, seconds), input.c_str());
     };
     const std::string all_input = format("%llu unique input triangles", (unsigned long long)input_triangles);
     row(format("ours: prepareScene, fast collapser, %u threads", threads), ours_all, double(input_triangles), all_input);
@@ -443,7 +452,8 @@ int runBenchPrep(const BenchPrepOptions& o) {
         std::ofstream md(dir / "prep_summary.md");
         md << "# occswitch bench prep\n\n`" << o.input << "`: " << scene.objects.size() << " objects, " << meshes.size()
            << " unique meshes, " << input_triangles << " unique input triangles (" << welded_triangles
-           << " after welding). " << hardware << " hardware threads; times are the best of " << o.repeat
+           << " after welding). " << hardware << " hardware threads, load average " << load
+           << " at the start; times are the best of " << o.repeat
            << " runs.\n\n"
            << table.str() << "\n"
            << errors.str() << "\n"

@@ -1,54 +1,68 @@
 // SPDX-License-Identifier: MIT
 #include "prep/lod_prefix.h"
 
-#include <vector>
-
 namespace occ {
 
-std::string checkLodPrefix(uint32_t n, std::span<const int32_t> ecol, std::span<const uint32_t> triangles,
-                           std::span<const uint32_t> map, uint32_t q) {
-    const uint32_t tc = uint32_t(triangles.size() / 3);
-    std::vector<uint32_t> corner(triangles.begin(), triangles.end());
-    const auto degenerate = [&](uint32_t t) {
-        return corner[3 * t] == corner[3 * t + 1] || corner[3 * t + 1] == corner[3 * t + 2] ||
-               corner[3 * t] == corner[3 * t + 2];
-    };
-    if (map[n] != tc) return "map[" + std::to_string(n) + "] = " + std::to_string(map[n]) + " is not the triangle count " + std::to_string(tc);
-    for (uint32_t t = 0; t < tc; ++t)
-        if (degenerate(t)) return "triangle " + std::to_string(t) + " is degenerate at full detail";
+namespace {
 
-    // Triangles per vertex as singly linked lists; a vertex's list moves to ecol[v] when v goes.
-    std::vector<uint32_t> head(n, UINT32_MAX), next(corner.size(), UINT32_MAX), tail(n, UINT32_MAX);
-    for (uint32_t i = 0; i < corner.size(); ++i) {
-        const uint32_t v = corner[i];
-        if (head[v] == UINT32_MAX) head[v] = i; else next[tail[v]] = i;
-        tail[v] = i;
+std::string str(uint64_t v) { return std::to_string(v); }
+
+bool isDegenerate(const uint32_t* c) { return c[0] == c[1] || c[1] == c[2] || c[0] == c[2]; }
+
+}  // namespace
+
+std::optional<LodPrefixViolation> checkLodPrefix(uint32_t n, std::span<const int32_t> ecol,
+                                                 std::span<const uint32_t> triangles, std::span<const uint32_t> map,
+                                                 uint32_t q, LodPrefixScratch& s) {
+    const uint32_t t_count = uint32_t(triangles.size() / 3);
+    s.corners.assign(triangles.begin(), triangles.end());
+    s.degenerate.assign(t_count, 0);
+    if (s.triangles_of.size() < n) s.triangles_of.resize(n);
+    for (uint32_t v = 0; v < n; ++v) s.triangles_of[v].clear();
+
+    // Level n is the full mesh: every triangle must be non-degenerate.
+    for (uint32_t t = 0; t < t_count; ++t) {
+        const uint32_t* c = &s.corners[size_t(t) * 3];
+        if (isDegenerate(c))
+            return LodPrefixViolation{n, "triangle " + str(t) + " (" + str(c[0]) + ", " + str(c[1]) + ", " + str(c[2]) +
+                                             ") is degenerate at full detail, but map[" + str(n) + "] = " + str(map[n])};
+        for (int j = 0; j < 3; ++j) s.triangles_of[c[j]].push_back(t);
     }
-    std::vector<uint8_t> dead(tc, 0);
+
+    // Invariant entering each step: the non-degenerate triangles are exactly [0, map[k]).
+    // Removing vertex k - 1 moves its corners onto ecol[k - 1]; the triangles that become
+    // degenerate must be exactly [map[k - 1], map[k]).
     for (uint32_t k = n; k > q; --k) {
         const uint32_t v = k - 1, target = uint32_t(ecol[v]);
-        for (uint32_t i = head[v]; i != UINT32_MAX; i = next[i]) {
-            const uint32_t t = i / 3;
-            if (dead[t]) continue;
-            corner[i] = target;
-            if (!degenerate(t)) continue;
-            dead[t] = 1;
-            if (t < map[v] || t >= map[k])
-                return "level " + std::to_string(v) + ": triangle " + std::to_string(t) +
-                       " degenerates but map says triangles [" + std::to_string(map[v]) + ", " +
-                       std::to_string(map[k]) + ") go";
+        const uint32_t lo = map[k - 1], hi = map[k];
+        uint32_t removed = 0;
+        for (const uint32_t t : s.triangles_of[v]) {
+            if (s.degenerate[t]) continue;
+            uint32_t* c = &s.corners[size_t(t) * 3];
+            for (int j = 0; j < 3; ++j)
+                if (c[j] == v) c[j] = target;
+            if (isDegenerate(c)) {
+                if (t < lo)
+                    return LodPrefixViolation{k - 1, "triangle " + str(t) + " degenerates when vertex " + str(v) +
+                                                         " collapses into " + str(target) + ", but it is below map[" +
+                                                         str(k - 1) + "] = " + str(lo)};
+                s.degenerate[t] = 1;
+                ++removed;
+            } else {
+                s.triangles_of[target].push_back(t);
+            }
         }
-        if (head[v] != UINT32_MAX) {
-            if (head[target] == UINT32_MAX) head[target] = head[v]; else next[tail[target]] = head[v];
-            tail[target] = tail[v];
+        s.triangles_of[v].clear();
+        if (removed != hi - lo) {
+            uint32_t survivor = lo;
+            while (survivor < hi && s.degenerate[survivor]) ++survivor;
+            return LodPrefixViolation{k - 1, "collapsing vertex " + str(v) + " into " + str(target) + " removes " +
+                                                 str(removed) + " triangles, but map[" + str(k) + "] - map[" +
+                                                 str(k - 1) + "] = " + str(hi - lo) + "; triangle " + str(survivor) +
+                                                 " stays non-degenerate"};
         }
-        // Everything map says goes at this step must have gone.
-        for (uint32_t t = map[v]; t < map[k]; ++t)
-            if (!dead[t])
-                return "level " + std::to_string(v) + ": triangle " + std::to_string(t) +
-                       " should be gone (map) but is not degenerate";
     }
-    return "";
+    return std::nullopt;
 }
 
 }  // namespace occ

@@ -104,7 +104,7 @@ PreparedScene prepareScene(const Scene& scene, const PrepOptions& options, PrepP
         for (int a = 1; a < 3; ++a)
             if (r.oobb.half_extent[a] < r.oobb.half_extent[thin]) thin = a;
         r.occluder_normal = r.oobb.axis[thin];
-        r.compactness = occ.compactness;
+        r.compactness = std::clamp(occ.compactness, 0.0f, 1.0f);  // the file format requires [0, 1]
     });
     out.meshes = std::move(kept);
 

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "scene/oss_file.h"
 
+#include "prep/lod_prefix.h"
+
 #include "scene/errors.h"
 
 #include <glm/gtc/type_ptr.hpp>
@@ -690,79 +692,17 @@ std::vector<OssFile::SectionInfo> OssFile::sections() const {
     return out;
 }
 
-namespace {
-
-// Reused per thread across meshes so that verifying 20 000 small meshes does not allocate 20 000 times.
-struct LodScratch {
-    std::vector<uint32_t> corners;                  // current (walked) corners, 3 per triangle
-    std::vector<uint8_t> degenerate;                // per triangle, at the current level
-    std::vector<std::vector<uint32_t>> triangles_of;  // per vertex: triangles that had it as a corner when pushed
-};
-
-}  // namespace
-
 void OssFile::verifyLodPrefix() const {
-    tbb::enumerable_thread_specific<LodScratch> scratch;
+    tbb::enumerable_thread_specific<LodPrefixScratch> scratch;
     const uint64_t map_at = header().sections[uint32_t(SectionId::map) - 1].offset;
     const std::optional<Failure> failure = lowestFailure(meshCount(), [&](uint32_t i) -> std::optional<Failure> {
         const MeshView m = mesh(i);
-        const uint32_t n = m.vertexCount(), t_count = m.triangleCount();
+        const std::optional<LodPrefixViolation> v =
+            checkLodPrefix(m.vertexCount(), m.ecol, m.triangles, m.map, m.q, scratch.local());
+        if (!v) return std::nullopt;
         const uint64_t map_first = sectionData<MeshRecord>(SectionId::meshes)[i].map_first;
-        const auto fail = [&](uint32_t k, const std::string& what) {
-            return Failure{"MAP", map_at + (map_first + k) * 4,
-                           "mesh " + str(i) + ": LOD prefix broken at k = " + str(k) + ": " + what};
-        };
-        LodScratch& s = scratch.local();
-        s.corners.assign(m.triangles.begin(), m.triangles.end());
-        s.degenerate.assign(t_count, 0);
-        if (s.triangles_of.size() < n) s.triangles_of.resize(n);
-        for (uint32_t v = 0; v < n; ++v) s.triangles_of[v].clear();
-
-        // Level n is the full mesh: map[n] = T was checked by open(), so every triangle must be
-        // non-degenerate.
-        for (uint32_t t = 0; t < t_count; ++t) {
-            const uint32_t* c = &s.corners[size_t(t) * 3];
-            if (c[0] == c[1] || c[1] == c[2] || c[0] == c[2])
-                return fail(n, "triangle " + str(t) + " (" + str(c[0]) + ", " + str(c[1]) + ", " + str(c[2]) +
-                                   ") is degenerate at full detail, but map[" + str(n) + "] = " + str(m.map[n]));
-            for (int j = 0; j < 3; ++j) s.triangles_of[c[j]].push_back(t);
-        }
-
-        // Invariant entering each step: the non-degenerate triangles are exactly [0, map[k]).
-        // Removing vertex k - 1 moves its corners onto ecol[k - 1]; the triangles that become
-        // degenerate must be exactly [map[k - 1], map[k]). A triangle is re-listed under the
-        // vertex it moved to only while it stays non-degenerate, so the work is the number of
-        // live corners moved, the sum of the collapsed vertices' valences.
-        for (uint32_t k = n; k > m.q; --k) {
-            const uint32_t v = k - 1, target = uint32_t(m.ecol[v]);
-            const uint32_t lo = m.map[k - 1], hi = m.map[k];
-            uint32_t removed = 0;
-            for (const uint32_t t : s.triangles_of[v]) {
-                if (s.degenerate[t]) continue;
-                uint32_t* c = &s.corners[size_t(t) * 3];
-                for (int j = 0; j < 3; ++j)
-                    if (c[j] == v) c[j] = target;
-                if (c[0] == c[1] || c[1] == c[2] || c[0] == c[2]) {
-                    if (t < lo)
-                        return fail(k - 1, "triangle " + str(t) + " degenerates when vertex " + str(v) +
-                                               " collapses into " + str(target) + ", but it is below map[" +
-                                               str(k - 1) + "] = " + str(lo));
-                    s.degenerate[t] = 1;
-                    ++removed;
-                } else {
-                    s.triangles_of[target].push_back(t);
-                }
-            }
-            s.triangles_of[v].clear();
-            if (removed != hi - lo) {
-                uint32_t survivor = lo;
-                while (survivor < hi && s.degenerate[survivor]) ++survivor;
-                return fail(k - 1, "collapsing vertex " + str(v) + " into " + str(target) + " removes " + str(removed) +
-                                       " triangles, but map[" + str(k) + "] - map[" + str(k - 1) + "] = " +
-                                       str(hi - lo) + "; triangle " + str(survivor) + " stays non-degenerate");
-            }
-        }
-        return std::nullopt;
+        return Failure{"MAP", map_at + (map_first + v->k) * 4,
+                       "mesh " + str(i) + ": LOD prefix broken at k = " + str(v->k) + ": " + v->what};
     });
     if (failure) raise(path_, *failure);
 }
