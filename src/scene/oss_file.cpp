@@ -143,17 +143,27 @@ std::optional<Failure> lowestFailure(uint32_t count, const std::function<std::op
     return result;
 }
 
-// The temporary file writeOss fills, with a running XXH3 of the current section. Removes the
-// temporary unless commit() renamed it into place.
+// The temporary file writeOss fills, with a running XXH3 of the current section. Where the
+// file system allows, it is an unnamed O_TMPFILE in the target's folder that only gets a name
+// at commit(), so a prep killed mid-write (Ctrl-C, OOM) leaves nothing behind at all; otherwise
+// a named temporary that the destructor removes unless commit() renamed it into place.
 class TempFileWriter {
 public:
     explicit TempFileWriter(const std::string& path) : path_(path), state_(XXH3_createState(), &XXH3_freeState) {
         if (!state_) throw std::bad_alloc();
+        std::string dir = std::filesystem::path(path_).parent_path().string();
+        if (dir.empty()) dir = ".";
+        fd_ = ::open(dir.c_str(), O_TMPFILE | O_WRONLY | O_CLOEXEC, 0666);
+        unnamed_ = fd_ >= 0;
+        if (!unnamed_ && errno == ENOENT)
+            throw InputError(path_, "cannot create temporary file in " + dir + ": " + std::strerror(errno));
         static std::atomic<uint64_t> counter{0};
         for (int attempt = 0;; ++attempt) {
             tmp_ = path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++);
+            if (unnamed_) break;
             fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-            if (fd_ >= 0) break;
+            named_ = fd_ >= 0;
+            if (named_) break;
             if (errno != EEXIST || attempt == 100)
                 throw InputError(path_, "cannot create temporary file " + tmp_ + ": " + std::strerror(errno));
         }
@@ -161,7 +171,7 @@ public:
     }
     ~TempFileWriter() {
         if (fd_ >= 0) ::close(fd_);
-        if (!committed_) ::unlink(tmp_.c_str());
+        if (!committed_ && named_) ::unlink(tmp_.c_str());
     }
     TempFileWriter(const TempFileWriter&) = delete;
     TempFileWriter& operator=(const TempFileWriter&) = delete;
@@ -204,6 +214,14 @@ public:
             done += uint64_t(n);
         }
         if (::fsync(fd_) != 0) ioFailure("cannot sync");
+        if (unnamed_) {
+            // linkat cannot replace a file, so the unnamed file gets a fresh name first and is
+            // then renamed over the target like a named temporary.
+            const std::string proc = "/proc/self/fd/" + std::to_string(fd_);
+            if (::linkat(AT_FDCWD, proc.c_str(), AT_FDCWD, tmp_.c_str(), AT_SYMLINK_FOLLOW) != 0)
+                ioFailure("cannot name");
+        }
+        named_ = true;
         const int fd = std::exchange(fd_, -1);
         if (::close(fd) != 0) ioFailure("cannot close");
         if (::rename(tmp_.c_str(), path_.c_str()) != 0)
@@ -251,6 +269,8 @@ private:
     }
 
     std::string path_, tmp_;
+    bool unnamed_ = false;  // fd_ is an O_TMPFILE without a name yet
+    bool named_ = false;    // tmp_ exists on disk and must be removed on failure
     std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state_;
     int fd_ = -1;
     bool committed_ = false;
