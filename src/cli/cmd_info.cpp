@@ -69,7 +69,7 @@ int runOssInfo(const std::string& path) {
 }
 
 int runInfo(const InfoOptions& o) {
-    if (std::filesystem::path(o.file).extension() == ".oss") return runOssInfo(o.file);
+    if (lowerExtension(o.file) == ".oss") return runOssInfo(o.file);
     const auto start = std::chrono::steady_clock::now();
     const Scene scene = importModel(o.file);
     const Bounds bounds = scene.worldBounds();

@@ -8,15 +8,11 @@
 
 namespace occ {
 
-namespace {
-
 std::string lowerExtension(const std::string& path) {
     std::string ext = std::filesystem::path(path).extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     return ext;
 }
-
-}  // namespace
 
 Scene importModel(const std::string& path) {
     std::error_code ec;

@@ -17,6 +17,9 @@ namespace occ {
 // indices out of range, non-finite positions, node cycles, no triangles at all, ...).
 Scene importModel(const std::string& path);
 
+// The file name's extension in lower case, with its dot (".glb"), or "" if it has none.
+std::string lowerExtension(const std::string& path);
+
 // Per-format entry points used by importModel; same contract.
 Scene importGltf(const std::string& path);
 Scene importWithOpenMesh(const std::string& path);

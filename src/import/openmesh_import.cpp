@@ -177,12 +177,6 @@ std::vector<uint32_t> objFaceGroups(const std::string& path, std::vector<std::st
     return groups;
 }
 
-std::string lowerExtension(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    return ext;
-}
-
 // An ASCII OFF file must hold at least as many data lines as its header promises vertices and
 // faces; OpenMesh's reader otherwise reads past the end as zeros and reports success.
 void validateOff(const std::string& path, const std::string& text) {
