@@ -17,6 +17,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -34,9 +35,9 @@ constexpr double kTargets[] = {0.5, 0.1, 0.01};
 constexpr size_t kTargetCount = std::size(kTargets);
 
 // The bar the issue sets, and the paper's figure beside it.
-constexpr double kGoalTrianglesPerSecond = 1e6;    // ours, all cores of this machine
-constexpr double kGoalSlowerThanMeshopt = 3.0;     // ours on one thread vs meshopt_simplify
-constexpr size_t kGoalErrorTarget = 1;             // index into kTargets: error no worse at 10 %
+constexpr double kGoalTrianglesPerSecond = 1e6;      // ours, all cores of this machine
+constexpr double kGoalSlowerThanMeshopt = 3.0;       // ours on one thread vs meshopt_simplify
+constexpr size_t kGoalErrorTarget = 1;               // index into kTargets: error no worse at 10 %
 constexpr double kPeng2014TrianglesPerSecond = 5e3;  // Peng 2014, preprocessing on one core
 
 struct BenchPrepOptions {
@@ -47,6 +48,7 @@ struct BenchPrepOptions {
     uint32_t samples_per_triangle = 10;
     unsigned repeat = 3;
     double openmesh_seconds = 20.0;
+    bool meshopt_lock_border = false;
 };
 
 // One unique mesh as every simplifier sees it.
@@ -59,37 +61,43 @@ struct BenchMesh {
 
 struct Lod {
     uint32_t triangles = 0;   // triangles reached
-    uint32_t k = 0;           // ours: vertices of the prefix
     double error = 0.0;       // symmetric sampled Hausdorff distance / diagonal (+inf: vanished)
     double mean_error = 0.0;  // mean sampled distance / diagonal
-    float own_error = 0.0f;   // meshopt's result_error (relative to its own extent)
 };
 
+// Per mesh and target. "matched" is meshopt asked for the triangle count ours reached when
+// ours stopped above the target (its floor q), so that the two are also compared at equal size.
 struct MeshResult {
-    Lod ours[kTargetCount], meshopt[kTargetCount];
-    uint32_t target[kTargetCount] = {};
     uint32_t q = 0;
-    uint64_t samples = 0;  // per surface, on top of the vertices
+    uint64_t samples = 0;  // area samples per surface, on top of the vertices
+    uint32_t target[kTargetCount] = {};
+    uint32_t ours_k[kTargetCount] = {};
+    float meshopt_own_error[kTargetCount] = {};  // meshopt's result_error, relative to its extent
+    Lod ours[kTargetCount], meshopt[kTargetCount], matched[kTargetCount];
 };
 
 struct Aggregate {
     uint64_t target = 0, reached = 0;  // triangles over all meshes
     double weighted_error = 0.0, max_error = 0.0, weighted_mean_error = 0.0;
-    uint32_t above_target = 0, vanished = 0, worst_mesh = 0;
+    uint32_t above_target = 0, vanished = 0;
 };
 
-double secondsSince(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
+// Wall time, and the CPU time of the whole process over the same run: on a shared machine
+// cpu / wall says how many cores the run really had.
+struct Timing {
+    double wall = std::numeric_limits<double>::infinity(), cpu = 0.0;
+};
 
 // The fastest of `repeat` runs: the machine is shared, and interference only ever adds time.
 template <class F>
-double bestOf(unsigned repeat, F&& run) {
-    double best = std::numeric_limits<double>::infinity();
+Timing bestOf(unsigned repeat, F&& run) {
+    Timing best;
     for (unsigned i = 0; i < repeat; ++i) {
         const auto start = std::chrono::steady_clock::now();
+        const std::clock_t cpu_start = std::clock();
         run(i);
-        best = std::min(best, secondsSince(start));
+        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        if (wall < best.wall) best = {wall, double(std::clock() - cpu_start) / CLOCKS_PER_SEC};
     }
     return best;
 }
@@ -105,6 +113,29 @@ void parallelFor(size_t count, unsigned threads, F&& body) {
     for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker);
     worker();
     for (std::thread& t : pool) t.join();
+}
+
+std::string format(const char* fmt, auto... args) {
+    std::string out(size_t(std::snprintf(nullptr, 0, fmt, args...)), '\0');
+    std::snprintf(out.data(), out.size() + 1, fmt, args...);
+    return out;
+}
+
+std::string percent(double fraction) { return format("%g %%", fraction * 100.0); }
+
+// The machine is shared: the load when the run starts says how far to trust wall times.
+std::string loadAverage() {
+    std::ifstream in("/proc/loadavg");
+    double one = 0, five = 0, fifteen = 0;
+    if (!(in >> one >> five >> fifteen)) return "unknown";
+    return format("%.2f %.2f %.2f", one, five, fifteen);
+}
+
+std::string csvField(const std::string& s) {
+    if (s.find_first_of(",\"\n") == std::string::npos) return s;
+    std::string quoted = "\"";
+    for (char c : s) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return quoted + "\"";
 }
 
 // The LOD of a progressive mesh with the most vertices whose triangle count is <= target (the
@@ -123,12 +154,22 @@ std::vector<uint32_t> prefixLod(const ProgressiveMesh& pm, uint32_t target, uint
     return lod;
 }
 
+// meshopt_simplify down to target_triangles, with target_error 1 (the whole extent) so that
+// error never stops it before the count. out must hold the whole index list (meshopt's rule).
+size_t meshoptSimplify(const WeldedMesh& w, uint32_t target_triangles, bool lock_border, std::vector<uint32_t>& out,
+                       float* own_error) {
+    if (w.triangles.empty()) return 0;
+    return meshopt_simplify(out.data(), w.triangles.data(), w.triangles.size(), &w.positions[0].x, w.positions.size(),
+                            sizeof(glm::vec3), size_t(target_triangles) * 3, 1.0f,
+                            lock_border ? unsigned(meshopt_SimplifyLockBorder) : 0u, own_error);
+}
+
 Lod measureLod(const BenchMesh& m, std::span<const glm::vec3> positions, std::span<const uint32_t> lod,
                const HausdorffOptions& options) {
     const HausdorffDistance d = sampledHausdorff(m.welded.positions, m.welded.triangles, positions, lod, options);
     Lod r;
     r.triangles = uint32_t(lod.size() / 3);
-    // A flat-zero box (one point) only occurs with zero distances; keep those 0, not NaN.
+    // A box of zero size (one point) only occurs with zero distances; keep those 0, not NaN.
     const double scale = m.diagonal > 0.0 ? 1.0 / m.diagonal : 0.0;
     r.error = std::isinf(d.max) ? d.max : d.max * scale;
     r.mean_error = std::isinf(d.mean) ? d.mean : d.mean * scale;
@@ -139,11 +180,11 @@ Lod measureLod(const BenchMesh& m, std::span<const glm::vec3> positions, std::sp
 // vanished (no triangles while the mesh has some) counts as one diagonal: no non-empty subset
 // of the bounding box is farther from the mesh than that.
 Aggregate aggregate(const std::vector<BenchMesh>& meshes, const std::vector<MeshResult>& results, size_t target,
-                    bool ours) {
+                    Lod (MeshResult::*who)[kTargetCount]) {
     Aggregate a;
     double weight = 0.0;
     for (size_t i = 0; i < meshes.size(); ++i) {
-        const Lod& lod = ours ? results[i].ours[target] : results[i].meshopt[target];
+        const Lod& lod = (results[i].*who)[target];
         const double w = double(meshes[i].welded.triangles.size() / 3);
         if (w == 0.0) continue;
         const double error = std::min(lod.error, 1.0), mean = std::min(lod.mean_error, 1.0);
@@ -154,34 +195,13 @@ Aggregate aggregate(const std::vector<BenchMesh>& meshes, const std::vector<Mesh
         a.weighted_error += w * error;
         a.weighted_mean_error += w * mean;
         weight += w;
-        if (error > a.max_error) a.max_error = error, a.worst_mesh = uint32_t(i);
+        a.max_error = std::max(a.max_error, error);
     }
     if (weight > 0.0) a.weighted_error /= weight, a.weighted_mean_error /= weight;
     return a;
 }
 
-std::string csvField(const std::string& s) {
-    if (s.find_first_of(",\"\n") == std::string::npos) return s;
-    std::string quoted = "\"";
-    for (char c : s) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
-    return quoted + "\"";
-}
-
-std::string format(const char* fmt, auto... args) {
-    std::string out(size_t(std::snprintf(nullptr, 0, fmt, args...)), '\0');
-    std::snprintf(out.data(), out.size() + 1, fmt, args...);
-    return out;
-}
-
-// The machine is shared: the load when the run starts says how far to trust wall times.
-std::string loadAverage() {
-    std::ifstream in("/proc/loadavg");
-    double one = 0, five = 0, fifteen = 0;
-    if (!(in >> one >> five >> fifteen)) return "unknown";
-    return format("%.2f %.2f %.2f", one, five, fifteen);
-}
-
-std::string percent(double fraction) { return format("%g %%", fraction * 100.0); }
+double ratio(double a, double b) { return b > 0.0 ? a / b : (a > 0.0 ? INFINITY : 1.0); }
 
 int runBenchPrep(const BenchPrepOptions& o) {
     if (o.threads > 1024) throw UsageError("--threads " + std::to_string(o.threads) + " is not a sensible thread count");
@@ -207,116 +227,124 @@ int runBenchPrep(const BenchPrepOptions& o) {
         BenchMesh b;
         b.scene_mesh = m;
         b.input_triangles = scene.meshes[m].triangleCount();
+        b.welded = weldPositions(scene.meshes[m].positions, scene.meshes[m].indices);
+        Bounds box;
+        for (const glm::vec3& p : b.welded.positions) box.extend(p);
+        b.diagonal = box.empty() ? 0.0 : glm::length(glm::dvec3(box.max) - glm::dvec3(box.min));
         input_triangles += b.input_triangles;
+        welded_triangles += b.welded.triangles.size() / 3;
         meshes.push_back(std::move(b));
     }
     const std::string load = loadAverage();
-    std::printf("occswitch bench prep: %s\n  %zu objects, %zu unique meshes, %llu unique input triangles; "
-                "%u hardware threads, load average %s at the start; times are the best of %u runs\n\n",
-                o.input.c_str(), scene.objects.size(), meshes.size(), (unsigned long long)input_triangles, hardware,
-                load.c_str(), o.repeat);
+    const std::string header = format(
+        "`%s`: %zu objects, %zu unique meshes, %llu unique input triangles (%llu after welding); %u hardware "
+        "threads, load average %s at the start; times are the best of %u runs%s.\n",
+        o.input.c_str(), scene.objects.size(), meshes.size(), (unsigned long long)input_triangles,
+        (unsigned long long)welded_triangles, hardware, load.c_str(), o.repeat,
+        o.meshopt_lock_border ? "; meshopt with meshopt_SimplifyLockBorder" : "");
+    std::printf("occswitch bench prep: %s", header.c_str());
+    std::fflush(stdout);
 
     // a. Ours: the whole scene through prepareScene, all cores then one.
     PreparedScene prepared;
-    const auto timePrepare = [&](unsigned run_threads, Collapser collapser, const Scene& s, const char* label) {
+    const auto timePrepare = [&](unsigned run_threads, const char* label) {
         PrepOptions options;
         options.threads = run_threads;
-        options.collapser = collapser;
+        options.collapser = Collapser::Fast;
         return bestOf(o.repeat, [&](unsigned run) {
             PrepProgress progress;
             ProgressBar bar(format("%s, run %u/%u", label, run + 1, o.repeat), "meshes", "tri", [&progress] {
                 return ProgressBar::Sample{double(progress.meshes_done), double(progress.meshes_total),
                                            double(progress.triangles_done)};
             });
-            prepared = prepareScene(s, options, &progress);
+            prepared = prepareScene(scene, options, &progress);
         });
     };
-    const double ours_all = timePrepare(threads, Collapser::Fast, scene, "prepareScene, all threads");
-    const double ours_one = timePrepare(1, Collapser::Fast, scene, "prepareScene, 1 thread");
+    const Timing ours_all = timePrepare(threads, "prepareScene, all threads");
+    const Timing ours_one = timePrepare(1, "prepareScene, 1 thread");
 
-    // Where one thread's time goes: the stages of buildProgressiveMesh, called one by one.
-    double weld_seconds = 0.0, collapse_seconds = 0.0, arrays_seconds = 0.0;
-    {
+    // Where one thread's time goes: the stages of buildProgressiveMesh called one by one, each
+    // summed over the meshes (wall time only: a CPU clock read costs a system call per stage and
+    // mesh); the best of the runs per stage.
+    constexpr double kUnmeasured = std::numeric_limits<double>::quiet_NaN();
+    Timing weld_time, collapse_time, arrays_time;
+    for (unsigned run = 0; run < o.repeat; ++run) {
         std::atomic<uint64_t> done{0};
-        ProgressBar bar("stages, 1 thread", "meshes", "tri", [&] {
-            return ProgressBar::Sample{double(done), double(meshes.size()), 0.0};
-        });
-        for (BenchMesh& b : meshes) {
+        ProgressBar bar(format("stages, 1 thread, run %u/%u", run + 1, o.repeat), "meshes", "tri",
+                        [&] { return ProgressBar::Sample{double(done), double(meshes.size()), 0.0}; });
+        Timing weld{0, kUnmeasured}, collapse{0, kUnmeasured}, arrays{0, kUnmeasured};
+        for (const BenchMesh& b : meshes) {
             const Mesh& mesh = scene.meshes[b.scene_mesh];
             auto start = std::chrono::steady_clock::now();
-            b.welded = weldPositions(mesh.positions, mesh.indices);
-            weld_seconds += secondsSince(start);
-            start = std::chrono::steady_clock::now();
-            const CollapseSequence sequence = fastCollapseSequence(b.welded.positions, b.welded.triangles);
-            collapse_seconds += secondsSince(start);
-            start = std::chrono::steady_clock::now();
-            const CollapseArrays arrays = recordCollapseArrays(uint32_t(b.welded.positions.size()),
-                                                               uint32_t(b.welded.triangles.size() / 3), sequence);
-            const ProgressiveMesh pm = rearrange(b.welded.positions, b.welded.triangles, sequence, arrays);
-            arrays_seconds += secondsSince(start);
-            Bounds box;
-            for (const glm::vec3& p : b.welded.positions) box.extend(p);
-            b.diagonal = box.empty() ? 0.0 : glm::length(glm::dvec3(box.max) - glm::dvec3(box.min));
-            welded_triangles += b.welded.triangles.size() / 3;
+            const WeldedMesh w = weldPositions(mesh.positions, mesh.indices);
+            auto end = std::chrono::steady_clock::now();
+            weld.wall += std::chrono::duration<double>(end - start).count();
+            start = end;
+            const CollapseSequence sequence = fastCollapseSequence(w.positions, w.triangles);
+            end = std::chrono::steady_clock::now();
+            collapse.wall += std::chrono::duration<double>(end - start).count();
+            start = end;
+            const CollapseArrays a = recordCollapseArrays(uint32_t(w.positions.size()), uint32_t(w.triangles.size() / 3),
+                                                          sequence);
+            const ProgressiveMesh pm = rearrange(w.positions, w.triangles, sequence, a);
+            arrays.wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
             ++done;
         }
+        if (weld.wall < weld_time.wall) weld_time = weld;
+        if (collapse.wall < collapse_time.wall) collapse_time = collapse;
+        if (arrays.wall < arrays_time.wall) arrays_time = arrays;
     }
 
     // The OpenMesh reference on one thread, against ours on the same meshes. At ~55 K tri/s a
     // big scene would take minutes, so meshes are taken in a fixed pseudo-random order (Knuth's
-    // multiplicative hash of the index, a permutation: representative, and the same every run)
-    // until the time budget is spent.
-    std::vector<uint32_t> openmesh_order(meshes.size());
-    for (size_t i = 0; i < meshes.size(); ++i)
-        openmesh_order[i] = uint32_t(meshes.size() < 2 ? i : (uint64_t(i) * 2654435761ull) % meshes.size());
+    // multiplicative hash of the index, a permutation unless the count is a multiple of the
+    // prime: representative, and the same every run) until the time budget is spent; one run.
     std::vector<uint32_t> openmesh_subset;
     uint64_t openmesh_triangles = 0;
-    double openmesh_seconds = 0.0;
+    Timing openmesh_time{0, 0};
     {
         ProgressBar bar("OpenMesh reference, 1 thread", "meshes", "tri", [&] {
             return ProgressBar::Sample{double(openmesh_subset.size()), double(meshes.size()), double(openmesh_triangles)};
         });
-        for (uint32_t i : openmesh_order) {
-            if (openmesh_seconds >= o.openmesh_seconds && !openmesh_subset.empty()) break;
-            const auto start = std::chrono::steady_clock::now();
-            buildProgressiveMesh(scene.meshes[meshes[i].scene_mesh], Collapser::OpenMesh);
-            openmesh_seconds += secondsSince(start);
+        std::vector<uint8_t> taken(meshes.size(), 0);
+        for (size_t j = 0; j < meshes.size(); ++j) {
+            if (openmesh_time.wall >= o.openmesh_seconds && !openmesh_subset.empty()) break;
+            const uint32_t i = uint32_t((uint64_t(j) * 2654435761ull) % meshes.size());
+            if (taken[i]) continue;
+            taken[i] = 1;
+            const Timing t = bestOf(1, [&](unsigned) {
+                buildProgressiveMesh(scene.meshes[meshes[i].scene_mesh], Collapser::OpenMesh);
+            });
+            openmesh_time.wall += t.wall, openmesh_time.cpu += t.cpu;
             openmesh_subset.push_back(i);
             openmesh_triangles += meshes[i].input_triangles;
         }
     }
-    const double fast_on_subset = bestOf(o.repeat, [&](unsigned) {
+    const Timing fast_on_subset = bestOf(o.repeat, [&](unsigned) {
         for (uint32_t i : openmesh_subset) buildProgressiveMesh(scene.meshes[meshes[i].scene_mesh], Collapser::Fast);
     });
 
     // b. meshopt_simplify on the welded meshes, one target at a time, one thread. Output buffers
-    // are allocated outside the timed loop; meshopt needs room for the whole index list.
+    // are allocated outside the timed loop.
     std::vector<MeshResult> results(meshes.size());
     std::vector<std::vector<uint32_t>> meshopt_out[kTargetCount];
-    double meshopt_seconds[kTargetCount] = {};
+    Timing meshopt_time[kTargetCount];
     for (size_t t = 0; t < kTargetCount; ++t) {
         meshopt_out[t].resize(meshes.size());
         for (size_t i = 0; i < meshes.size(); ++i) {
-            const size_t tc = meshes[i].welded.triangles.size() / 3;
-            results[i].target[t] = uint32_t(std::llround(double(tc) * kTargets[t]));
+            results[i].target[t] = uint32_t(std::llround(double(meshes[i].welded.triangles.size() / 3) * kTargets[t]));
             meshopt_out[t][i].resize(meshes[i].welded.triangles.size());
         }
         std::atomic<uint64_t> done{0};
-        ProgressBar bar("meshopt_simplify " + percent(kTargets[t]), "meshes", "tri", [&] {
-            return ProgressBar::Sample{double(done), double(meshes.size()), 0.0};
-        });
-        meshopt_seconds[t] = bestOf(o.repeat, [&](unsigned) {
+        ProgressBar bar("meshopt_simplify to " + percent(kTargets[t]), "meshes", "tri",
+                        [&] { return ProgressBar::Sample{double(done), double(meshes.size()), 0.0}; });
+        meshopt_time[t] = bestOf(o.repeat, [&](unsigned) {
             done = 0;
             for (size_t i = 0; i < meshes.size(); ++i) {
-                const WeldedMesh& w = meshes[i].welded;
-                if (w.triangles.empty()) continue;
                 std::vector<uint32_t>& out = meshopt_out[t][i];
-                out.resize(w.triangles.size());
-                // target_error 1 (the whole extent) so that error never stops it before the count.
-                const size_t count = meshopt_simplify(out.data(), w.triangles.data(), w.triangles.size(), &w.positions[0].x,
-                                                      w.positions.size(), sizeof(glm::vec3), size_t(results[i].target[t]) * 3,
-                                                      1.0f, 0, &results[i].meshopt[t].own_error);
-                out.resize(count);
+                out.resize(meshes[i].welded.triangles.size());
+                out.resize(meshoptSimplify(meshes[i].welded, results[i].target[t], o.meshopt_lock_border, out,
+                                           &results[i].meshopt_own_error[t]));
                 ++done;
             }
         });
@@ -325,27 +353,29 @@ int runBenchPrep(const BenchPrepOptions& o) {
     // c. Geometric error of both at each target, in parallel over meshes (not timed).
     {
         std::atomic<uint64_t> done{0}, work{0};
-        ProgressBar bar("error (sampled Hausdorff)", "meshes", "tri", [&] {
-            return ProgressBar::Sample{double(done), double(meshes.size()), double(work)};
-        });
+        ProgressBar bar("error (sampled Hausdorff)", "meshes", "tri",
+                        [&] { return ProgressBar::Sample{double(done), double(meshes.size()), double(work)}; });
         parallelFor(meshes.size(), threads, [&](size_t i) {
             const BenchMesh& b = meshes[i];
             const ProgressiveMesh& pm = prepared.meshes[i];
             MeshResult& r = results[i];
             r.q = pm.q;
-            // Small meshes need fewer samples to be covered densely (and the plant has 20 000).
+            // Small meshes are covered densely with fewer samples (and the plant has 20 000).
             const uint32_t tc = uint32_t(b.welded.triangles.size() / 3);
             HausdorffOptions options;
             options.samples = uint32_t(std::min<uint64_t>(o.samples, uint64_t(o.samples_per_triangle) * tc));
             r.samples = options.samples;
             for (size_t t = 0; t < kTargetCount; ++t) {
-                uint32_t k = 0;
-                const std::vector<uint32_t> lod = prefixLod(pm, r.target[t], &k);
-                const float own_error = r.meshopt[t].own_error;
+                const std::vector<uint32_t> lod = prefixLod(pm, r.target[t], &r.ours_k[t]);
                 r.ours[t] = measureLod(b, pm.positions, lod, options);
-                r.ours[t].k = k;
                 r.meshopt[t] = measureLod(b, b.welded.positions, meshopt_out[t][i], options);
-                r.meshopt[t].own_error = own_error;
+                r.matched[t] = r.meshopt[t];
+                if (r.ours[t].triangles > r.target[t]) {
+                    std::vector<uint32_t> out(b.welded.triangles.size());
+                    float own_error = 0.0f;
+                    out.resize(meshoptSimplify(b.welded, r.ours[t].triangles, o.meshopt_lock_border, out, &own_error));
+                    r.matched[t] = measureLod(b, b.welded.positions, out, options);
+                }
             }
             work += tc;
             ++done;
@@ -353,112 +383,126 @@ int runBenchPrep(const BenchPrepOptions& o) {
     }
 
     // d. Report.
+    const auto rate = [](double triangles, const Timing& t) { return t.wall > 0.0 ? triangles / t.wall / 1e6 : 0.0; };
     std::ostringstream table;
-    const auto rate = [](double triangles, double seconds) { return seconds > 0.0 ? triangles / seconds / 1e6 : 0.0; };
-    table << format("| %-52s | %9s | %9s | %-34s |\n", "throughput", "seconds", "M tri/s", "input");
-    table << format("|%s|%s|%s|%s|\n", std::string(54, '-').c_str(), std::string(11, '-').c_str(),
-                    std::string(11, '-').c_str(), std::string(36, '-').c_str());
-    const auto row = [&](const std::string& what, double seconds, double triangles, const std::string& input) {
-        table << format("| %-52s | %9.3f | %9.3f | %-34s |\n", what.c_str(), seconds, rate(triangles, seconds), input.c_str());
+    table << format("| %-52s | %8s | %8s | %8s | %-36s |\n", "throughput", "wall s", "cpu s", "M tri/s", "input");
+    table << "|------------------------------------------------------|----------|----------|----------|"
+             "--------------------------------------|\n";
+    const auto row = [&](const std::string& what, const Timing& t, double triangles, const std::string& input) {
+        const std::string cpu = std::isnan(t.cpu) ? "-" : format("%.3f", t.cpu);
+        table << format("| %-52s | %8.3f | %8s | %8.3f | %-36s |\n", what.c_str(), t.wall, cpu.c_str(),
+                        rate(triangles, t), input.c_str());
     };
     const std::string all_input = format("%llu unique input triangles", (unsigned long long)input_triangles);
     row(format("ours: prepareScene, fast collapser, %u threads", threads), ours_all, double(input_triangles), all_input);
     row("ours: prepareScene, fast collapser, 1 thread", ours_one, double(input_triangles), all_input);
-    row("  of which weld", weld_seconds, double(input_triangles), all_input);
-    row("  of which collapse sequence (fastCollapseSequence)", collapse_seconds, double(input_triangles), all_input);
-    row("  of which arrays + Algorithm 1", arrays_seconds, double(input_triangles), all_input);
-    row("  of which the rest (occluder data, objects)",
-        std::max(0.0, ours_one - weld_seconds - collapse_seconds - arrays_seconds), double(input_triangles), all_input);
+    row("  stage: weld", weld_time, double(input_triangles), all_input);
+    row("  stage: collapse sequence (fastCollapseSequence)", collapse_time, double(input_triangles), all_input);
+    row("  stage: arrays + Algorithm 1", arrays_time, double(input_triangles), all_input);
+    const Timing rest{std::max(0.0, ours_one.wall - weld_time.wall - collapse_time.wall - arrays_time.wall),
+                      kUnmeasured};
+    row("  rest: occluder data (OOBB, compactness), objects", rest, double(input_triangles), all_input);
     const std::string subset = format("%zu of %zu meshes, %llu triangles", openmesh_subset.size(), meshes.size(),
                                       (unsigned long long)openmesh_triangles);
-    row("OpenMesh reference: buildProgressiveMesh, 1 thread", openmesh_seconds, double(openmesh_triangles), subset);
+    row("OpenMesh reference: buildProgressiveMesh, 1 thread", openmesh_time, double(openmesh_triangles), subset);
     row("ours: buildProgressiveMesh, same meshes, 1 thread", fast_on_subset, double(openmesh_triangles), subset);
     const std::string welded_input = format("%llu welded triangles", (unsigned long long)welded_triangles);
     for (size_t t = 0; t < kTargetCount; ++t)
-        row("meshopt_simplify to " + percent(kTargets[t]) + ", 1 thread", meshopt_seconds[t], double(welded_triangles),
+        row("meshopt_simplify to " + percent(kTargets[t]) + ", 1 thread", meshopt_time[t], double(welded_triangles),
             welded_input);
 
-    Aggregate ours_agg[kTargetCount], meshopt_agg[kTargetCount];
+    Aggregate ours_agg[kTargetCount], meshopt_agg[kTargetCount], matched_agg[kTargetCount];
     for (size_t t = 0; t < kTargetCount; ++t) {
-        ours_agg[t] = aggregate(meshes, results, t, true);
-        meshopt_agg[t] = aggregate(meshes, results, t, false);
+        ours_agg[t] = aggregate(meshes, results, t, &MeshResult::ours);
+        meshopt_agg[t] = aggregate(meshes, results, t, &MeshResult::meshopt);
+        matched_agg[t] = aggregate(meshes, results, t, &MeshResult::matched);
     }
     std::ostringstream errors;
-    errors << format("| %-6s | %-8s | %12s | %12s | %10s | %10s | %10s | %8s |\n", "target", "who", "target tri",
-                     "reached tri", "mean err", "max err", "mean dist", "above");
-    errors << "|--------|----------|--------------|--------------|------------|------------|------------|----------|\n";
-    for (size_t t = 0; t < kTargetCount; ++t)
-        for (bool ours : {true, false}) {
-            const Aggregate& a = ours ? ours_agg[t] : meshopt_agg[t];
-            errors << format("| %-6s | %-8s | %12llu | %12llu | %10.5f | %10.5f | %10.6f | %8u |\n",
-                             percent(kTargets[t]).c_str(), ours ? "ours" : "meshopt", (unsigned long long)a.target,
-                             (unsigned long long)a.reached, a.weighted_error, a.max_error, a.weighted_mean_error,
-                             a.above_target);
-        }
+    errors << format("| %-6s | %-22s | %11s | %11s | %9s | %9s | %9s | %6s | %8s |\n", "target", "simplifier", "target tri",
+                     "reached tri", "mean err", "max err", "mean dist", "above", "vanished");
+    errors << "|--------|------------------------|-------------|-------------|-----------|-----------|-----------|"
+              "--------|----------|\n";
+    for (size_t t = 0; t < kTargetCount; ++t) {
+        const std::pair<const char*, const Aggregate*> rows[] = {
+            {"ours", &ours_agg[t]}, {"meshopt", &meshopt_agg[t]}, {"meshopt @ ours' count", &matched_agg[t]}};
+        for (const auto& [who, a] : rows)
+            errors << format("| %-6s | %-22s | %11llu | %11llu | %9.5f | %9.5f | %9.6f | %6u | %8u |\n",
+                             percent(kTargets[t]).c_str(), who, (unsigned long long)a->target,
+                             (unsigned long long)a->reached, a->weighted_error, a->max_error, a->weighted_mean_error,
+                             a->above_target, a->vanished);
+    }
+    const std::string notes = format(
+        "err: symmetric sampled Hausdorff distance between the welded full-detail mesh and the LOD over the mesh's "
+        "bounding-box diagonal; per mesh all vertices plus min(%u, %u x triangles) area samples per surface. mean err: "
+        "weighted by the meshes' triangles; max err: the worst mesh; mean dist: weighted mean of each mesh's mean "
+        "sampled distance. A vanished LOD (0 triangles) counts as 1. above: meshes left above their target (ours: "
+        "collapse floor q, boundary vertices are locked). meshopt @ ours' count: meshopt asked for the triangles ours "
+        "reached wherever ours stopped above the target (equal size), else the target row's result.\n",
+        o.samples, o.samples_per_triangle);
 
     std::ostringstream verdict;
     const double ours_rate = rate(double(input_triangles), ours_all);
-    verdict << format("throughput: ours %.3f M tri/s on %u threads (goal >= %.0f M tri/s: %s); one thread %.3f M tri/s; "
-                      "OpenMesh reference %.3f M tri/s, ours %.1fx faster on the same meshes; Peng 2014: %.0f K tri/s "
-                      "on one core (ours on one thread: %.0fx)\n",
-                      ours_rate, threads, kGoalTrianglesPerSecond / 1e6,
-                      ours_rate >= kGoalTrianglesPerSecond / 1e6
-                          ? "met"
-                          : format("missed by %.2fx", kGoalTrianglesPerSecond / 1e6 / ours_rate).c_str(),
-                      rate(double(input_triangles), ours_one), rate(double(openmesh_triangles), openmesh_seconds),
-                      fast_on_subset > 0 ? openmesh_seconds / fast_on_subset : 0.0, kPeng2014TrianglesPerSecond / 1e3,
-                      rate(double(input_triangles), ours_one) * 1e6 / kPeng2014TrianglesPerSecond);
+    const double one_rate = rate(double(input_triangles), ours_one);
+    verdict << format(
+        "throughput: ours %.3f M tri/s on %u threads (goal >= %.0f M tri/s: %s; the run had %.2f cores); 1 thread "
+        "%.3f M tri/s, %.0fx Peng 2014's %.0f K tri/s on one core; OpenMesh reference %.3f M tri/s, ours %.1fx "
+        "faster on the same meshes\n",
+        ours_rate, threads, kGoalTrianglesPerSecond / 1e6,
+        ours_rate * 1e6 >= kGoalTrianglesPerSecond ? "met"
+                                                   : format("missed by %.2fx", kGoalTrianglesPerSecond / 1e6 / ours_rate).c_str(),
+        ours_all.cpu / ours_all.wall, one_rate, one_rate * 1e6 / kPeng2014TrianglesPerSecond,
+        kPeng2014TrianglesPerSecond / 1e3, rate(double(openmesh_triangles), openmesh_time),
+        ratio(openmesh_time.wall, fast_on_subset.wall));
     for (size_t t = 0; t < kTargetCount; ++t) {
-        const double slower = meshopt_seconds[t] > 0 ? ours_one / meshopt_seconds[t] : 0.0;
-        const double error_ratio = meshopt_agg[t].weighted_error > 0 ? ours_agg[t].weighted_error / meshopt_agg[t].weighted_error
-                                                                      : (ours_agg[t].weighted_error > 0 ? INFINITY : 1.0);
-        std::string speed_goal = slower <= kGoalSlowerThanMeshopt ? "met" : format("missed by %.2fx", slower / kGoalSlowerThanMeshopt);
-        std::string error_goal = t != kGoalErrorTarget ? "" : (error_ratio <= 1.0 ? " (goal <= 1: met)" : " (goal <= 1: missed)");
-        verdict << format("%-5s ours (1 thread, all LODs at once) takes %.2fx meshopt's time (goal <= %.0fx: %s); "
-                          "error ours / meshopt %.2f (mean), %.2f (max)%s; triangles reached ours %.1f %%, meshopt %.1f %%\n",
-                          percent(kTargets[t]).c_str(), slower, kGoalSlowerThanMeshopt, speed_goal.c_str(), error_ratio,
-                          meshopt_agg[t].max_error > 0 ? ours_agg[t].max_error / meshopt_agg[t].max_error : 0.0,
-                          error_goal.c_str(), 100.0 * double(ours_agg[t].reached) / double(std::max<uint64_t>(1, welded_triangles)),
-                          100.0 * double(meshopt_agg[t].reached) / double(std::max<uint64_t>(1, welded_triangles)));
+        const double slower = ratio(ours_one.wall, meshopt_time[t].wall);
+        const double error_ratio = ratio(ours_agg[t].weighted_error, meshopt_agg[t].weighted_error);
+        const std::string speed_goal =
+            slower <= kGoalSlowerThanMeshopt ? "met" : format("missed by %.2fx", slower / kGoalSlowerThanMeshopt);
+        const std::string error_goal =
+            t != kGoalErrorTarget ? "" : (error_ratio <= 1.0 ? " (goal <= 1: met)" : " (goal <= 1: missed)");
+        verdict << format(
+            "%-5s speed: ours (1 thread, every LOD at once) takes %.2fx meshopt's time (goal <= %.0fx: %s). "
+            "error ours / meshopt: %.2f mean, %.2f max%s, at %.1f %% vs %.1f %% of the triangles; at equal size: "
+            "%.2f mean, %.2f max\n",
+            percent(kTargets[t]).c_str(), slower, kGoalSlowerThanMeshopt, speed_goal.c_str(), error_ratio,
+            ratio(ours_agg[t].max_error, meshopt_agg[t].max_error), error_goal.c_str(),
+            100.0 * ratio(double(ours_agg[t].reached), double(welded_triangles)),
+            100.0 * ratio(double(meshopt_agg[t].reached), double(welded_triangles)),
+            ratio(ours_agg[t].weighted_error, matched_agg[t].weighted_error),
+            ratio(ours_agg[t].max_error, matched_agg[t].max_error));
     }
-    const std::string notes = format(
-        "error: symmetric sampled Hausdorff distance between the welded full-detail mesh and the LOD, divided by the "
-        "mesh's bounding-box diagonal; per mesh all vertices plus min(%u, %u x triangles) area samples per surface; "
-        "aggregated over meshes weighted by triangles (mean err) and as the worst mesh (max err); mean dist: the "
-        "weighted mean of each mesh's mean sampled distance; a vanished LOD counts as 1. above: meshes left above "
-        "their target (ours: collapse floor q, boundaries are locked; meshopt: topology).\n",
-        o.samples, o.samples_per_triangle);
 
-    std::printf("%s\n%s\n%s\n%s", table.str().c_str(), errors.str().c_str(), notes.c_str(), verdict.str().c_str());
+    std::printf("\n%s\n%s\n%s\n%s", table.str().c_str(), errors.str().c_str(), notes.c_str(), verdict.str().c_str());
+    std::fflush(stdout);  // before the stderr line below, when both go to one terminal
 
     if (!o.out.empty()) {
         const std::filesystem::path dir(o.out);
         std::ofstream csv(dir / "prep_bench.csv");
-        csv << "mesh,name,input_triangles,welded_triangles,welded_vertices,diagonal,samples,target_percent,target_triangles,"
-               "ours_q,ours_k,ours_triangles,ours_error,ours_mean_error,meshopt_triangles,meshopt_error,meshopt_mean_error,"
-               "meshopt_result_error\n";
+        csv << "mesh,name,input_triangles,welded_triangles,welded_vertices,diagonal,samples,target_percent,"
+               "target_triangles,ours_q,ours_k,ours_triangles,ours_error,ours_mean_error,meshopt_triangles,meshopt_error,"
+               "meshopt_mean_error,meshopt_result_error,matched_triangles,matched_error,matched_mean_error\n";
         for (size_t i = 0; i < meshes.size(); ++i) {
             const BenchMesh& b = meshes[i];
             const MeshResult& r = results[i];
             for (size_t t = 0; t < kTargetCount; ++t)
                 csv << b.scene_mesh << ',' << csvField(scene.meshes[b.scene_mesh].name) << ',' << b.input_triangles << ','
                     << b.welded.triangles.size() / 3 << ',' << b.welded.positions.size() << ','
-                    << format("%.9g", b.diagonal) << ',' << r.samples << ',' << kTargets[t] * 100.0 << ',' << r.target[t]
-                    << ',' << r.q << ',' << r.ours[t].k << ',' << r.ours[t].triangles << ','
-                    << format("%.6g,%.6g", r.ours[t].error, r.ours[t].mean_error) << ',' << r.meshopt[t].triangles << ','
-                    << format("%.6g,%.6g,%.6g", r.meshopt[t].error, r.meshopt[t].mean_error, r.meshopt[t].own_error)
-                    << '\n';
+                    << format("%.9g,%llu,%g,%u,%u,%u,", b.diagonal, (unsigned long long)r.samples, kTargets[t] * 100.0,
+                              r.target[t], r.q, r.ours_k[t])
+                    << format("%u,%.6g,%.6g,", r.ours[t].triangles, r.ours[t].error, r.ours[t].mean_error)
+                    << format("%u,%.6g,%.6g,%.6g,", r.meshopt[t].triangles, r.meshopt[t].error, r.meshopt[t].mean_error,
+                              double(r.meshopt_own_error[t]))
+                    << format("%u,%.6g,%.6g\n", r.matched[t].triangles, r.matched[t].error, r.matched[t].mean_error);
         }
         std::ofstream md(dir / "prep_summary.md");
-        md << "# occswitch bench prep\n\n`" << o.input << "`: " << scene.objects.size() << " objects, " << meshes.size()
-           << " unique meshes, " << input_triangles << " unique input triangles (" << welded_triangles
-           << " after welding). " << hardware << " hardware threads, load average " << load
-           << " at the start; times are the best of " << o.repeat
-           << " runs.\n\n"
+        md << "# occswitch bench prep\n\n"
+           << header << "\n"
            << table.str() << "\n"
            << errors.str() << "\n"
            << notes << "\n```\n"
            << verdict.str() << "```\n";
+        csv.close();
+        md.close();
         if (!csv || !md) throw UsageError("--out " + o.out + ": could not write the results");
         std::fprintf(stderr, "wrote %s and %s\n", (dir / "prep_bench.csv").c_str(), (dir / "prep_summary.md").c_str());
     }
@@ -478,7 +522,7 @@ Command addBenchCommand(CLI::App& app) {
                 "sampled Hausdorff error of both at those targets, on the same unique meshes.");
     prep->add_option("input", o->input, "model file (glTF, GLB, OBJ, PLY, OFF, STL)")->capture_default_str();
     prep->add_option("--out", o->out, "folder for prep_bench.csv and prep_summary.md (created if missing)");
-    prep->add_option("--threads", o->threads, "worker threads for the all-threads run (0 = all cores)")
+    prep->add_option("--threads", o->threads, "worker threads for the all-threads run and the error (0 = all cores)")
         ->capture_default_str();
     prep->add_option("--repeat", o->repeat, "timed runs of each measurement; the fastest counts")
         ->check(CLI::Range(1u, 100u))
@@ -491,6 +535,8 @@ Command addBenchCommand(CLI::App& app) {
     prep->add_option("--openmesh-seconds", o->openmesh_seconds,
                      "time budget of the OpenMesh reference (meshes in a fixed random order until spent)")
         ->capture_default_str();
+    prep->add_flag("--meshopt-lock-border", o->meshopt_lock_border,
+                   "pass meshopt_SimplifyLockBorder, so meshopt keeps boundary vertices as ours does");
     return {bench, [o, prep] { return prep->parsed() ? runBenchPrep(*o) : 0; }};
 }
 
