@@ -88,11 +88,25 @@ struct Timing {
     double wall = std::numeric_limits<double>::infinity(), cpu = 0.0;
 };
 
-// The fastest of `repeat` runs: the machine is shared, and interference only ever adds time.
-template <class F>
-Timing bestOf(unsigned repeat, F&& run) {
+// Short runs are repeated until this much time has passed (at most kMaxRuns), so that a run
+// of 0.1 s gets many chances at a quiet moment of a shared machine.
+constexpr double kMinMeasureSeconds = 2.0;
+constexpr unsigned kMaxRuns = 50;
+
+bool anotherRun(unsigned runs_done, unsigned repeat, std::chrono::steady_clock::time_point start) {
+    if (runs_done < repeat) return true;
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return runs_done < kMaxRuns && elapsed < kMinMeasureSeconds;
+}
+
+// The fastest of at least `repeat` runs: the machine is shared, and interference only ever
+// adds time. reset() runs before each run, untimed (to free the last run's result).
+template <class Run, class Reset>
+Timing bestOf(unsigned repeat, Run&& run, Reset&& reset) {
     Timing best;
-    for (unsigned i = 0; i < repeat; ++i) {
+    const auto first_start = std::chrono::steady_clock::now();
+    for (unsigned i = 0; anotherRun(i, repeat, first_start); ++i) {
+        reset();
         const auto start = std::chrono::steady_clock::now();
         const std::clock_t cpu_start = std::clock();
         run(i);
@@ -100,6 +114,11 @@ Timing bestOf(unsigned repeat, F&& run) {
         if (wall < best.wall) best = {wall, double(std::clock() - cpu_start) / CLOCKS_PER_SEC};
     }
     return best;
+}
+
+template <class Run>
+Timing bestOf(unsigned repeat, Run&& run) {
+    return bestOf(repeat, std::forward<Run>(run), [] {});
 }
 
 // Runs body(i) for every i in [0, count) on `threads` workers, indices handed out one by one.
@@ -238,9 +257,9 @@ int runBenchPrep(const BenchPrepOptions& o) {
     const std::string load = loadAverage();
     const std::string header = format(
         "`%s`: %zu objects, %zu unique meshes, %llu unique input triangles (%llu after welding); %u hardware "
-        "threads, load average %s at the start; times are the best of %u runs%s.\n",
+        "threads, load average %s at the start; times are the best of %u runs or more (until %.0f s have passed)%s.\n",
         o.input.c_str(), scene.objects.size(), meshes.size(), (unsigned long long)input_triangles,
-        (unsigned long long)welded_triangles, hardware, load.c_str(), o.repeat,
+        (unsigned long long)welded_triangles, hardware, load.c_str(), o.repeat, kMinMeasureSeconds,
         o.meshopt_lock_border ? "; meshopt with meshopt_SimplifyLockBorder" : "");
     std::printf("occswitch bench prep: %s", header.c_str());
     std::fflush(stdout);
@@ -253,12 +272,12 @@ int runBenchPrep(const BenchPrepOptions& o) {
         options.collapser = Collapser::Fast;
         return bestOf(o.repeat, [&](unsigned run) {
             PrepProgress progress;
-            ProgressBar bar(format("%s, run %u/%u", label, run + 1, o.repeat), "meshes", "tri", [&progress] {
+            ProgressBar bar(format("%s, run %u", label, run + 1), "meshes", "tri", [&progress] {
                 return ProgressBar::Sample{double(progress.meshes_done), double(progress.meshes_total),
                                            double(progress.triangles_done)};
             });
             prepared = prepareScene(scene, options, &progress);
-        });
+        }, [&] { prepared = PreparedScene{}; });
     };
     const Timing ours_all = timePrepare(threads, "prepareScene, all threads");
     const Timing ours_one = timePrepare(1, "prepareScene, 1 thread");
@@ -268,9 +287,10 @@ int runBenchPrep(const BenchPrepOptions& o) {
     // mesh); the best of the runs per stage.
     constexpr double kUnmeasured = std::numeric_limits<double>::quiet_NaN();
     Timing weld_time, collapse_time, arrays_time;
-    for (unsigned run = 0; run < o.repeat; ++run) {
+    const auto stages_start = std::chrono::steady_clock::now();
+    for (unsigned run = 0; anotherRun(run, o.repeat, stages_start); ++run) {
         std::atomic<uint64_t> done{0};
-        ProgressBar bar(format("stages, 1 thread, run %u/%u", run + 1, o.repeat), "meshes", "tri",
+        ProgressBar bar(format("stages, 1 thread, run %u", run + 1), "meshes", "tri",
                         [&] { return ProgressBar::Sample{double(done), double(meshes.size()), 0.0}; });
         Timing weld{0, kUnmeasured}, collapse{0, kUnmeasured}, arrays{0, kUnmeasured};
         for (const BenchMesh& b : meshes) {
@@ -312,10 +332,11 @@ int runBenchPrep(const BenchPrepOptions& o) {
             const uint32_t i = uint32_t((uint64_t(j) * 2654435761ull) % meshes.size());
             if (taken[i]) continue;
             taken[i] = 1;
-            const Timing t = bestOf(1, [&](unsigned) {
-                buildProgressiveMesh(scene.meshes[meshes[i].scene_mesh], Collapser::OpenMesh);
-            });
-            openmesh_time.wall += t.wall, openmesh_time.cpu += t.cpu;
+            const auto start = std::chrono::steady_clock::now();
+            const std::clock_t cpu_start = std::clock();
+            buildProgressiveMesh(scene.meshes[meshes[i].scene_mesh], Collapser::OpenMesh);
+            openmesh_time.wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            openmesh_time.cpu += double(std::clock() - cpu_start) / CLOCKS_PER_SEC;
             openmesh_subset.push_back(i);
             openmesh_triangles += meshes[i].input_triangles;
         }
@@ -327,10 +348,12 @@ int runBenchPrep(const BenchPrepOptions& o) {
     // b. meshopt_simplify on the welded meshes, one target at a time, one thread. Output buffers
     // are allocated outside the timed loop.
     std::vector<MeshResult> results(meshes.size());
-    std::vector<std::vector<uint32_t>> meshopt_out[kTargetCount];
+    std::vector<std::vector<uint32_t>> meshopt_out[kTargetCount];  // full size; the first count are valid
+    std::vector<size_t> meshopt_count[kTargetCount];
     Timing meshopt_time[kTargetCount];
     for (size_t t = 0; t < kTargetCount; ++t) {
         meshopt_out[t].resize(meshes.size());
+        meshopt_count[t].assign(meshes.size(), 0);
         for (size_t i = 0; i < meshes.size(); ++i) {
             results[i].target[t] = uint32_t(std::llround(double(meshes[i].welded.triangles.size() / 3) * kTargets[t]));
             meshopt_out[t][i].resize(meshes[i].welded.triangles.size());
@@ -341,10 +364,8 @@ int runBenchPrep(const BenchPrepOptions& o) {
         meshopt_time[t] = bestOf(o.repeat, [&](unsigned) {
             done = 0;
             for (size_t i = 0; i < meshes.size(); ++i) {
-                std::vector<uint32_t>& out = meshopt_out[t][i];
-                out.resize(meshes[i].welded.triangles.size());
-                out.resize(meshoptSimplify(meshes[i].welded, results[i].target[t], o.meshopt_lock_border, out,
-                                           &results[i].meshopt_own_error[t]));
+                meshopt_count[t][i] = meshoptSimplify(meshes[i].welded, results[i].target[t], o.meshopt_lock_border,
+                                                      meshopt_out[t][i], &results[i].meshopt_own_error[t]);
                 ++done;
             }
         });
@@ -368,7 +389,8 @@ int runBenchPrep(const BenchPrepOptions& o) {
             for (size_t t = 0; t < kTargetCount; ++t) {
                 const std::vector<uint32_t> lod = prefixLod(pm, r.target[t], &r.ours_k[t]);
                 r.ours[t] = measureLod(b, pm.positions, lod, options);
-                r.meshopt[t] = measureLod(b, b.welded.positions, meshopt_out[t][i], options);
+                r.meshopt[t] = measureLod(b, b.welded.positions,
+                                          std::span(meshopt_out[t][i].data(), meshopt_count[t][i]), options);
                 r.matched[t] = r.meshopt[t];
                 if (r.ours[t].triangles > r.target[t]) {
                     std::vector<uint32_t> out(b.welded.triangles.size());
@@ -524,7 +546,8 @@ Command addBenchCommand(CLI::App& app) {
     prep->add_option("--out", o->out, "folder for prep_bench.csv and prep_summary.md (created if missing)");
     prep->add_option("--threads", o->threads, "worker threads for the all-threads run and the error (0 = all cores)")
         ->capture_default_str();
-    prep->add_option("--repeat", o->repeat, "timed runs of each measurement; the fastest counts")
+    prep->add_option("--repeat", o->repeat,
+                     "timed runs of each measurement, at least (short ones repeat for 2 s); the fastest counts")
         ->check(CLI::Range(1u, 100u))
         ->capture_default_str();
     prep->add_option("--samples", o->samples, "area samples per surface for the error, at most")->capture_default_str();

@@ -18,5 +18,7 @@ Command addInfoCommand(CLI::App& app);
 Command addGenCommand(CLI::App& app);
 Command addPrepCommand(CLI::App& app);
 Command addVerifyCommand(CLI::App& app);
+Command addPathCommand(CLI::App& app);
+Command addRenderCommand(CLI::App& app);
 
 }  // namespace occ::cli

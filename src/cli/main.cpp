@@ -19,7 +19,8 @@ int main(int argc, char** argv) {
     app.set_version_flag("--version", std::string("occswitch 0.1"));
 
     const std::vector<occ::cli::Command> commands{occ::cli::addInfoCommand(app), occ::cli::addGenCommand(app),
-                                                   occ::cli::addPrepCommand(app), occ::cli::addVerifyCommand(app)};
+                                                   occ::cli::addPrepCommand(app), occ::cli::addVerifyCommand(app),
+                                                   occ::cli::addPathCommand(app), occ::cli::addRenderCommand(app)};
 
     try {
         app.parse(argc, argv);

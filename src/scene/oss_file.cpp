@@ -700,6 +700,22 @@ ObjectRecord OssFile::object(uint32_t i) const {
     return fromDisk(objects()[i]);
 }
 
+std::span<const MeshRecord> OssFile::meshRecords() const {
+    return {sectionData<MeshRecord>(SectionId::meshes), meshCount()};
+}
+std::span<const glm::vec3> OssFile::allPositions() const {
+    return {sectionData<glm::vec3>(SectionId::positions), size_t(vertexCount())};
+}
+std::span<const int32_t> OssFile::allEcol() const {
+    return {sectionData<int32_t>(SectionId::ecol), size_t(vertexCount())};
+}
+std::span<const uint32_t> OssFile::allTriangles() const {
+    return {sectionData<uint32_t>(SectionId::triangles), size_t(triangleCount()) * 3};
+}
+std::span<const uint32_t> OssFile::allMaps() const {
+    return {sectionData<uint32_t>(SectionId::map), size_t(vertexCount() + meshCount())};
+}
+
 std::span<const uint32_t> OssFile::cos() const { return {sectionData<uint32_t>(SectionId::cos), header().cos_count}; }
 
 std::vector<OssFile::SectionInfo> OssFile::sections() const {

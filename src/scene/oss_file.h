@@ -166,6 +166,13 @@ public:
     MeshView mesh(uint32_t i) const;  // throws std::out_of_range if i >= meshCount()
 
     std::span<const oss::ObjectDisk> objects() const;  // zero-copy, objectCount() records
+    std::span<const oss::MeshRecord> meshRecords() const;  // where each mesh's arrays start
+    // The whole sections, all meshes back to back (index them with meshRecords()), zero-copy:
+    // what the runtime streams from and uploads once.
+    std::span<const glm::vec3> allPositions() const;
+    std::span<const int32_t> allEcol() const;
+    std::span<const uint32_t> allTriangles() const;  // 3 corners per triangle, mesh-local numbering
+    std::span<const uint32_t> allMaps() const;
     ObjectRecord object(uint32_t i) const;             // throws std::out_of_range if i >= objectCount()
     std::span<const uint32_t> cos() const;             // sorted by compactness, highest first
 

@@ -1,0 +1,242 @@
+// SPDX-License-Identifier: MIT
+#include "defragment.h"
+
+#include <thrust/copy.h>
+#include <thrust/execution_policy.h>
+#include <thrust/for_each.h>
+#include <thrust/iterator/counting_iterator.h>
+#include <thrust/iterator/transform_iterator.h>
+#include <thrust/reduce.h>
+
+#include <stdexcept>
+#include <string>
+
+namespace occ::k {
+
+namespace {
+
+template <class T>
+void reserve(KernelArray<T>& array, uint64_t n) {
+    if (n > array.size()) array.resize(n + n / 2);
+}
+
+template <class T, int W>
+OCC_HD inline void copyElements(const T* src, T* dst, uint64_t n) {
+    for (uint64_t i = 0; i < W * n; ++i) dst[i] = src[i];
+}
+
+// Per block of the current layout: what it keeps of the previous frame, what comes from staging,
+// and what of the kept prefix changes place.
+struct Plan {
+    uint32_t* kept;
+    uint32_t* staged;
+    uint32_t* moved;
+    uint32_t* written;           // moved + staged: what the in-place strategy writes to the block
+    uint64_t* previous_offset;   // where the kept prefix is now
+    uint64_t* staged_offset;     // exclusive scans of the lengths above
+    uint64_t* moved_offset;
+    uint64_t* written_offset;
+};
+
+struct PlanBlock {
+    BlockColumn previous, current;
+    Plan plan;
+    OCC_HD void operator()(uint32_t j) const {
+        const KeptPrefix k = keptPrefix(previous, current, j);
+        const uint32_t moved = k.length > 0 && k.previous_offset != current.offset[j] ? k.length : 0;
+        plan.kept[j] = k.length;
+        plan.staged[j] = current.size[j] - k.length;
+        plan.moved[j] = moved;
+        plan.written[j] = moved + current.size[j] - k.length;
+        plan.previous_offset[j] = k.previous_offset;
+    }
+};
+
+struct Widen {
+    OCC_HD uint64_t operator()(uint32_t x) const { return x; }
+};
+
+OCC_HD inline uint64_t tileEnd(uint64_t tile, uint64_t total) {
+    return (tile + 1) * kRunTile < total ? (tile + 1) * kRunTile : total;
+}
+
+// In place, step 1: the kept prefixes that move go to the workspace, because their new places
+// may overlap other blocks' old ones that are still to be read.
+template <class T, int W>
+struct Bounce {
+    BlockColumn current;
+    Plan plan;
+    uint64_t moved_total;
+    const T* active;
+    T* workspace;
+    OCC_HD void operator()(uint64_t tile) const {
+        forEachRun(plan.moved_offset, current.count, moved_total, tile * kRunTile, tileEnd(tile, moved_total),
+                   [&](uint32_t j, uint64_t first, uint64_t length) {
+                       copyElements<T, W>(active + W * (plan.previous_offset[j] + first),
+                                          workspace + W * (plan.moved_offset[j] + first), length);
+                   });
+    }
+};
+
+// In place, step 2: each block gets its moved prefix back from the workspace and its streamed
+// part from staging. A block that did not move is written only past its kept prefix.
+template <class T, int W>
+struct PlaceInPlace {
+    BlockColumn current;
+    Plan plan;
+    uint64_t written_total;
+    const T* workspace;
+    const T* staging;
+    T* active;
+    OCC_HD void operator()(uint64_t tile) const {
+        forEachRun(plan.written_offset, current.count, written_total, tile * kRunTile, tileEnd(tile, written_total),
+                   [&](uint32_t j, uint64_t first, uint64_t length) {
+                       const uint64_t moved = plan.moved[j], stop = first + length;
+                       T* block = active + W * (current.offset[j] + plan.kept[j] - moved);
+                       uint64_t i = first;
+                       if (i < moved) {
+                           const uint64_t n = (stop < moved ? stop : moved) - i;
+                           copyElements<T, W>(workspace + W * (plan.moved_offset[j] + i), block + W * i, n);
+                           i += n;
+                       }
+                       if (i < stop)
+                           copyElements<T, W>(staging + W * (plan.staged_offset[j] + i - moved), block + W * i,
+                                              stop - i);
+                   });
+    }
+};
+
+// Double buffering: every block of the new layout is written into the other buffer, its kept
+// prefix from the old buffer and the rest from staging.
+template <class T, int W>
+struct PlaceDoubleBuffered {
+    BlockColumn current;
+    Plan plan;
+    const T* old_active;
+    const T* staging;
+    T* new_active;
+    OCC_HD void operator()(uint64_t tile) const {
+        forEachRun(current.offset, current.count, current.total, tile * kRunTile, tileEnd(tile, current.total),
+                   [&](uint32_t j, uint64_t first, uint64_t length) {
+                       const uint64_t kept = plan.kept[j], stop = first + length;
+                       T* block = new_active + W * current.offset[j];
+                       uint64_t i = first;
+                       if (i < kept) {
+                           const uint64_t n = (stop < kept ? stop : kept) - i;
+                           copyElements<T, W>(old_active + W * (plan.previous_offset[j] + i), block + W * i, n);
+                           i += n;
+                       }
+                       if (i < stop)
+                           copyElements<T, W>(staging + W * (plan.staged_offset[j] + i - kept), block + W * i,
+                                              stop - i);
+                   });
+    }
+};
+
+template <class F>
+void forEachTile(uint64_t total, const F& f) {
+    if (total == 0) return;
+    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), (total + kRunTile - 1) / kRunTile, f);
+}
+
+struct ColumnCounts {
+    uint64_t copied, moved, bounced;
+};
+
+template <class T, int W>
+ColumnCounts defragmentColumn(const BlockColumn& previous, const BlockColumn& current, const T* staging,
+                              uint64_t staging_count, ActiveBuffer<T>& buffer, ActiveArrays& active,
+                              const char* what) {
+    const uint32_t n = current.count;
+    reserve(active.lengths, 4 * uint64_t(n));
+    reserve(active.offsets, 4 * uint64_t(n));
+    uint32_t* lengths = active.lengths.data();
+    uint64_t* offsets = active.offsets.data();
+    const Plan plan{lengths,     lengths + n,     lengths + 2 * n, lengths + 3 * n,
+                    offsets,     offsets + n,     offsets + 2 * n, offsets + 3 * n};
+    uint64_t staged_total = 0, moved_total = 0, kept_total = 0;
+    if (n > 0) {
+        thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), n, PlanBlock{previous, current, plan});
+        staged_total = exclusiveScan(plan.staged, n, plan.staged_offset);
+        moved_total = exclusiveScan(plan.moved, n, plan.moved_offset);
+        const auto wide = thrust::make_transform_iterator(plan.kept, Widen());
+        kept_total = thrust::reduce(thrust::device, wide, wide + n, uint64_t(0));
+    }
+    if (staged_total != staging_count)
+        throw std::invalid_argument(std::string("defragment: staging holds ") + std::to_string(staging_count) + " " +
+                                    what + " but the layouts need " + std::to_string(staged_total) +
+                                    " (was it collected for these two layouts?)");
+
+    KernelArray<T>& now = buffer.buffers[buffer.current];
+    KernelArray<T>& other = buffer.buffers[1 - buffer.current];
+    const bool in_place = W * current.total <= now.size() && 2 * moved_total <= kept_total;
+    if (in_place) {
+        if (moved_total > 0) {
+            reserve(other, W * moved_total);
+            forEachTile(moved_total, Bounce<T, W>{current, plan, moved_total, now.data(), other.data()});
+        }
+        const uint64_t written_total = n > 0 ? exclusiveScan(plan.written, n, plan.written_offset) : 0;
+        forEachTile(written_total, PlaceInPlace<T, W>{current, plan, written_total, other.data(), staging, now.data()});
+    } else {
+        reserve(other, W * current.total);
+        forEachTile(current.total, PlaceDoubleBuffered<T, W>{current, plan, now.data(), staging, other.data()});
+        buffer.current = 1 - buffer.current;
+    }
+    buffer.count = current.total;
+    return {staged_total, in_place ? moved_total : kept_total, in_place ? moved_total : 0};
+}
+
+}  // namespace
+
+DefragmentCounts defragment(const ActiveLayout& previous, const ActiveLayout& current, const StagingBuffers& staging,
+                            ActiveArrays& active) {
+    if (previous.count > 0 && (previous.vertex_total != active.vertices.count ||
+                               previous.triangle_total != active.triangles.count))
+        throw std::invalid_argument("defragment: the active arrays hold " + std::to_string(active.vertices.count) +
+                                    " vertices and " + std::to_string(active.triangles.count) +
+                                    " triangles but the previous layout has " + std::to_string(previous.vertex_total) +
+                                    " and " + std::to_string(previous.triangle_total));
+    const ColumnCounts v = defragmentColumn<glm::vec3, 1>(vertexBlocks(previous), vertexBlocks(current),
+                                                          staging.vertices.data(), staging.vertex_count,
+                                                          active.vertices, active, "vertices");
+    const ColumnCounts t = defragmentColumn<uint32_t, 3>(triangleBlocks(previous), triangleBlocks(current),
+                                                         staging.triangles.data(), staging.triangle_count,
+                                                         active.triangles, active, "triangles");
+    return {v.copied, t.copied, v.moved, t.moved, v.bounced, t.bounced};
+}
+
+namespace {
+
+// NS copies from host memory, so it runs where the scene lives (see stream_collect.cu).
+#if defined(__CUDACC__)
+const auto& kHostSide = thrust::host;
+#else
+const auto& kHostSide = thrust::device;
+#endif
+
+template <class T, int W>
+uint64_t copyObjectByObject(const BlockColumn& current, const T* source, const uint64_t* mesh_first,
+                            const ObjectInfo* objects, ActiveBuffer<T>& buffer) {
+    reserve(buffer.buffers[buffer.current], W * current.total);
+    T* active = buffer.buffers[buffer.current].data();
+    for (uint32_t j = 0; j < current.count; ++j) {
+        if (current.size[j] == 0) continue;
+        const T* src = source + W * mesh_first[objects[current.objects[j]].mesh];
+        thrust::copy(kHostSide, src, src + W * uint64_t(current.size[j]), active + W * current.offset[j]);
+    }
+    buffer.count = current.total;
+    return current.total;
+}
+
+}  // namespace
+
+StreamCounts streamObjectByObject(const ActiveLayout& current, const HostGeometry& host, ActiveArrays& active) {
+    StreamCounts counts;
+    counts.vertices = copyObjectByObject<glm::vec3, 1>(vertexBlocks(current), host.positions, host.vertex_first,
+                                                       host.objects, active.vertices);
+    counts.triangles = copyObjectByObject<uint32_t, 3>(triangleBlocks(current), host.triangles, host.triangle_first,
+                                                       host.objects, active.triangles);
+    return counts;
+}
+
+}  // namespace occ::k

@@ -1,0 +1,65 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "kernel_memory.h"
+#include "kernel_types.h"
+
+namespace occ::k {
+
+// The rules of the occluder depth rasteriser, shared with the tests and with whoever reasons
+// about conservativeness (hzm_test).
+//
+// Window coordinates are snapped to 1/256 pixel, the sub-pixel grid GPUs rasterise on (8 bits,
+// D3D11 and Vulkan's usual subPixelPrecisionBits), so coverage is decided exactly in integers
+// and the same on every back end. A pixel centre is covered when it lies inside the snapped
+// triangle at least kDepthRasterMarginUnits/256 pixel (1/64) from every edge, so a pixel centre
+// on an edge, or within 1/64 pixel of it, is never covered: whatever fill rule a GPU uses, the
+// occluder never covers a centre it does not really cover.
+inline constexpr int32_t kDepthRasterSubpixelUnits = 256;
+inline constexpr int32_t kDepthRasterMarginUnits = 4;
+// A covered pixel gets the triangle's window depth at its centre plus this (pushed away), the
+// MIN over every triangle covering it. It absorbs our interpolation rounding (at most ~6 float
+// ulps, since depth is a convex combination of corner depths) and a GPU's.
+inline constexpr float kDepthRasterEpsilon = 1.0f / (1 << 20);
+// Triangles with a corner farther than this from the viewport's origin in window x or y are
+// skipped (so that snapped coordinates fit 32-bit and edge functions 64-bit integers). Only
+// triangles with a corner just in front of the near plane and far off to the side get there.
+inline constexpr float kDepthRasterGuardBand = float(1 << 20);
+// Screen tiles of this many pixels square are the unit of parallel work.
+inline constexpr uint32_t kDepthRasterTileSize = 32;
+
+struct DepthRasterVertex;    // per-vertex projection, defined in depth_raster.cu
+struct DepthRasterTriangle;  // per-triangle setup, defined in depth_raster.cu
+
+// Scratch memory of depthRaster, kept by the caller between frames: a call allocates only when
+// it needs more than any call before it. Its contents are meaningless between calls. One
+// scratch per concurrent call.
+struct DepthRasterScratch {
+    KernelArray<DepthRasterVertex> vertices;  // largest index + 1
+    KernelArray<DepthRasterTriangle> setup;   // tri_count
+    KernelArray<uint64_t> pair_offset;        // tri_count: first (tile, triangle) pair of each
+    KernelArray<uint32_t> pair_tile;          // one per (tile, triangle) pair
+    KernelArray<uint32_t> pair_triangle;      // one per (tile, triangle) pair
+    KernelArray<uint64_t> tile_begin;         // tile count + 1: each tile's range of pairs
+};
+
+// Conservative software depth rasterisation of occluder triangles into a W x H depth buffer,
+// W = camera.width, H = camera.height (each in [0, 32768]; 0 draws nothing).
+// positions: world-space vertices (already transformed by the caller). Every vertex up to the
+// largest index in `triangles` is projected, so pass a compact array (the occluders' vertices,
+// not the whole scene's). triangles: 3 * tri_count corner indices (may be empty). Projection and
+// depth follow kernels.md: window x = (ndc.x*0.5+0.5)*W, y up, depth = ndc.z*0.5+0.5.
+// depth: W*H floats, row-major (index y*W+x); this function CLEARS it to 1.0 (far) and then,
+// for every pixel whose centre a triangle covers (see the rules above), writes the minimum over
+// those triangles of depth-at-centre + kDepthRasterEpsilon (values above 1 leave 1).
+// Skipped, which only loses occlusion: triangles with a corner behind the near plane
+// (clip.w <= 0 or clip.z < -clip.w), a corner outside the guard band, a NaN, or zero snapped
+// area. Both windings are drawn. The margin holds on every edge, shared ones too: a centre
+// within 1/64 pixel of the edge between two triangles of one mesh belongs to neither and stays
+// far. Deterministic: the result depends neither on the thread count nor on the back end.
+// Memory: scratch grows to 16 bytes per vertex, 56 per triangle and 8 per (32x32 tile,
+// triangle) pair of overlapping screen boxes.
+void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
+                 const Camera& camera, float* depth, DepthRasterScratch& scratch);
+
+}  // namespace occ::k

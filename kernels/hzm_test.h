@@ -1,0 +1,41 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "hzm.h"
+#include "kernel_types.h"
+
+#include <cstdint>
+
+namespace occ::k {
+
+// Conservative occlusion test of object boxes against the max-depth pyramid (HZM test of Peng &
+// Cao 2013, Eq. 5; our Eq. 4). For j < count, with i = ids[j] an index into objects, writes
+// occluded[j] = 1 if every pixel objects[i].aabb could cover already holds a nearer depth, else 0:
+//
+// - The 8 box corners are projected with camera.view_proj. If any has clip.w <= near_plane or
+//   clip.z < -clip.w (on or behind the near plane), the box crosses the near plane: 0.
+// - Otherwise the corners' window rectangle, x = (ndc.x*0.5+0.5)*W and y = (ndc.y*0.5+0.5)*H
+//   (y up) with W x H = hzm.width[0] x hzm.height[0] (camera.width and height are not read), and
+//   their nearest window depth z_min = min(ndc.z*0.5+0.5) bound the box's image. A rectangle
+//   entirely outside the viewport gives 0: culling what is off screen is frustumCull's job, and
+//   no texel can prove such a box occluded.
+// - The level-0 pixels the rectangle touches, [floor(xmin), floor(xmax)] x [floor(ymin),
+//   floor(ymax)] clipped to the viewport, are looked up at the finest level l at which they span
+//   at most 2x2 texels (pixel p lies under texel p >> l). That is ceil(log2(pixels across)) or one
+//   below it; if the pyramid stops before, its top level is read whole.
+// - occluded[j] = 1 iff z_min > texel + 1e-6 for every such texel: the box's nearest point is
+//   strictly farther than the farthest depth already drawn anywhere it could appear.
+//
+// So it never says 1 where the same test against every level-0 pixel of the rectangle would say
+// 0; it may say 0 where that would say 1. Depth is window depth in [0, 1], 0 = near plane,
+// larger is farther (see Camera); level 0 of the pyramid is the occluders' depth buffer (cleared
+// to 1 = far) rendered with the same view_proj at W x H. view_proj must be a perspective
+// projection (clip.w = distance in front of the eye), as the near-plane rule relies on it.
+//
+// objects holds every object, ids has count indices into it (count may be 0), occluded room for
+// count bytes, hzm.data all levels; all in kernel memory. If hzm.level_count is 0 every box is
+// visible. Boxes in parallel; each reads at most 4 texels (unless the pyramid stops early).
+void hzmTest(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, const Camera& camera,
+             const HzmLevels& hzm, uint8_t* occluded);
+
+}  // namespace occ::k

@@ -1,0 +1,250 @@
+// SPDX-License-Identifier: MIT
+#include "lod_select.h"
+
+#include "kernel_memory.h"
+
+#include <thrust/execution_policy.h>
+#include <thrust/for_each.h>
+#include <thrust/iterator/counting_iterator.h>
+#include <thrust/reduce.h>
+#include <thrust/transform.h>
+#include <thrust/transform_reduce.h>
+
+#include <cmath>
+
+namespace occ::k {
+
+namespace {
+
+// A not-drawn object's share: below every real share (which are >= 0).
+constexpr float kNotDrawn = -1.0f;
+
+// log of Eq. 1's share s_i = (A_i P_i / D_i)^((alpha-1)/alpha), or -inf when the object is
+// not drawn. Logs keep (A P / D)^beta finite: with A ~ 1e7 px, P ~ 1e7 and D ~ 1e-2 the
+// product alone is 1e16, and raising it to beta = 2 would already lose float's exponent range.
+struct LogShare {
+    const ObjectInfo* objects;
+    const uint32_t* ids;
+    Camera camera;
+    float exponent;  // (alpha - 1) / alpha
+    float pet;
+
+    OCC_HD float operator()(uint32_t j) const {
+        const ObjectInfo& o = objects[ids[j]];
+        if (o.vertex_count == 0) return -INFINITY;
+        const float width = float(camera.width), height = float(camera.height);
+        // Clip position and view depth are affine in the corner, so the eight corners are sums
+        // of one term per axis: 6 column products instead of 8 matrix products.
+        const glm::mat4& m = camera.view_proj;
+        const glm::vec3 lo = o.aabb.min - camera.eye, hi = o.aabb.max - camera.eye;
+        const glm::vec4 cx[2] = {m[0] * o.aabb.min.x, m[0] * o.aabb.max.x};
+        const glm::vec4 cy[2] = {m[1] * o.aabb.min.y, m[1] * o.aabb.max.y};
+        const glm::vec4 cz[2] = {m[2] * o.aabb.min.z + m[3], m[2] * o.aabb.max.z + m[3]};
+        const float dx[2] = {lo.x * camera.forward.x, hi.x * camera.forward.x};
+        const float dy[2] = {lo.y * camera.forward.y, hi.y * camera.forward.y};
+        const float dz[2] = {lo.z * camera.forward.z, hi.z * camera.forward.z};
+        float area = width * height, depth = camera.near_plane;
+        bool crosses_near = false;
+        float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY, nearest = INFINITY;
+        for (int c = 0; c < 8; ++c) {
+            const int ix = c & 1, iy = (c >> 1) & 1, iz = c >> 2;
+            const float d = dx[ix] + dy[iy] + dz[iz];
+            const glm::vec4 clip = cx[ix] + cy[iy] + cz[iz];
+            // A corner behind the near plane has no meaningful projection (w may be <= 0).
+            if (d < camera.near_plane || clip.w <= 0.0f) {
+                crosses_near = true;
+                break;
+            }
+            nearest = glm::min(nearest, d);
+            const float x = (clip.x / clip.w * 0.5f + 0.5f) * width;
+            const float y = (clip.y / clip.w * 0.5f + 0.5f) * height;
+            x0 = glm::min(x0, x), x1 = glm::max(x1, x);
+            y0 = glm::min(y0, y), y1 = glm::max(y1, y);
+        }
+        if (!crosses_near) {
+            x0 = fmaxf(x0, 0.0f), y0 = fmaxf(y0, 0.0f);
+            x1 = fminf(x1, width), y1 = fminf(y1, height);
+            area = fmaxf(x1 - x0, 0.0f) * fmaxf(y1 - y0, 0.0f);
+            depth = fmaxf(nearest, camera.near_plane);
+        }
+        if (area < pet) return -INFINITY;
+        // With pet = 0 an object may be drawn with no area: a vanishing share, so it sits at its
+        // floor, rather than log(0) = -inf, which would mean "not drawn".
+        return exponent * (logf(fmaxf(area, 1e-30f)) + logf(float(o.vertex_count)) - logf(depth));
+    }
+};
+
+struct Maximum {
+    OCC_HD float operator()(float a, float b) const { return fmaxf(a, b); }
+};
+
+// Shares relative to the largest, so the largest is 1 and none overflows; not-drawn objects
+// get kNotDrawn. A share that underflows to 0 leaves its object at its floor.
+struct NormalizeShare {
+    float max_log;
+    OCC_HD float operator()(float log_share) const {
+        return log_share == -INFINITY ? kNotDrawn : expf(log_share - max_log);
+    }
+};
+
+// The level one object gets for a given lambda, before rounding, and whether a bound fixed it.
+struct Level {
+    double value;
+    bool free;  // strictly between floor and cap: moves with lambda
+};
+
+OCC_HD inline Level levelFor(double lambda, float share, uint32_t q, uint32_t p) {
+    const double x = share > 0.0f ? lambda * double(share) : 0.0;
+    if (x <= double(q)) return {double(q), false};
+    if (x >= double(p)) return {double(p), false};
+    return {x, true};
+}
+
+OCC_HD inline uint32_t rounded(double level) { return uint32_t(floor(level + 0.5)); }
+
+struct Totals {
+    uint64_t floors;     // sum of q over drawn objects
+    uint64_t caps;       // sum of P
+    double share_sum;
+    double lambda_cap;   // smallest lambda at which every object with a positive share is capped
+};
+
+struct TotalsOf {
+    const ObjectInfo* objects;
+    const uint32_t* ids;
+    const float* shares;
+    OCC_HD Totals operator()(uint32_t j) const {
+        const float s = shares[j];
+        if (s == kNotDrawn) return {0, 0, 0.0, 0.0};
+        const ObjectInfo& o = objects[ids[j]];
+        const uint32_t q = o.q < o.vertex_count ? o.q : o.vertex_count;
+        return {q, o.vertex_count, double(s), s > 0.0f ? double(o.vertex_count) / double(s) : 0.0};
+    }
+};
+
+struct AddTotals {
+    OCC_HD Totals operator()(const Totals& a, const Totals& b) const {
+        return {a.floors + b.floors, a.caps + b.caps, a.share_sum + b.share_sum,
+                a.lambda_cap > b.lambda_cap ? a.lambda_cap : b.lambda_cap};
+    }
+};
+
+// Sum over objects of the levels at one lambda: the exact real sum and the slope (the shares of
+// the free objects) drive a Newton step; the sum of rounded levels is what the budget bounds.
+struct Evaluation {
+    double level_sum;
+    double free_share;
+    uint64_t rounded_sum;
+};
+
+struct EvaluateAt {
+    const ObjectInfo* objects;
+    const uint32_t* ids;
+    const float* shares;
+    double lambda;
+    OCC_HD Evaluation operator()(uint32_t j) const {
+        const float s = shares[j];
+        if (s == kNotDrawn) return {0.0, 0.0, 0};
+        const ObjectInfo& o = objects[ids[j]];
+        const uint32_t q = o.q < o.vertex_count ? o.q : o.vertex_count;
+        const Level level = levelFor(lambda, s, q, o.vertex_count);
+        return {level.value, level.free ? double(s) : 0.0, rounded(level.value)};
+    }
+};
+
+struct AddEvaluations {
+    OCC_HD Evaluation operator()(const Evaluation& a, const Evaluation& b) const {
+        return {a.level_sum + b.level_sum, a.free_share + b.free_share, a.rounded_sum + b.rounded_sum};
+    }
+};
+
+// lambda of the water-filling: the largest (to double precision, give or take a few vertices of
+// rounding) at which the rounded levels still fit the budget. evaluate(lambda) is one pass over
+// the objects.
+template <class Evaluate>
+double solveLambda(const Evaluate& evaluate, const Totals& totals, double budget) {
+    if (double(totals.floors) >= budget || totals.share_sum <= 0.0) return 0.0;
+    if (double(totals.caps) <= budget) return totals.lambda_cap;
+
+    // f(lambda) = sum of clamp(lambda s_i, q_i, P_i) is piecewise linear and non-decreasing, so a
+    // Newton step lands on the root of the current piece; bracketing, with geometric bisection
+    // while the bracket spans orders of magnitude, keeps it converging when the set of clamped
+    // objects changes on the way. Typically 4 to 8 passes.
+    double lo = 0.0, hi = totals.lambda_cap;
+    double lambda = budget / totals.share_sum < hi ? budget / totals.share_sum : hi;
+    Evaluation e{};
+    for (int iteration = 0; iteration < 100; ++iteration) {
+        e = evaluate(lambda);
+        (e.level_sum < budget ? lo : hi) = lambda;
+        if (fabs(e.level_sum - budget) <= 1e-9 * budget || hi - lo <= 1e-13 * hi) break;
+        double next = e.free_share > 0.0 ? lambda + (budget - e.level_sum) / e.free_share : -1.0;
+        if (!(next > lo && next < hi)) next = lo > 0.0 && hi > 8.0 * lo ? sqrt(lo * hi) : 0.5 * (lo + hi);
+        lambda = next;
+    }
+
+    // Rounding to nearest can put the sum above the budget by up to half the free objects: step
+    // down by the excess over the slope until it fits (usually once). lambda = 0 always fits.
+    for (int iteration = 0; iteration < 64 && double(e.rounded_sum) > budget; ++iteration) {
+        double next = e.free_share > 0.0 ? lambda - (double(e.rounded_sum) - budget) / e.free_share : -1.0;
+        if (!(next > 0.0 && next < lambda)) next = 0.5 * lambda;
+        lambda = next;
+        e = evaluate(lambda);
+    }
+    return double(e.rounded_sum) <= budget ? lambda : 0.0;
+}
+
+struct WriteCounts {
+    const ObjectInfo* objects;
+    const uint32_t* ids;
+    const float* shares;
+    const uint64_t* map_first;
+    const uint32_t* maps;
+    double lambda;
+    uint32_t* vertex_count;
+    uint32_t* triangle_count;
+    OCC_HD void operator()(uint32_t j) const {
+        const float s = shares[j];
+        if (s == kNotDrawn) {
+            vertex_count[j] = 0;
+            triangle_count[j] = 0;
+            return;
+        }
+        const ObjectInfo& o = objects[ids[j]];
+        const uint32_t q = o.q < o.vertex_count ? o.q : o.vertex_count;
+        const uint32_t vc = rounded(levelFor(lambda, s, q, o.vertex_count).value);
+        vertex_count[j] = vc;
+        triangle_count[j] = maps[map_first[o.mesh] + vc];
+    }
+};
+
+}  // namespace
+
+uint64_t lodSelect(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, const Camera& camera,
+                   const LodParams& params, const uint64_t* map_first, const uint32_t* maps,
+                   uint32_t* vertex_count, uint32_t* triangle_count) {
+    if (count == 0) return 0;
+    const thrust::counting_iterator<uint32_t> first(0);
+    KernelArray<float> shares(count);
+
+    const float exponent = (params.alpha - 1.0f) / params.alpha;
+    thrust::transform(thrust::device, first, first + count, shares.data(),
+                      LogShare{objects, ids, camera, exponent, params.pet});
+    const float max_log = thrust::reduce(thrust::device, shares.data(), shares.data() + count, -INFINITY, Maximum());
+    thrust::transform(thrust::device, shares.data(), shares.data() + count, shares.data(), NormalizeShare{max_log});
+
+    const Totals totals = thrust::transform_reduce(thrust::device, first, first + count,
+                                                   TotalsOf{objects, ids, shares.data()},
+                                                   Totals{0, 0, 0.0, 0.0}, AddTotals());
+    const auto evaluate = [&](double lambda) {
+        return thrust::transform_reduce(thrust::device, first, first + count,
+                                        EvaluateAt{objects, ids, shares.data(), lambda},
+                                        Evaluation{0.0, 0.0, 0}, AddEvaluations());
+    };
+
+    const double lambda = solveLambda(evaluate, totals, params.budget);
+    thrust::for_each_n(thrust::device, first, count,
+                       WriteCounts{objects, ids, shares.data(), map_first, maps, lambda, vertex_count, triangle_count});
+    return evaluate(lambda).rounded_sum;
+}
+
+}  // namespace occ::k

@@ -1,0 +1,36 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "kernel_types.h"
+
+namespace occ::k {
+
+struct LodParams {
+    float budget;  // N: vertices to spend over the listed objects, >= 0
+    float alpha;   // exponent of Eq. 1, > 1 (Peng & Cao use 3)
+    float pet;     // pixel error threshold: objects covering fewer pixels are not drawn
+};
+
+// LOD selection, Eq. 1 of Peng & Cao 2013 as reconstructed for occswitch. For each listed object
+// i = ids[j] (j < count; ids index `objects`):
+//   A_i  pixels of the bounding rectangle of its projected AABB, clamped to the viewport; an AABB
+//        with a corner nearer than the near plane gets the whole viewport and D_i = near_plane,
+//   D_i  nearest view depth (along camera.forward) over the AABB corners, at least near_plane,
+//   P_i  = objects[i].vertex_count, q_i = min(objects[i].q, P_i),
+//   w_i  = (A_i P_i / D_i)^(alpha - 1), share s_i = w_i^(1/alpha),
+//   vc_i = clamp(lambda s_i, q_i, P_i) rounded to nearest, and 0 when A_i < pet or P_i = 0.
+// lambda solves sum_i clamp(lambda s_i, q_i, P_i) = budget, then is lowered just enough for the
+// rounded levels to fit: N s_i / sum s_j when nothing clamps, and the water-filling of Peng & Cao
+// when some objects clamp (what an object capped at P_i or raised to q_i leaves over or takes is
+// shared by the others in proportion to s). If the floors alone exceed the budget every drawn
+// object gets q_i. Rounding leaves at most a few vertices per hundred objects unspent.
+//
+// vertex_count and triangle_count (kernel memory, count entries each) receive vc_i and
+// tc_i = map_i[vc_i] (0 when vc_i = 0), map_i being maps + map_first[objects[i].mesh] (kernel
+// memory; each mesh's map has its vertex count + 1 entries). ids may be in any order and may be
+// empty (count = 0). Returns sum vc_i: at most budget unless the floors force more.
+uint64_t lodSelect(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, const Camera& camera,
+                   const LodParams& params, const uint64_t* map_first, const uint32_t* maps,
+                   uint32_t* vertex_count, uint32_t* triangle_count);
+
+}  // namespace occ::k

@@ -1,0 +1,29 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "kernel_types.h"
+#include "scan.h"
+
+namespace occ::k {
+
+// Triangle reformation, Algorithm 4 of Peng & Cao 2012: the frame's index buffer. For every
+// active triangle, each corner c (in its object's own vertex numbering, as the active triangle
+// array holds it) is walked through the object's ecol until c < vc, then the object's vertex
+// offset in the active vertex array is added.
+//   layout            the frame's layout, which the active triangle array holds (per object
+//                     ranges: block j's triangles start at triangle_offset[j]);
+//   objects           per object, .mesh (kernel memory);
+//   vertex_first      per mesh, index of its first vertex in ecol (kernel memory);
+//   ecol              every mesh's ecol back to back, the .oss ECOL section copied to kernel
+//                     memory once: ecol[v] < v for v >= q, so every walk ends;
+//   active_triangles  3 * layout.triangle_total corners (ActiveArrays::triangles.data());
+//   indices           out: 3 * layout.triangle_total entries (kernel memory), triangle t of the
+//                     active array becoming indices[3t, 3t+3).
+// Requires layout.vertex_total <= 2^32 (indices are 32-bit) and, for every drawn block,
+// vc >= the mesh's q (lodSelect's floor) so that no walk reaches ecol = -1. Nothing is written
+// when triangle_total is 0. On the GPU one thread reforms one triangle; on the CPU a thread
+// takes a run of consecutive triangles.
+void reform(const ActiveLayout& layout, const ObjectInfo* objects, const uint64_t* vertex_first, const int32_t* ecol,
+            const uint32_t* active_triangles, uint32_t* indices);
+
+}  // namespace occ::k

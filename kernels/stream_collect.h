@@ -1,0 +1,73 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "kernel_memory.h"
+#include "kernel_types.h"
+#include "scan.h"
+
+// Streaming with frame-to-frame coherence (SC, Algorithm 3 of Peng & Cao 2012), part 1 of 2:
+// gather on the host what the device's active arrays lack. Part 2, defragment.h, builds the new
+// active arrays from the old ones plus what was gathered.
+//
+// One frame, as the pipeline drives it (ActiveLayout in scan.h; prev_* arrays are the caller's,
+// kept from the last frame, cur_* are this frame's; swap the two sets after the frame):
+//
+//   lodSelect(objects, pvs, n, camera, params, map_first, maps, cur_vc, cur_tc);
+//   copy pvs into cur_ids (ascending; lodSelect leaves vc = 0 for objects it does not draw)
+//   const ActiveLayout cur{cur_ids, cur_vc, cur_tc, cur_voff, cur_toff, n,
+//                          exclusiveScan(cur_vc, n, cur_voff), exclusiveScan(cur_tc, n, cur_toff)};
+//   const StreamCounts sent = streamCollect(prev, cur, host, staging);       // host side
+//   const DefragmentCounts d = defragment(prev, cur, staging, active);       // device side
+//   reform(cur, objects, vertex_first, ecol, active.triangles.data(), indices);
+//   draw active.vertices.data() with indices; std::swap(prev_arrays, cur_arrays); prev = cur;
+//
+// The first frame passes ActiveLayout{} as prev. Buffers that live from frame to frame:
+//   - the previous layout's five arrays (ids, vc, tc, voff, toff), read by both calls;
+//   - ActiveArrays active (defragment.h): the active vertex and triangle arrays;
+//   - StagingBuffers staging: reused to avoid reallocating; its contents matter only between
+//     streamCollect and defragment of one frame.
+// Baselines of Peng & Cao's Table 1: SNC (streaming without coherence) is the same two calls with
+// ActiveLayout{} as prev, so every drawn block is gathered and copied whole; NS (no streaming
+// batch: one copy per object) is streamObjectByObject in defragment.h.
+
+namespace occ::k {
+
+// The whole scene's geometry where the host keeps it: the mmap'd .oss (POSITIONS and TRIANGLES
+// sections, MeshRecord::vertex_first / triangle_first). Only the host reads it: on a GPU build
+// this is exactly the data that must cross to the device.
+struct HostGeometry {
+    const glm::vec3* positions;      // every mesh's re-arranged vertices, mesh after mesh
+    const uint32_t* triangles;       // 3 corners per triangle, each mesh's own vertex numbering
+    const uint64_t* vertex_first;    // per mesh: index of its first vertex in positions
+    const uint64_t* triangle_first;  // per mesh: index of its first triangle in triangles
+    const ObjectInfo* objects;       // per object (kernel memory, which the host may read): .mesh
+};
+
+// What travels host -> device in one frame: for every current block, in layout order, the
+// elements [kept, size) the previous frame lacked (kept = the shared prefix, see keptPrefix).
+// Owned by the caller and reused from frame to frame; streamCollect sizes it (capacity grows
+// by half again when short, never shrinks). vertex_count / triangle_count say what the last
+// streamCollect wrote: vertices[0, vertex_count), triangles[0, 3 * triangle_count).
+struct StagingBuffers {
+    KernelArray<glm::vec3> vertices;
+    KernelArray<uint32_t> triangles;
+    uint64_t vertex_count = 0;
+    uint64_t triangle_count = 0;
+    KernelArray<uint32_t> lengths;  // per-block bookkeeping of streamCollect; no meaning outside it
+    KernelArray<uint64_t> offsets;
+};
+
+struct StreamCounts {
+    uint64_t vertices = 0;   // gathered (host -> device)
+    uint64_t triangles = 0;
+    uint64_t bytes() const { return vertices * sizeof(glm::vec3) + triangles * 3 * sizeof(uint32_t); }
+};
+
+// Fills `staging` with what `current` needs beyond what `previous` held, gathered from `host`,
+// and returns the counts. Both layouts are read only (they may share arrays, e.g. an unchanged
+// frame); previous may be ActiveLayout{} (first frame, or the SNC baseline). Objects in
+// `current` with vc = 0 contribute nothing. Thread-parallel on the host; the device is not used.
+StreamCounts streamCollect(const ActiveLayout& previous, const ActiveLayout& current, const HostGeometry& host,
+                           StagingBuffers& staging);
+
+}  // namespace occ::k

@@ -1,0 +1,37 @@
+// SPDX-License-Identifier: MIT
+#include "pipeline/frame_stats.h"
+
+#include <sstream>
+
+namespace occ {
+
+const char* stageName(Stage s) {
+    static const char* names[] = {"frustum_cull", "occluder_select", "depth_raster", "hzm_build", "hzm_test",
+                                  "lod_select",   "scan",            "stream_collect", "defragment", "reform"};
+    static_assert(sizeof(names) / sizeof(names[0]) == size_t(Stage::Count));
+    return names[uint32_t(s)];
+}
+
+std::string frameStatsHeader() {
+    std::string h =
+        "frame,objects_in_frustum,objects_occluded,objects_visible,objects_drawn,aos_size,occluder_triangles,"
+        "active_triangles,active_vertices,budget_vertices,streamed_triangles,streamed_vertices,streamed_bytes,"
+        "moved_bytes";
+    for (uint32_t s = 0; s < uint32_t(Stage::Count); ++s) h += std::string(",ms_") + stageName(Stage(s));
+    return h + ",ms_total";
+}
+
+std::string frameStatsRow(const FrameStats& s) {
+    std::ostringstream o;
+    o << s.frame << ',' << s.objects_in_frustum << ',' << s.objects_occluded << ',' << s.objects_visible << ','
+      << s.objects_drawn << ',' << s.aos_size << ',' << s.occluder_triangles << ',' << s.active_triangles << ','
+      << s.active_vertices << ',' << s.budget_vertices << ',' << s.streamed_triangles << ',' << s.streamed_vertices
+      << ',' << s.streamed_bytes << ',' << s.moved_bytes;
+    o.setf(std::ios::fixed);
+    o.precision(3);
+    for (double ms : s.ms) o << ',' << ms;
+    o << ',' << s.ms_total;
+    return o.str();
+}
+
+}  // namespace occ

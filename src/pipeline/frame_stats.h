@@ -1,0 +1,51 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+namespace occ {
+
+// The stages of one frame, in order; each has a milliseconds column in the stats CSV.
+enum class Stage : uint32_t {
+    FrustumCull,
+    OccluderSelect,  // Eq. 3 weights, top-K, plus last frame's large visible objects
+    DepthRaster,
+    HzmBuild,
+    HzmTest,
+    LodSelect,
+    Scan,
+    StreamCollect,
+    Defragment,
+    Reform,
+    Count,
+};
+const char* stageName(Stage s);  // "frustum_cull", ... (the CSV column is "ms_" + name)
+
+// One row of `occswitch render --stats`: counts of the frame and the time of each stage.
+struct FrameStats {
+    uint64_t frame = 0;
+    uint64_t objects_in_frustum = 0;
+    uint64_t objects_occluded = 0;
+    uint64_t objects_visible = 0;     // the PVS: in the frustum and not occluded
+    uint64_t objects_drawn = 0;       // visible and above the pixel error threshold
+    uint64_t aos_size = 0;            // active occluders rastered (Eq. 3 top-K + extra)
+    uint64_t occluder_triangles = 0;  // triangles rastered into the depth buffer
+    uint64_t active_triangles = 0;
+    uint64_t active_vertices = 0;
+    uint64_t budget_vertices = 0;
+    uint64_t streamed_triangles = 0;  // host -> device this frame
+    uint64_t streamed_vertices = 0;
+    uint64_t streamed_bytes = 0;
+    uint64_t moved_bytes = 0;         // device -> device by defragmentation
+    double ms[size_t(Stage::Count)] = {};
+    double ms_total = 0;
+};
+
+// Writes the CSV header line and rows; the columns are the fields above in order.
+std::string frameStatsHeader();
+std::string frameStatsRow(const FrameStats& s);
+
+}  // namespace occ

@@ -1,0 +1,231 @@
+// SPDX-License-Identifier: MIT
+#include "pipeline/pipeline.h"
+
+#include "frustum_cull.h"
+#include "hzm.h"
+#include "hzm_build.h"
+#include "hzm_test.h"
+#include "lod_select.h"
+#include "occluder_weight.h"
+#include "reform.h"
+#include "scene/errors.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <execution>
+#include <numeric>
+
+namespace occ {
+
+CullMode parseCullMode(const std::string& s) {
+    if (s == "full") return CullMode::Full;
+    if (s == "lod") return CullMode::Lod;
+    if (s == "oc+lod") return CullMode::OcLod;
+    throw UsageError("--mode " + s + ": expected full, lod or oc+lod");
+}
+
+StreamMode parseStreamMode(const std::string& s) {
+    if (s == "sc") return StreamMode::Coherent;
+    if (s == "snc") return StreamMode::NonCoherent;
+    if (s == "ns") return StreamMode::None;
+    throw UsageError("--stream " + s + ": expected sc, snc or ns");
+}
+
+Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(file), options_(options) {
+    if (options.width == 0 || options.height == 0 || options.width > 16384 || options.height > 16384)
+        throw UsageError("--size: width and height must be in [1, 16384]");
+    if (options.aos > 65536) throw UsageError("--aos " + std::to_string(options.aos) + " is more than 65536 occluders");
+    if (!(options.alpha > 1.0f)) throw UsageError("--alpha must be > 1");
+    if (!(options.pet >= 0.0f)) throw UsageError("--pet must be >= 0");
+    if (!(options.budget >= 0.0)) throw UsageError("--budget must be >= 0");
+
+    scene_ = DeviceScene::upload(file);
+    const uint32_t n = scene_.object_count;
+    double scene_vertices = 0;
+    for (uint32_t i = 0; i < n; ++i) scene_vertices += scene_.objects[i].vertex_count;
+    budget_ = options.budget > 0 ? options.budget : 0.1 * scene_vertices;
+    host_ = {file.allPositions().data(), file.allTriangles().data(), scene_.vertex_first.data(),
+             scene_.triangle_first.data(), scene_.objects.data()};
+
+    in_frustum_.resize(n);
+    occluded_.resize(n);
+    frustum_ids_.resize(n);
+    weights_.resize(scene_.cos.size());
+    aos_.resize(options.aos);
+    hzm_.resize(size_t(k::hzmTotalTexels(options.width, options.height)));
+    for (LayoutArrays& l : layouts_) {
+        l.ids.resize(n);
+        l.vc.resize(n);
+        l.tc.resize(n);
+        l.voff.resize(n);
+        l.toff.resize(n);
+    }
+}
+
+void Pipeline::chooseOccluders(const k::Camera& camera) {
+    occluders_.clear();
+    const uint32_t cos_count = uint32_t(scene_.cos.size());
+    if (cos_count > 0 && options_.aos > 0) {
+        k::occluderWeight(scene_.objects.data(), scene_.cos.data(), cos_count, in_frustum_.data(), camera,
+                          weights_.data());
+        const uint32_t chosen = k::selectTopK(scene_.cos.data(), weights_.data(), cos_count, options_.aos, aos_.data());
+        occluders_.assign(aos_.data(), aos_.data() + chosen);
+    }
+    if (options_.pvs_occluder_triangles == 0) return;
+    // The two-pass idea of occlusion-switches and GPU-driven renderers: what was visible last
+    // frame, largest on screen first (extent over distance, squared), is likely to occlude now.
+    std::vector<std::pair<float, uint32_t>> ranked;
+    for (uint32_t id : previous_pvs_) {
+        if (!in_frustum_[id]) continue;
+        const k::Aabb& b = scene_.objects[id].aabb;
+        const glm::vec3 nearest = glm::clamp(camera.eye, b.min, b.max);
+        const float distance = std::max(glm::length(nearest - camera.eye), camera.near_plane);
+        const float size = glm::length(b.max - b.min) / distance;
+        ranked.emplace_back(-size * size, id);
+    }
+    std::sort(ranked.begin(), ranked.end());
+    std::vector<uint8_t> taken(scene_.object_count, 0);
+    for (uint32_t id : occluders_) taken[id] = 1;
+    uint64_t triangles = 0;
+    for (const auto& [negative_size, id] : ranked) {
+        if (taken[id]) continue;
+        const uint64_t t = scene_.objects[id].triangle_count;
+        if (triangles + t > options_.pvs_occluder_triangles) continue;
+        triangles += t;
+        occluders_.push_back(id);
+    }
+}
+
+void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
+    // Occluders are rastered at full detail, in world space.
+    std::vector<uint64_t> vertex_base(occluders_.size() + 1, 0), triangle_base(occluders_.size() + 1, 0);
+    for (size_t j = 0; j < occluders_.size(); ++j) {
+        const k::ObjectInfo& o = scene_.objects[occluders_[j]];
+        vertex_base[j + 1] = vertex_base[j] + o.vertex_count;
+        triangle_base[j + 1] = triangle_base[j] + o.triangle_count;
+    }
+    raster_positions_.resize(vertex_base.back());
+    raster_triangles_.resize(3 * triangle_base.back());
+    std::vector<uint32_t> slots(occluders_.size());
+    std::iota(slots.begin(), slots.end(), 0u);
+    std::for_each(std::execution::par, slots.begin(), slots.end(), [&](uint32_t j) {
+        const uint32_t id = occluders_[j];
+        const k::ObjectInfo& o = scene_.objects[id];
+        const glm::mat4& world = scene_.world[id];
+        const glm::vec3* src = host_.positions + scene_.vertex_first[o.mesh];
+        glm::vec3* dst = raster_positions_.data() + vertex_base[j];
+        for (uint32_t v = 0; v < o.vertex_count; ++v) dst[v] = glm::vec3(world * glm::vec4(src[v], 1.0f));
+        const uint32_t* tri = host_.triangles + 3 * scene_.triangle_first[o.mesh];
+        uint32_t* out = raster_triangles_.data() + 3 * triangle_base[j];
+        const uint32_t base = uint32_t(vertex_base[j]);
+        for (uint64_t c = 0; c < 3ull * o.triangle_count; ++c) out[c] = tri[c] + base;
+    });
+    k::depthRaster(raster_positions_.data(), raster_triangles_.data(), uint32_t(triangle_base.back()), camera,
+                   hzm_.data(), raster_scratch_);
+    stats.aos_size = occluders_.size();
+    stats.occluder_triangles = triangle_base.back();
+}
+
+FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
+    using Clock = std::chrono::steady_clock;
+    FrameStats stats;
+    stats.frame = frame;
+    stats.budget_vertices = uint64_t(budget_);
+    const Clock::time_point start = Clock::now();
+    Clock::time_point mark = start;
+    const auto lap = [&](Stage s) {
+        k::kernelSynchronize();
+        const Clock::time_point now = Clock::now();
+        stats.ms[uint32_t(s)] += std::chrono::duration<double, std::milli>(now - mark).count();
+        mark = now;
+    };
+
+    const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
+    const uint32_t n = scene_.object_count;
+    const k::ObjectInfo* objects = scene_.objects.data();
+
+    const k::Frustum frustum = k::frustumFromViewProj(camera.view_proj);
+    stats.objects_in_frustum = k::frustumCull(objects, n, frustum, in_frustum_.data());
+    uint32_t in_count = 0;
+    for (uint32_t i = 0; i < n; ++i)
+        if (in_frustum_[i]) frustum_ids_[in_count++] = i;
+    lap(Stage::FrustumCull);
+
+    pvs_.clear();
+    if (options_.mode == CullMode::OcLod) {
+        chooseOccluders(camera);
+        lap(Stage::OccluderSelect);
+        rasterOccluders(camera, stats);
+        lap(Stage::DepthRaster);
+        k::hzmBuild(hzm_.data(), options_.width, options_.height);
+        lap(Stage::HzmBuild);
+        k::HzmLevels levels;
+        k::hzmLayout(options_.width, options_.height, levels);
+        levels.data = hzm_.data();
+        k::hzmTest(objects, frustum_ids_.data(), in_count, camera, levels, occluded_.data());
+        for (uint32_t j = 0; j < in_count; ++j)
+            if (!occluded_[j]) pvs_.push_back(frustum_ids_[j]);
+        lap(Stage::HzmTest);
+    } else {
+        pvs_.assign(frustum_ids_.data(), frustum_ids_.data() + in_count);
+    }
+    stats.objects_visible = pvs_.size();
+    stats.objects_occluded = in_count - pvs_.size();
+
+    LayoutArrays& l = layouts_[cur_index_];
+    const uint32_t count = uint32_t(pvs_.size());
+    std::memcpy(l.ids.data(), pvs_.data(), count * sizeof(uint32_t));
+    if (options_.mode == CullMode::Full) {
+        for (uint32_t j = 0; j < count; ++j) {
+            l.vc[j] = objects[pvs_[j]].vertex_count;
+            l.tc[j] = objects[pvs_[j]].triangle_count;
+        }
+    } else {
+        const k::LodParams params{float(budget_), options_.alpha, options_.pet};
+        k::lodSelect(objects, l.ids.data(), count, camera, params, scene_.map_first.data(), scene_.maps.data(),
+                     l.vc.data(), l.tc.data());
+    }
+    for (uint32_t j = 0; j < count; ++j) stats.objects_drawn += l.vc[j] > 0;
+    lap(Stage::LodSelect);
+
+    const uint64_t vertex_total = k::exclusiveScan(l.vc.data(), count, l.voff.data());
+    const uint64_t triangle_total = k::exclusiveScan(l.tc.data(), count, l.toff.data());
+    cur_ = {l.ids.data(), l.vc.data(), l.tc.data(), l.voff.data(), l.toff.data(), count, vertex_total, triangle_total};
+    stats.active_vertices = vertex_total;
+    stats.active_triangles = triangle_total;
+    lap(Stage::Scan);
+
+    k::StreamCounts sent;
+    k::DefragmentCounts moved;
+    if (options_.stream == StreamMode::None) {
+        sent = k::streamObjectByObject(cur_, host_, active_);
+        lap(Stage::StreamCollect);
+        lap(Stage::Defragment);
+    } else {
+        // Without coherence nothing of the last frame is reused: the previous layout is empty.
+        const k::ActiveLayout previous = options_.stream == StreamMode::Coherent ? prev_ : k::ActiveLayout{};
+        sent = k::streamCollect(previous, cur_, host_, staging_);
+        lap(Stage::StreamCollect);
+        moved = k::defragment(previous, cur_, staging_, active_);
+        lap(Stage::Defragment);
+    }
+    stats.streamed_vertices = sent.vertices;
+    stats.streamed_triangles = sent.triangles;
+    stats.streamed_bytes = sent.bytes();
+    stats.moved_bytes = (moved.vertices_moved + moved.vertices_bounced) * sizeof(glm::vec3) +
+                        (moved.triangles_moved + moved.triangles_bounced) * 3 * sizeof(uint32_t);
+
+    indices_.resize(size_t(3 * triangle_total));
+    k::reform(cur_, objects, scene_.vertex_first.data(), scene_.ecol.data(), active_.triangles.data(),
+              indices_.data());
+    lap(Stage::Reform);
+
+    prev_ = cur_;
+    cur_index_ ^= 1;
+    previous_pvs_ = pvs_;
+    stats.ms_total = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    return stats;
+}
+
+}  // namespace occ

@@ -1,0 +1,97 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "defragment.h"
+#include "depth_raster.h"
+#include "kernel_memory.h"
+#include "pipeline/device_scene.h"
+#include "pipeline/frame_stats.h"
+#include "scan.h"
+#include "stream_collect.h"
+#include "view/camera.h"
+
+#include <vector>
+
+namespace occ {
+
+// What a frame removes and simplifies: [PC12] is `Lod` (frustum culling + LOD); `OcLod` adds
+// occlusion culling against the HZM (Peng & Cao 2013); `Full` draws every object in the frustum
+// at full detail.
+enum class CullMode { Full, Lod, OcLod };
+
+// How the active arrays reach the device (Peng & Cao 2012, Table 1): with coherence, only what
+// the last frame lacked (Alg. 3, plus our in-place update); without coherence, the whole active
+// set gathered and copied each frame; no streaming, object by object.
+enum class StreamMode { Coherent, NonCoherent, None };
+
+struct PipelineOptions {
+    uint32_t width = 512, height = 512;  // viewport, also the occlusion depth buffer's size
+    CullMode mode = CullMode::OcLod;
+    StreamMode stream = StreamMode::Coherent;
+    uint32_t aos = 16;                   // active occluders chosen by Eq. 3 (top-K of the COS)
+    // Beyond the paper: also raster the previous frame's largest visible objects, up to this
+    // many full-detail triangles (0 = Eq. 3's AOS only).
+    uint64_t pvs_occluder_triangles = 0;
+    double budget = 0;                   // N, vertices per frame; 0 = 10 % of the scene's vertices
+    float alpha = 3.0f;                  // Eq. 1 exponent
+    float pet = 1.0f;                    // pixel error threshold
+};
+
+// The one-rank pipeline: every stage of a frame over the kernels (DESIGN.md, "One frame").
+// Keeps the previous frame's active set and layout for coherent streaming.
+class Pipeline {
+public:
+    // file must outlive the pipeline. Throws UsageError for impossible options.
+    Pipeline(const OssFile& file, const PipelineOptions& options);
+
+    // Runs every stage for one camera (drawing is the display's job) and returns the counts and
+    // the time of each stage.
+    FrameStats runFrame(const CameraPose& pose, uint64_t frame);
+
+    // Results of the last frame, valid until the next runFrame.
+    const std::vector<uint32_t>& visibleObjects() const { return pvs_; }  // PVS, ascending ids
+    const k::ActiveLayout& layout() const { return cur_; }          // drawn blocks of the active arrays
+    const glm::vec3* activeVertices() const { return active_.vertices.data(); }
+    const uint32_t* activeTriangles() const { return active_.triangles.data(); }
+    const uint32_t* indices() const { return indices_.data(); }     // 3 * layout().triangle_total
+    const float* occluderDepth() const { return hzm_.data(); }      // W x H, level 0 of the HZM
+    const std::vector<uint32_t>& occluders() const { return occluders_; }
+    const DeviceScene& scene() const { return scene_; }
+    double budget() const { return budget_; }
+
+private:
+    struct LayoutArrays {
+        k::KernelArray<uint32_t> ids, vc, tc;
+        k::KernelArray<uint64_t> voff, toff;
+    };
+    void chooseOccluders(const k::Camera& camera);
+    void rasterOccluders(const k::Camera& camera, FrameStats& stats);
+
+    const OssFile& file_;
+    PipelineOptions options_;
+    DeviceScene scene_;
+    double budget_ = 0;
+    k::HostGeometry host_{};
+
+    k::KernelArray<uint8_t> in_frustum_, occluded_;
+    k::KernelArray<uint32_t> frustum_ids_;
+    k::KernelArray<float> weights_;
+    k::KernelArray<uint32_t> aos_;
+    std::vector<uint32_t> occluders_, pvs_, previous_pvs_;
+    k::KernelArray<glm::vec3> raster_positions_;
+    k::KernelArray<uint32_t> raster_triangles_;
+    k::DepthRasterScratch raster_scratch_;
+    k::KernelArray<float> hzm_;
+
+    LayoutArrays layouts_[2];
+    uint32_t cur_index_ = 0;
+    k::ActiveLayout prev_{}, cur_{};
+    k::StagingBuffers staging_;
+    k::ActiveArrays active_;
+    k::KernelArray<uint32_t> indices_;
+};
+
+CullMode parseCullMode(const std::string& s);      // "full", "lod", "oc+lod"
+StreamMode parseStreamMode(const std::string& s);  // "sc", "snc", "ns"
+
+}  // namespace occ

@@ -1,0 +1,355 @@
+// SPDX-License-Identifier: MIT
+#include "depth_raster.h"
+#include "kernel_memory.h"
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <random>
+#include <utility>
+#include <vector>
+
+namespace occ::k {
+namespace {
+
+constexpr float kEps = kDepthRasterEpsilon;
+
+// view_proj = identity: world coordinates are NDC, so tests can place corners in window space.
+Camera identityCamera(uint32_t width, uint32_t height) {
+    Camera c{};
+    c.view_proj = glm::mat4(1.0f);
+    c.near_plane = 1.0f;
+    c.far_plane = 2.0f;
+    c.forward = glm::vec3(0, 0, -1);
+    c.width = width;
+    c.height = height;
+    return c;
+}
+
+// Eye at the origin looking down -z.
+Camera perspectiveCamera(uint32_t width, uint32_t height, float near_plane = 0.5f, float far_plane = 100.0f) {
+    Camera c{};
+    c.fovy = glm::radians(60.0f);
+    c.view_proj = glm::perspective(c.fovy, float(width) / float(height), near_plane, far_plane);
+    c.near_plane = near_plane;
+    c.far_plane = far_plane;
+    c.forward = glm::vec3(0, 0, -1);
+    c.width = width;
+    c.height = height;
+    return c;
+}
+
+// World point that the identity camera puts at window (x, y) with window depth d.
+glm::vec3 atWindow(const Camera& c, float x, float y, float d) {
+    return glm::vec3(x / float(c.width) * 2.0f - 1.0f, y / float(c.height) * 2.0f - 1.0f, d * 2.0f - 1.0f);
+}
+
+struct Mesh {
+    std::vector<glm::vec3> positions;
+    std::vector<uint32_t> triangles;
+
+    void add(glm::vec3 a, glm::vec3 b, glm::vec3 c) {
+        const uint32_t first = uint32_t(positions.size());
+        positions.insert(positions.end(), {a, b, c});
+        triangles.insert(triangles.end(), {first, first + 1, first + 2});
+    }
+};
+
+std::vector<float> rasterize(const Mesh& mesh, const Camera& camera, DepthRasterScratch& scratch) {
+    KernelArray<glm::vec3> positions(mesh.positions.size());
+    std::copy(mesh.positions.begin(), mesh.positions.end(), positions.begin());
+    KernelArray<uint32_t> triangles(mesh.triangles.size());
+    std::copy(mesh.triangles.begin(), mesh.triangles.end(), triangles.begin());
+    KernelArray<float> depth(uint64_t(camera.width) * camera.height);
+    std::fill(depth.begin(), depth.end(), -3.0f);  // the raster must clear it
+    depthRaster(positions.data(), triangles.data(), uint32_t(mesh.triangles.size() / 3), camera, depth.data(), scratch);
+    return std::vector<float>(depth.begin(), depth.end());
+}
+
+std::vector<float> rasterize(const Mesh& mesh, const Camera& camera) {
+    DepthRasterScratch scratch;
+    return rasterize(mesh, camera, scratch);
+}
+
+// The rules of depth_raster.h, one triangle and one pixel at a time: plain projection, snapping
+// to 1/256 pixel, exact integer edge functions evaluated (not stepped) at every pixel centre of
+// the triangle's box, and the same float sums for the depth so that results match bit for bit.
+std::vector<float> referenceRaster(const Mesh& mesh, const Camera& camera) {
+    const uint32_t width = camera.width, height = camera.height;
+    std::vector<float> depth(uint64_t(width) * height, 1.0f);
+    const glm::mat4& m = camera.view_proj;
+    for (size_t t = 0; t + 2 < mesh.triangles.size(); t += 3) {
+        int64_t sx[3], sy[3];
+        float sz[3];
+        bool drawn = true;
+        for (int i = 0; i < 3 && drawn; ++i) {
+            const glm::vec3 p = mesh.positions[mesh.triangles[t + i]];
+            float clip[4];
+            for (int r = 0; r < 4; ++r) clip[r] = m[0][r] * p.x + m[1][r] * p.y + m[2][r] * p.z + m[3][r];
+            if (!(clip[3] > 0.0f) || !(clip[2] >= -clip[3])) {
+                drawn = false;
+                break;
+            }
+            const float inv_w = 1.0f / clip[3];
+            const float wx = (clip[0] * inv_w * 0.5f + 0.5f) * float(width);
+            const float wy = (clip[1] * inv_w * 0.5f + 0.5f) * float(height);
+            sz[i] = clip[2] * inv_w * 0.5f + 0.5f;
+            drawn = std::abs(wx) <= kDepthRasterGuardBand && std::abs(wy) <= kDepthRasterGuardBand && std::isfinite(sz[i]);
+            sx[i] = int64_t(std::floor(wx * 256.0f + 0.5f));
+            sy[i] = int64_t(std::floor(wy * 256.0f + 0.5f));
+        }
+        if (!drawn) continue;
+        int64_t area2 = (sx[1] - sx[0]) * (sy[2] - sy[0]) - (sy[1] - sy[0]) * (sx[2] - sx[0]);
+        if (area2 == 0) continue;
+        if (area2 < 0) {
+            std::swap(sx[1], sx[2]);
+            std::swap(sy[1], sy[2]);
+            std::swap(sz[1], sz[2]);
+            area2 = -area2;
+        }
+        float weight[3];
+        for (int i = 0; i < 3; ++i) weight[i] = sz[i] / float(area2);
+        const int64_t x0 = std::max<int64_t>(0, *std::min_element(sx, sx + 3) / 256 - 1);
+        const int64_t x1 = std::min<int64_t>(width - 1, *std::max_element(sx, sx + 3) / 256 + 1);
+        const int64_t y0 = std::max<int64_t>(0, *std::min_element(sy, sy + 3) / 256 - 1);
+        const int64_t y1 = std::min<int64_t>(height - 1, *std::max_element(sy, sy + 3) / 256 + 1);
+        for (int64_t py = y0; py <= y1; ++py)
+            for (int64_t px = x0; px <= x1; ++px) {
+                const int64_t cx = px * 256 + 128, cy = py * 256 + 128;
+                int64_t e[3];
+                bool inside = true;
+                for (int k = 0; k < 3; ++k) {
+                    const int a = (k + 1) % 3, b = (k + 2) % 3;
+                    const int64_t ex = sx[b] - sx[a], ey = sy[b] - sy[a];
+                    e[k] = ex * (cy - sy[a]) - ey * (cx - sx[a]);
+                    inside = inside && e[k] >= 4 * (std::abs(ex) + std::abs(ey));
+                }
+                if (!inside) continue;
+                const float d = float(e[0]) * weight[0] + float(e[1]) * weight[1] + float(e[2]) * weight[2] + kEps;
+                float& out = depth[uint64_t(py) * width + px];
+                out = std::min(out, d);
+            }
+    }
+    return depth;
+}
+
+int coveredCount(const std::vector<float>& depth) {
+    return int(std::count_if(depth.begin(), depth.end(), [](float d) { return d < 1.0f; }));
+}
+
+// Window corners (0,0), (8,0), (0,8) at depths 0.25, 0.75, 0.5: the depth plane is
+// 0.25 + x/16 + y/32 and the centres with px + py <= 6 are inside (28 of them); those with
+// px + py = 7 lie exactly on the hypotenuse.
+Mesh knownTriangle(const Camera& c) {
+    Mesh mesh;
+    mesh.add(atWindow(c, 0, 0, 0.25f), atWindow(c, 8, 0, 0.75f), atWindow(c, 0, 8, 0.5f));
+    return mesh;
+}
+
+TEST(DepthRaster, KnownTriangleCoversCentresWithInterpolatedDepth) {
+    const Camera c = identityCamera(8, 8);
+    const std::vector<float> depth = rasterize(knownTriangle(c), c);
+    // hand-computed plane values at a few centres
+    EXPECT_NEAR(depth[0 * 8 + 0], 0.296875f + kEps, 0.3f * kEps);  // (0.5, 0.5)
+    EXPECT_NEAR(depth[3 * 8 + 2], 0.515625f + kEps, 0.3f * kEps);  // (2.5, 3.5)
+    EXPECT_NEAR(depth[0 * 8 + 6], 0.671875f + kEps, 0.3f * kEps);  // (6.5, 0.5)
+    EXPECT_NEAR(depth[6 * 8 + 0], 0.484375f + kEps, 0.3f * kEps);  // (0.5, 6.5)
+    for (uint32_t py = 0; py < 8; ++py)
+        for (uint32_t px = 0; px < 8; ++px) {
+            const float d = depth[py * 8 + px];
+            if (px + py <= 6) {
+                const float plane = 0.25f + (px + 0.5f) / 16 + (py + 0.5f) / 32;
+                EXPECT_NEAR(d, plane + kEps, 0.3f * kEps) << px << "," << py;
+                EXPECT_GT(d, plane) << "pushed away, " << px << "," << py;
+            } else {
+                EXPECT_EQ(d, 1.0f) << px << "," << py;
+            }
+        }
+    EXPECT_EQ(coveredCount(depth), 28);
+}
+
+TEST(DepthRaster, PixelCentreOnEdgeIsNotCovered) {
+    const Camera c = identityCamera(8, 8);
+    // the hypotenuse of the known triangle passes through the centres with px + py = 7
+    const std::vector<float> depth = rasterize(knownTriangle(c), c);
+    for (uint32_t px = 0; px < 8; ++px) EXPECT_EQ(depth[(7 - px) * 8 + px], 1.0f) << px;
+
+    // A vertical left edge at x = 2.5 - inset: column 2's centres are `inset` pixels inside.
+    // Everything else of the triangle lies far outside the viewport, columns 3.. are covered.
+    auto columnTwoCovered = [&](float inset) {
+        Mesh mesh;
+        const float x = 2.5f - inset;
+        mesh.add(atWindow(c, x, -16, 0.5f), atWindow(c, 40, 4, 0.5f), atWindow(c, x, 24, 0.5f));
+        const std::vector<float> d = rasterize(mesh, c);
+        int column_two = 0;
+        for (uint32_t py = 0; py < 8; ++py) {
+            column_two += d[py * 8 + 2] < 1.0f;
+            EXPECT_EQ(d[py * 8 + 1], 1.0f);
+            EXPECT_LT(d[py * 8 + 3], 1.0f);
+        }
+        EXPECT_TRUE(column_two == 0 || column_two == 8) << inset;
+        return column_two == 8;
+    };
+    EXPECT_FALSE(columnTwoCovered(0.0f));         // on the edge
+    EXPECT_FALSE(columnTwoCovered(1.0f / 128));   // inside, but closer than the margin
+    EXPECT_TRUE(columnTwoCovered(1.0f / 64));     // exactly the margin
+    EXPECT_TRUE(columnTwoCovered(1.0f / 32));
+}
+
+TEST(DepthRaster, OverlappingTrianglesKeepTheNearerDepth) {
+    const Camera c = identityCamera(8, 8);
+    Mesh flat, tilted;
+    flat.add(atWindow(c, -8, -8, 0.5f), atWindow(c, 24, -8, 0.5f), atWindow(c, -8, 24, 0.5f));
+    // depth 0.125 + x/16 over the whole viewport: nearer than 0.5 for columns 0..5
+    tilted.add(atWindow(c, -1, -8, 0.0625f), atWindow(c, 31, -8, 2.0625f), atWindow(c, -1, 56, 0.0625f));
+    Mesh both = flat;
+    both.add(tilted.positions[0], tilted.positions[1], tilted.positions[2]);
+    Mesh reversed = tilted;
+    reversed.add(flat.positions[0], flat.positions[1], flat.positions[2]);
+
+    const std::vector<float> depth = rasterize(both, c);
+    for (uint32_t py = 0; py < 8; ++py)
+        for (uint32_t px = 0; px < 8; ++px) {
+            const float expected = px <= 5 ? 0.125f + (px + 0.5f) / 16 : 0.5f;
+            EXPECT_NEAR(depth[py * 8 + px], expected + kEps, 0.3f * kEps) << px << "," << py;
+        }
+    EXPECT_EQ(rasterize(reversed, c), depth);
+}
+
+TEST(DepthRaster, TriangleCrossingNearPlaneIsSkipped) {
+    const Camera c = perspectiveCamera(16, 16, 0.5f, 100.0f);
+    const glm::vec3 a(-1, -1, -5), b(1, -1, -5);
+    Mesh in_front, inside_near, behind_eye;
+    in_front.add(a, b, glm::vec3(0, 1, -5));
+    inside_near.add(a, b, glm::vec3(0, 0.01f, -0.2f));  // in front of the eye, nearer than near
+    behind_eye.add(a, b, glm::vec3(0, 1, 1));
+    EXPECT_GT(coveredCount(rasterize(in_front, c)), 10);
+    EXPECT_EQ(coveredCount(rasterize(inside_near, c)), 0);
+    EXPECT_EQ(coveredCount(rasterize(behind_eye, c)), 0);
+}
+
+TEST(DepthRaster, BothWindingsDrawTheSame) {
+    const Camera c = identityCamera(8, 8);
+    const Mesh forward = knownTriangle(c);
+    Mesh backward;
+    backward.add(forward.positions[0], forward.positions[2], forward.positions[1]);
+    const std::vector<float> depth = rasterize(forward, c);
+    EXPECT_EQ(coveredCount(depth), 28);
+    EXPECT_EQ(rasterize(backward, c), depth);
+}
+
+TEST(DepthRaster, TriangleLargerThanScreenCoversEveryPixel) {
+    const Camera c = perspectiveCamera(70, 50);
+    Mesh wall;  // facing the camera at distance 10, its edges thousands of pixels off screen
+    wall.add(glm::vec3(-1000, -1000, -10), glm::vec3(3000, -1000, -10), glm::vec3(-1000, 3000, -10));
+    const std::vector<float> depth = rasterize(wall, c);
+    const glm::vec4 clip = c.view_proj * glm::vec4(0, 0, -10, 1);
+    const float wall_depth = clip.z / clip.w * 0.5f + 0.5f;
+    for (float d : depth) ASSERT_NEAR(d, wall_depth + kEps, 0.5f * kEps);
+    EXPECT_EQ(depth, referenceRaster(wall, c));
+}
+
+// The margin applies to every edge, shared or not: centres on the diagonal that splits a quad
+// into two triangles belong to neither and stay far. (Only occlusion is lost.)
+TEST(DepthRaster, CentresOnSharedEdgeStayFar) {
+    const Camera c = perspectiveCamera(70, 50);
+    Mesh quad;  // its diagonal projects to y - 25 = x - 35, through the centres with py = px - 10
+    quad.add(glm::vec3(-1000, -1000, -10), glm::vec3(1000, -1000, -10), glm::vec3(1000, 1000, -10));
+    quad.add(glm::vec3(-1000, -1000, -10), glm::vec3(1000, 1000, -10), glm::vec3(-1000, 1000, -10));
+    const std::vector<float> depth = rasterize(quad, c);
+    for (uint32_t py = 0; py < 50; ++py)
+        for (uint32_t px = 0; px < 70; ++px) {
+            if (px == py + 10) {
+                EXPECT_EQ(depth[py * 70 + px], 1.0f) << px << "," << py;
+            } else {
+                EXPECT_LT(depth[py * 70 + px], 1.0f) << px << "," << py;
+            }
+        }
+}
+
+TEST(DepthRaster, CornerOutsideGuardBandSkipsTriangle) {
+    const Camera c = identityCamera(8, 8);
+    Mesh mesh;
+    mesh.add(atWindow(c, -8, -8, 0.5f), atWindow(c, 2 * kDepthRasterGuardBand, -8, 0.5f), atWindow(c, -8, 24, 0.5f));
+    EXPECT_EQ(coveredCount(rasterize(mesh, c)), 0);
+}
+
+TEST(DepthRaster, NoTrianglesClearsToFar) {
+    const Camera c = identityCamera(40, 33);
+    const std::vector<float> depth = rasterize(Mesh{}, c);
+    EXPECT_TRUE(std::all_of(depth.begin(), depth.end(), [](float d) { return d == 1.0f; }));
+}
+
+// Random triangles of every size, some behind the eye, across the near plane or off screen.
+Mesh randomScene(std::mt19937& rng, uint32_t triangle_count) {
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    std::uniform_real_distribution<float> log_size(std::log(0.01f), std::log(40.0f));
+    std::uniform_real_distribution<float> distance(-2.0f, 60.0f);
+    Mesh mesh;
+    for (uint32_t t = 0; t < triangle_count; ++t) {
+        const float z = -distance(rng);
+        const glm::vec3 centre(unit(rng) * (0.7f * std::abs(z) + 1.0f), unit(rng) * (0.6f * std::abs(z) + 1.0f), z);
+        const float size = std::exp(log_size(rng));
+        auto corner = [&] { return centre + size * glm::vec3(unit(rng), unit(rng), unit(rng)); };
+        mesh.add(corner(), corner(), corner());
+    }
+    return mesh;
+}
+
+// Corners on the half-pixel grid under the identity camera, so that many pixel centres lie
+// exactly on edges and at exactly the margin.
+Mesh gridScene(std::mt19937& rng, const Camera& c, uint32_t triangle_count) {
+    std::uniform_int_distribution<int> half_pixel(-8, 2 * int(c.width) + 8);
+    std::uniform_int_distribution<int> step(0, 255);
+    Mesh mesh;
+    for (uint32_t t = 0; t < triangle_count; ++t) {
+        auto corner = [&] {
+            const float x = half_pixel(rng) * 0.5f + (step(rng) < 64 ? 1.0f / 64 : 0.0f);
+            return atWindow(c, x, half_pixel(rng) * 0.5f, step(rng) / 256.0f);
+        };
+        mesh.add(corner(), corner(), corner());
+    }
+    return mesh;
+}
+
+// Flat triangles all at (nearly) one depth: a tile may pass over a triangle only when none of
+// its pixels could get nearer, which rounding at equal depths puts to the test.
+Mesh coplanarScene(std::mt19937& rng, const Camera& c, uint32_t triangle_count) {
+    std::uniform_real_distribution<float> window(-4.0f, float(c.width) + 4.0f);
+    std::uniform_int_distribution<int> ulps(-2, 2);
+    Mesh mesh;
+    for (uint32_t t = 0; t < triangle_count; ++t) {
+        const float depth = std::nextafter(0.7f, ulps(rng) < 0 ? 0.0f : 1.0f);
+        auto corner = [&] { return atWindow(c, window(rng), window(rng), ulps(rng) == 0 ? 0.7f : depth); };
+        mesh.add(corner(), corner(), corner());
+    }
+    return mesh;
+}
+
+TEST(DepthRaster, RandomScenesMatchScalarReferenceBitForBit) {
+    std::mt19937 rng(7);
+    DepthRasterScratch scratch;  // one scratch across sizes: reuse and growth
+    const uint32_t sizes[][3] = {{77, 45, 3000}, {256, 256, 20000}, {31, 97, 500}, {512, 512, 5000}, {1, 1, 100}};
+    for (const auto& size : sizes) {
+        const Camera c = perspectiveCamera(size[0], size[1]);
+        const Mesh mesh = randomScene(rng, size[2]);
+        const std::vector<float> depth = rasterize(mesh, c, scratch);
+        EXPECT_EQ(depth, referenceRaster(mesh, c)) << size[0] << "x" << size[1];
+        if (size[2] > 1000) {
+            EXPECT_GT(coveredCount(depth), 0);
+        }
+    }
+    for (uint32_t w : {8u, 33u}) {
+        const Camera c = identityCamera(w, w);
+        const Mesh grid = gridScene(rng, c, 400);
+        EXPECT_EQ(rasterize(grid, c, scratch), referenceRaster(grid, c)) << w;
+        const Mesh coplanar = coplanarScene(rng, c, 300);
+        EXPECT_EQ(rasterize(coplanar, c, scratch), referenceRaster(coplanar, c)) << w;
+    }
+}
+
+}  // namespace
+}  // namespace occ::k

@@ -1,0 +1,262 @@
+// SPDX-License-Identifier: MIT
+#include "kernel_memory.h"
+#include "lod_select.h"
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+using namespace occ::k;
+
+namespace {
+
+// 100 x 100 viewport, 90 degree field of view, eye at the origin looking down -z, near plane 1:
+// a point at view depth d projects to window x = (x / d * 0.5 + 0.5) * 100.
+Camera testCamera() {
+    Camera c{};
+    const glm::mat4 view = glm::lookAt(glm::vec3(0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
+    c.view_proj = glm::perspective(glm::radians(90.0f), 1.0f, 1.0f, 100.0f) * view;
+    c.eye = glm::vec3(0);
+    c.forward = glm::vec3(0, 0, -1);
+    c.near_plane = 1.0f;
+    c.far_plane = 100.0f;
+    c.width = c.height = 100;
+    c.fovy = glm::radians(90.0f);
+    return c;
+}
+
+// The box [-1,1] x [-1,1] x [-3,-2]: its near face (depth 2) spans pixels 25..75 in x and y, so
+// A = 2500 px and D = 2.
+constexpr Aabb kNearBox{{-1, -1, -3}, {1, 1, -2}};
+// Around the eye: crosses the near plane, so A = 100 x 100 and D = 1.
+constexpr Aabb kAroundEye{{-1, -1, -1}, {1, 1, 1}};
+// 0.02 wide at depth 50: about 0.0004 px.
+constexpr Aabb kSpeck{{-0.01f, -0.01f, -50.01f}, {0.01f, 0.01f, -50}};
+
+ObjectInfo object(const Aabb& box, uint32_t mesh, uint32_t vertices, uint32_t q) {
+    ObjectInfo o{};
+    o.aabb = box;
+    o.mesh = mesh;
+    o.vertex_count = vertices;
+    o.q = q;
+    o.triangle_count = 2 * vertices;
+    return o;
+}
+
+struct Selection {
+    std::vector<uint32_t> vc, tc;
+    uint64_t total;
+};
+
+// Every mesh m has map[k] = (m + 2) * k, so tc = (mesh + 2) * vc identifies the mesh used.
+Selection select(const std::vector<ObjectInfo>& objects, const std::vector<uint32_t>& ids, LodParams params) {
+    uint32_t mesh_count = 0;
+    for (const ObjectInfo& o : objects) mesh_count = std::max(mesh_count, o.mesh + 1);
+    std::vector<uint32_t> mesh_vertices(mesh_count, 0);
+    for (const ObjectInfo& o : objects) mesh_vertices[o.mesh] = o.vertex_count;
+    KernelArray<uint64_t> map_first(mesh_count);
+    std::vector<uint32_t> maps;
+    for (uint32_t m = 0; m < mesh_count; ++m) {
+        map_first[m] = maps.size();
+        for (uint32_t k = 0; k <= mesh_vertices[m]; ++k) maps.push_back((m + 2) * k);
+    }
+    KernelArray<uint32_t> maps_k(maps.size());
+    std::copy(maps.begin(), maps.end(), maps_k.begin());
+    KernelArray<ObjectInfo> objects_k(objects.size());
+    std::copy(objects.begin(), objects.end(), objects_k.begin());
+    KernelArray<uint32_t> ids_k(ids.size()), vc(ids.size()), tc(ids.size());
+    std::copy(ids.begin(), ids.end(), ids_k.begin());
+    const uint64_t total = lodSelect(objects_k.data(), ids_k.data(), uint32_t(ids.size()), testCamera(), params,
+                                     map_first.data(), maps_k.data(), vc.data(), tc.data());
+    return {std::vector<uint32_t>(vc.begin(), vc.end()), std::vector<uint32_t>(tc.begin(), tc.end()), total};
+}
+
+// Two objects on the same box, 1000 and 125 vertices: A P / D is 1.25e6 and 1.5625e5, a ratio of
+// 8, so with alpha = 3 their shares (A P / D)^(2/3) are in the ratio 4 : 1.
+std::vector<ObjectInfo> twoObjects(uint32_t q0 = 4, uint32_t q1 = 4) {
+    return {object(kNearBox, 0, 1000, q0), object(kNearBox, 1, 125, q1)};
+}
+
+}  // namespace
+
+TEST(LodSelect, SplitsTheBudgetByEquationOneShares) {
+    const Selection s = select(twoObjects(), {0, 1}, {500, 3, 1});
+    EXPECT_EQ(s.vc, (std::vector<uint32_t>{400, 100}));
+    EXPECT_EQ(s.total, 500u);
+}
+
+TEST(LodSelect, TriangleCountsComeFromEachObjectsMeshMap) {
+    const Selection s = select(twoObjects(), {0, 1}, {500, 3, 1});
+    EXPECT_EQ(s.tc, (std::vector<uint32_t>{2 * 400, 3 * 100}));
+}
+
+TEST(LodSelect, IdsAreUsedInTheGivenOrder) {
+    const Selection s = select(twoObjects(), {1, 0}, {500, 3, 1});
+    EXPECT_EQ(s.vc, (std::vector<uint32_t>{100, 400}));
+}
+
+TEST(LodSelect, WhatACappedObjectLeavesGoesToTheOthers) {
+    // Shares alone give 560 / 140; the second object has only 125 vertices.
+    const Selection s = select(twoObjects(), {0, 1}, {700, 3, 1});
+    EXPECT_EQ(s.vc, (std::vector<uint32_t>{575, 125}));
+    EXPECT_EQ(s.total, 700u);
+}
+
+TEST(LodSelect, FloorsAreTakenFromTheOthersWhileTheBudgetAllows) {
+    const Selection s = select(twoObjects(4, 120), {0, 1}, {500, 3, 1});
+    EXPECT_EQ(s.vc, (std::vector<uint32_t>{380, 120}));
+    EXPECT_EQ(s.total, 500u);
+}
+
+TEST(LodSelect, FloorsAboveTheBudgetAreKeptAndReported) {
+    const Selection s = select(twoObjects(300, 120), {0, 1}, {400, 3, 1});
+    EXPECT_EQ(s.vc, (std::vector<uint32_t>{300, 120}));
+    EXPECT_EQ(s.total, 420u);
+}
+
+TEST(LodSelect, AmpleBudgetGivesFullDetail) {
+    const Selection s = select(twoObjects(), {0, 1}, {1e6f, 3, 1});
+    EXPECT_EQ(s.vc, (std::vector<uint32_t>{1000, 125}));
+    EXPECT_EQ(s.tc, (std::vector<uint32_t>{2000, 375}));
+    EXPECT_EQ(s.total, 1125u);
+}
+
+TEST(LodSelect, ObjectsBelowThePixelErrorThresholdAreNotDrawnAndTakeNothing) {
+    std::vector<ObjectInfo> objects = twoObjects();
+    objects.push_back(object(kSpeck, 2, 50, 10));
+    const Selection s = select(objects, {0, 1, 2}, {500, 3, 1});
+    EXPECT_EQ(s.vc, (std::vector<uint32_t>{400, 100, 0}));
+    EXPECT_EQ(s.tc[2], 0u);
+}
+
+TEST(LodSelect, AnObjectCrossingTheNearPlaneCountsAsTheWholeViewportAtTheNearPlane) {
+    // 10000 px * 1000 / 1 against 2500 px * 125 / 2: ratio 64, shares 16 : 1.
+    const std::vector<ObjectInfo> objects{object(kAroundEye, 0, 1000, 4), object(kNearBox, 1, 125, 4)};
+    const Selection s = select(objects, {0, 1}, {170, 3, 1});
+    EXPECT_EQ(s.vc, (std::vector<uint32_t>{160, 10}));
+}
+
+TEST(LodSelect, ZeroBudgetLeavesEveryDrawnObjectAtItsFloor) {
+    const Selection s = select(twoObjects(7, 9), {0, 1}, {0, 3, 1});
+    EXPECT_EQ(s.vc, (std::vector<uint32_t>{7, 9}));
+}
+
+TEST(LodSelect, AnEmptyListSelectsNothing) {
+    const Selection s = select(twoObjects(), {}, {500, 3, 1});
+    EXPECT_EQ(s.total, 0u);
+}
+
+namespace {
+
+// The scalar reference: Eq. 1 in double, lambda by plain bisection on the unrounded sum.
+struct Reference {
+    std::vector<double> level;  // -1 = not drawn
+};
+
+Reference referenceSelect(const std::vector<ObjectInfo>& objects, const std::vector<uint32_t>& ids,
+                          const Camera& camera, LodParams params) {
+    std::vector<double> share(ids.size(), -1);
+    for (size_t j = 0; j < ids.size(); ++j) {
+        const ObjectInfo& o = objects[ids[j]];
+        double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300, nearest = 1e300;
+        bool crosses = false;
+        for (int c = 0; c < 8; ++c) {
+            const glm::dvec3 p(c & 1 ? o.aabb.max.x : o.aabb.min.x, c & 2 ? o.aabb.max.y : o.aabb.min.y,
+                               c & 4 ? o.aabb.max.z : o.aabb.min.z);
+            const double d = glm::dot(p - glm::dvec3(camera.eye), glm::dvec3(camera.forward));
+            const glm::dvec4 clip = glm::dmat4(camera.view_proj) * glm::dvec4(p, 1.0);
+            if (d < camera.near_plane) crosses = true;
+            nearest = std::min(nearest, d);
+            x0 = std::min(x0, (clip.x / clip.w * 0.5 + 0.5) * camera.width);
+            x1 = std::max(x1, (clip.x / clip.w * 0.5 + 0.5) * camera.width);
+            y0 = std::min(y0, (clip.y / clip.w * 0.5 + 0.5) * camera.height);
+            y1 = std::max(y1, (clip.y / clip.w * 0.5 + 0.5) * camera.height);
+        }
+        double area = double(camera.width) * camera.height, depth = camera.near_plane;
+        if (!crosses) {
+            area = std::max(0.0, std::min(x1, double(camera.width)) - std::max(x0, 0.0)) *
+                   std::max(0.0, std::min(y1, double(camera.height)) - std::max(y0, 0.0));
+            depth = nearest;
+        }
+        if (area < params.pet || o.vertex_count == 0) continue;
+        const double w = std::pow(area * o.vertex_count / depth, params.alpha - 1.0);
+        share[j] = std::pow(w, 1.0 / params.alpha);
+    }
+    const auto levels = [&](double lambda) {
+        std::vector<double> level(ids.size(), -1);
+        for (size_t j = 0; j < ids.size(); ++j) {
+            if (share[j] < 0) continue;
+            const ObjectInfo& o = objects[ids[j]];
+            level[j] = std::clamp(lambda * share[j], double(std::min(o.q, o.vertex_count)), double(o.vertex_count));
+        }
+        return level;
+    };
+    const auto sum = [](const std::vector<double>& level) {
+        double s = 0;
+        for (double l : level) s += std::max(l, 0.0);
+        return s;
+    };
+    double lo = 0, hi = 1;
+    while (sum(levels(hi)) < params.budget && hi < 1e30) hi *= 2;
+    for (int i = 0; i < 200; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (sum(levels(mid)) <= params.budget ? lo : hi) = mid;
+    }
+    return {levels(lo)};
+}
+
+}  // namespace
+
+TEST(LodSelect, MatchesTheScalarReferenceOnRandomScenes) {
+    std::mt19937 rng(7);
+    const Camera camera = testCamera();
+    for (int round = 0; round < 40; ++round) {
+        const uint32_t n = std::uniform_int_distribution<uint32_t>(1, 300)(rng);
+        std::vector<ObjectInfo> objects;
+        std::uniform_real_distribution<float> xy(-30, 30), z(-60, 0.5f), size(0.01f, 6);
+        std::uniform_int_distribution<uint32_t> vertices(0, 4000);
+        uint64_t floors = 0, caps = 0;
+        for (uint32_t i = 0; i < n; ++i) {
+            const glm::vec3 lo(xy(rng), xy(rng), z(rng));
+            const glm::vec3 hi = lo + glm::vec3(size(rng), size(rng), size(rng));
+            const uint32_t p = vertices(rng);
+            const uint32_t q = std::uniform_int_distribution<uint32_t>(0, p / 2 + 1)(rng);
+            objects.push_back(object({lo, hi}, i, p, q));
+        }
+        std::vector<uint32_t> ids(n);
+        for (uint32_t i = 0; i < n; ++i) ids[i] = (i * 7919u) % n;  // any order
+        const float pet = std::uniform_real_distribution<float>(0, 20)(rng);
+        for (const ObjectInfo& o : objects) floors += std::min(o.q, o.vertex_count), caps += o.vertex_count;
+        const float budget = float(std::uniform_real_distribution<double>(0.0, 1.2)(rng) * double(caps));
+        const LodParams params{budget, round % 4 == 0 ? 2.0f : 3.0f, pet};
+
+        const Selection s = select(objects, ids, params);
+        const Reference r = referenceSelect(objects, ids, camera, params);
+        uint64_t drawn_floors = 0, sum = 0;
+        for (uint32_t j = 0; j < n; ++j) {
+            const ObjectInfo& o = objects[ids[j]];
+            SCOPED_TRACE(testing::Message() << "round " << round << " entry " << j);
+            if (r.level[j] < 0) {
+                EXPECT_EQ(s.vc[j], 0u);
+                EXPECT_EQ(s.tc[j], 0u);
+                continue;
+            }
+            drawn_floors += std::min(o.q, o.vertex_count);
+            sum += s.vc[j];
+            EXPECT_GE(s.vc[j], std::min(o.q, o.vertex_count));
+            EXPECT_LE(s.vc[j], o.vertex_count);
+            EXPECT_NEAR(double(s.vc[j]), r.level[j], 1.5 + 1e-4 * r.level[j]);
+            EXPECT_EQ(s.tc[j], (o.mesh + 2) * s.vc[j]);
+        }
+        EXPECT_EQ(s.total, sum);
+        if (double(drawn_floors) <= budget) {
+            EXPECT_LE(double(sum), double(budget));
+        } else {
+            EXPECT_EQ(sum, drawn_floors);
+        }
+    }
+}
