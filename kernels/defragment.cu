@@ -4,9 +4,11 @@
 #include <thrust/copy.h>
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
+#include <thrust/functional.h>
 #include <thrust/iterator/counting_iterator.h>
 #include <thrust/iterator/transform_iterator.h>
 #include <thrust/reduce.h>
+#include <thrust/sort.h>
 
 #include <stdexcept>
 #include <string>
@@ -139,51 +141,57 @@ void forEachTile(uint64_t total, const F& f) {
     thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), (total + kRunTile - 1) / kRunTile, f);
 }
 
+struct ColumnPlan {
+    Plan plan;
+    uint64_t staged_total = 0, moved_total = 0, kept_total = 0;
+};
+
+// lengths and offsets have room for 4 * current.count entries each.
+ColumnPlan planColumn(const BlockColumn& previous, const BlockColumn& current, uint32_t* lengths, uint64_t* offsets) {
+    const uint32_t n = current.count;
+    ColumnPlan c;
+    c.plan = {lengths, lengths + n, lengths + 2 * n, lengths + 3 * n, offsets, offsets + n, offsets + 2 * n, offsets + 3 * n};
+    if (n == 0) return c;
+    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), n, PlanBlock{previous, current, c.plan});
+    c.staged_total = exclusiveScan(c.plan.staged, n, c.plan.staged_offset);
+    c.moved_total = exclusiveScan(c.plan.moved, n, c.plan.moved_offset);
+    const auto wide = thrust::make_transform_iterator(c.plan.kept, Widen());
+    c.kept_total = thrust::reduce(thrust::device, wide, wide + n, uint64_t(0));
+    return c;
+}
+
+void checkStaging(const ColumnPlan& c, uint64_t staging_count, const char* what) {
+    if (c.staged_total != staging_count)
+        throw std::invalid_argument(std::string("defragment: staging holds ") + std::to_string(staging_count) + " " +
+                                    what + " but the layouts need " + std::to_string(c.staged_total) +
+                                    " (was it collected for these two layouts?)");
+}
+
 struct ColumnCounts {
     uint64_t copied, moved, bounced;
 };
 
 template <class T, int W>
-ColumnCounts defragmentColumn(const BlockColumn& previous, const BlockColumn& current, const T* staging,
-                              uint64_t staging_count, ActiveBuffer<T>& buffer, ActiveArrays& active,
-                              const char* what) {
-    const uint32_t n = current.count;
-    reserve(active.lengths, 4 * uint64_t(n));
-    reserve(active.offsets, 4 * uint64_t(n));
-    uint32_t* lengths = active.lengths.data();
-    uint64_t* offsets = active.offsets.data();
-    const Plan plan{lengths,     lengths + n,     lengths + 2 * n, lengths + 3 * n,
-                    offsets,     offsets + n,     offsets + 2 * n, offsets + 3 * n};
-    uint64_t staged_total = 0, moved_total = 0, kept_total = 0;
-    if (n > 0) {
-        thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), n, PlanBlock{previous, current, plan});
-        staged_total = exclusiveScan(plan.staged, n, plan.staged_offset);
-        moved_total = exclusiveScan(plan.moved, n, plan.moved_offset);
-        const auto wide = thrust::make_transform_iterator(plan.kept, Widen());
-        kept_total = thrust::reduce(thrust::device, wide, wide + n, uint64_t(0));
-    }
-    if (staged_total != staging_count)
-        throw std::invalid_argument(std::string("defragment: staging holds ") + std::to_string(staging_count) + " " +
-                                    what + " but the layouts need " + std::to_string(staged_total) +
-                                    " (was it collected for these two layouts?)");
-
+ColumnCounts applyColumn(const ColumnPlan& c, const BlockColumn& current, const T* staging, ActiveBuffer<T>& buffer) {
     KernelArray<T>& now = buffer.buffers[buffer.current];
     KernelArray<T>& other = buffer.buffers[1 - buffer.current];
-    const bool in_place = W * current.total <= now.size() && 2 * moved_total <= kept_total;
+    const bool in_place = W * current.total <= now.size() && 2 * c.moved_total <= c.kept_total;
     if (in_place) {
-        if (moved_total > 0) {
-            reserve(other, W * moved_total);
-            forEachTile(moved_total, Bounce<T, W>{current, plan, moved_total, now.data(), other.data()});
+        if (c.moved_total > 0) {
+            reserve(other, W * c.moved_total);
+            forEachTile(c.moved_total, Bounce<T, W>{current, c.plan, c.moved_total, now.data(), other.data()});
         }
-        const uint64_t written_total = n > 0 ? exclusiveScan(plan.written, n, plan.written_offset) : 0;
-        forEachTile(written_total, PlaceInPlace<T, W>{current, plan, written_total, other.data(), staging, now.data()});
+        const uint64_t written_total =
+            current.count > 0 ? exclusiveScan(c.plan.written, current.count, c.plan.written_offset) : 0;
+        forEachTile(written_total,
+                    PlaceInPlace<T, W>{current, c.plan, written_total, other.data(), staging, now.data()});
     } else {
         reserve(other, W * current.total);
-        forEachTile(current.total, PlaceDoubleBuffered<T, W>{current, plan, now.data(), staging, other.data()});
+        forEachTile(current.total, PlaceDoubleBuffered<T, W>{current, c.plan, now.data(), staging, other.data()});
         buffer.current = 1 - buffer.current;
     }
     buffer.count = current.total;
-    return {staged_total, in_place ? moved_total : kept_total, in_place ? moved_total : 0};
+    return {c.staged_total, in_place ? c.moved_total : c.kept_total, in_place ? c.moved_total : 0};
 }
 
 }  // namespace
@@ -196,12 +204,22 @@ DefragmentCounts defragment(const ActiveLayout& previous, const ActiveLayout& cu
                                     " vertices and " + std::to_string(active.triangles.count) +
                                     " triangles but the previous layout has " + std::to_string(previous.vertex_total) +
                                     " and " + std::to_string(previous.triangle_total));
-    const ColumnCounts v = defragmentColumn<glm::vec3, 1>(vertexBlocks(previous), vertexBlocks(current),
-                                                          staging.vertices.data(), staging.vertex_count,
-                                                          active.vertices, active, "vertices");
-    const ColumnCounts t = defragmentColumn<uint32_t, 3>(triangleBlocks(previous), triangleBlocks(current),
-                                                         staging.triangles.data(), staging.triangle_count,
-                                                         active.triangles, active, "triangles");
+    // Blocks are matched across frames by binary search on the ids.
+    if (!thrust::is_sorted(thrust::device, current.objects, current.objects + current.count,
+                           thrust::less_equal<uint32_t>()))
+        throw std::invalid_argument("defragment: the current layout's object ids are not strictly ascending");
+    // Both columns are planned and checked before either is touched.
+    const uint64_t n = current.count;
+    reserve(active.lengths, 8 * n);
+    reserve(active.offsets, 8 * n);
+    const ColumnPlan vp = planColumn(vertexBlocks(previous), vertexBlocks(current), active.lengths.data(),
+                                     active.offsets.data());
+    const ColumnPlan tp = planColumn(triangleBlocks(previous), triangleBlocks(current), active.lengths.data() + 4 * n,
+                                     active.offsets.data() + 4 * n);
+    checkStaging(vp, staging.vertex_count, "vertices");
+    checkStaging(tp, staging.triangle_count, "triangles");
+    const ColumnCounts v = applyColumn<glm::vec3, 1>(vp, vertexBlocks(current), staging.vertices.data(), active.vertices);
+    const ColumnCounts t = applyColumn<uint32_t, 3>(tp, triangleBlocks(current), staging.triangles.data(), active.triangles);
     return {v.copied, t.copied, v.moved, t.moved, v.bounced, t.bounced};
 }
 

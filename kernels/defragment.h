@@ -57,8 +57,9 @@ struct DefragmentCounts {
 // in place whenever 2 x moved <= kept and the current buffer is large enough, so a frame whose
 // drawn set and LODs did not change writes nothing at all.
 // previous must be the layout `active` holds (or ActiveLayout{}: nothing is kept, the SNC
-// baseline); throws std::invalid_argument if its totals differ from what `active` holds, or if
-// staging's counts are not what the two layouts need. Layouts are read only and may share arrays.
+// baseline). Throws std::invalid_argument, leaving `active` as it was, if its totals differ from
+// what `active` holds, if current's ids are not strictly ascending, or if staging's counts are
+// not what the two layouts need. Layouts are read only and may share arrays.
 DefragmentCounts defragment(const ActiveLayout& previous, const ActiveLayout& current, const StagingBuffers& staging,
                             ActiveArrays& active);
 

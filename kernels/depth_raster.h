@@ -18,8 +18,8 @@ namespace occ::k {
 inline constexpr int32_t kDepthRasterSubpixelUnits = 256;
 inline constexpr int32_t kDepthRasterMarginUnits = 4;
 // A covered pixel gets the triangle's window depth at its centre plus this (pushed away), the
-// MIN over every triangle covering it. It absorbs our interpolation rounding (at most ~6 float
-// ulps, since depth is a convex combination of corner depths) and a GPU's.
+// MIN over every triangle covering it. It absorbs our interpolation rounding (a few float ulps,
+// since depth is a convex combination of corner depths) and a GPU's.
 inline constexpr float kDepthRasterEpsilon = 1.0f / (1 << 20);
 // Triangles with a corner farther than this from the viewport's origin in window x or y are
 // skipped (so that snapped coordinates fit 32-bit and edge functions 64-bit integers). Only
@@ -37,14 +37,13 @@ struct DepthRasterTriangle;  // per-triangle setup, defined in depth_raster.cu
 struct DepthRasterScratch {
     KernelArray<DepthRasterVertex> vertices;  // largest index + 1
     KernelArray<DepthRasterTriangle> setup;   // tri_count
-    KernelArray<uint64_t> pair_offset;        // tri_count: first (tile, triangle) pair of each
-    KernelArray<uint32_t> pair_tile;          // one per (tile, triangle) pair
-    KernelArray<uint32_t> pair_triangle;      // one per (tile, triangle) pair
-    KernelArray<uint64_t> tile_begin;         // tile count + 1: each tile's range of pairs
+    KernelArray<uint64_t> cells;              // (tiles x binning chunks) + 1 counts, then offsets
+    KernelArray<uint32_t> pair_triangle;      // one per (tile, triangle) pair, grouped by tile
 };
 
 // Conservative software depth rasterisation of occluder triangles into a W x H depth buffer,
-// W = camera.width, H = camera.height (each in [0, 32768]; 0 draws nothing).
+// W = camera.width, H = camera.height (each in [0, 32768], else std::invalid_argument; 0 draws
+// nothing).
 // positions: world-space vertices (already transformed by the caller). Every vertex up to the
 // largest index in `triangles` is projected, so pass a compact array (the occluders' vertices,
 // not the whole scene's). triangles: 3 * tri_count corner indices (may be empty). Projection and
@@ -57,8 +56,8 @@ struct DepthRasterScratch {
 // area. Both windings are drawn. The margin holds on every edge, shared ones too: a centre
 // within 1/64 pixel of the edge between two triangles of one mesh belongs to neither and stays
 // far. Deterministic: the result depends neither on the thread count nor on the back end.
-// Memory: scratch grows to 16 bytes per vertex, 56 per triangle and 8 per (32x32 tile,
-// triangle) pair of overlapping screen boxes.
+// Memory: scratch grows to 16 bytes per vertex, 48 per triangle, 4 per (32x32 tile, triangle)
+// pair of overlapping screen boxes, and 8 per (tile, 4096 triangles), at most 32 MB.
 void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
                  const Camera& camera, float* depth, DepthRasterScratch& scratch);
 

@@ -7,7 +7,7 @@ namespace occ::k {
 
 struct LodParams {
     float budget;  // N: vertices to spend over the listed objects, >= 0
-    float alpha;   // exponent of Eq. 1, > 1 (Peng & Cao use 3)
+    float alpha;   // exponent of Eq. 1, >= 1 (Peng & Cao use 3; 1 shares the budget equally)
     float pet;     // pixel error threshold: objects covering fewer pixels are not drawn
 };
 
@@ -23,7 +23,7 @@ struct LodParams {
 // rounded levels to fit: N s_i / sum s_j when nothing clamps, and the water-filling of Peng & Cao
 // when some objects clamp (what an object capped at P_i or raised to q_i leaves over or takes is
 // shared by the others in proportion to s). If the floors alone exceed the budget every drawn
-// object gets q_i. Rounding leaves at most a few vertices per hundred objects unspent.
+// object gets q_i. Rounding typically leaves a few vertices per hundred objects unspent.
 //
 // vertex_count and triangle_count (kernel memory, count entries each) receive vc_i and
 // tc_i = map_i[vc_i] (0 when vc_i = 0), map_i being maps + map_first[objects[i].mesh] (kernel

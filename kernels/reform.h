@@ -12,7 +12,8 @@ namespace occ::k {
 // offset in the active vertex array is added.
 //   layout            the frame's layout, which the active triangle array holds (per object
 //                     ranges: block j's triangles start at triangle_offset[j]);
-//   objects           per object, .mesh (kernel memory);
+//   objects           per object, .mesh and .vertex_count (kernel memory); blocks at full
+//                     detail (vc = vertex_count) skip the walk;
 //   vertex_first      per mesh, index of its first vertex in ecol (kernel memory);
 //   ecol              every mesh's ecol back to back, the .oss ECOL section copied to kernel
 //                     memory once: ecol[v] < v for v >= q, so every walk ends;

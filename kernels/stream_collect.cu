@@ -3,9 +3,14 @@
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
+#include <thrust/functional.h>
 #include <thrust/iterator/counting_iterator.h>
 #include <thrust/iterator/transform_iterator.h>
 #include <thrust/scan.h>
+#include <thrust/sort.h>
+#include <thrust/transform.h>
+
+#include <stdexcept>
 
 namespace occ::k {
 
@@ -90,6 +95,10 @@ uint64_t collect(const BlockColumn& previous, const BlockColumn& current, const 
 
 StreamCounts streamCollect(const ActiveLayout& previous, const ActiveLayout& current, const HostGeometry& host,
                            StagingBuffers& staging) {
+    // Blocks are matched across frames by binary search on the ids.
+    if (!thrust::is_sorted(kHostSide, current.objects, current.objects + current.count,
+                           thrust::less_equal<uint32_t>()))
+        throw std::invalid_argument("streamCollect: the current layout's object ids are not strictly ascending");
     StreamCounts counts;
     counts.vertices = collect<glm::vec3, 1>(vertexBlocks(previous), vertexBlocks(current), host.positions,
                                             host.vertex_first, host.objects, staging.vertices, staging);

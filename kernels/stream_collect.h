@@ -9,20 +9,21 @@
 // gather on the host what the device's active arrays lack. Part 2, defragment.h, builds the new
 // active arrays from the old ones plus what was gathered.
 //
-// One frame, as the pipeline drives it (ActiveLayout in scan.h; prev_* arrays are the caller's,
-// kept from the last frame, cur_* are this frame's; swap the two sets after the frame):
+// One frame, as the pipeline drives it. The caller keeps two sets of five layout arrays in
+// kernel memory, prev_* (last frame's) and cur_* (this frame's): ids, vc, tc (uint32) and voff,
+// toff (uint64), n entries each; cur_ids holds this frame's PVS, ascending.
 //
-//   lodSelect(objects, pvs, n, camera, params, map_first, maps, cur_vc, cur_tc);
-//   copy pvs into cur_ids (ascending; lodSelect leaves vc = 0 for objects it does not draw)
+//   lodSelect(objects, cur_ids, n, camera, params, map_first, maps, cur_vc, cur_tc);
 //   const ActiveLayout cur{cur_ids, cur_vc, cur_tc, cur_voff, cur_toff, n,
 //                          exclusiveScan(cur_vc, n, cur_voff), exclusiveScan(cur_tc, n, cur_toff)};
-//   const StreamCounts sent = streamCollect(prev, cur, host, staging);       // host side
-//   const DefragmentCounts d = defragment(prev, cur, staging, active);       // device side
+//   streamCollect(prev, cur, host, staging);  // host side: what prev lacks, into staging
+//   defragment(prev, cur, staging, active);   // device side: active now holds cur
 //   reform(cur, objects, vertex_first, ecol, active.triangles.data(), indices);
-//   draw active.vertices.data() with indices; std::swap(prev_arrays, cur_arrays); prev = cur;
+//   draw active.vertices.data() (cur.vertex_total vertices) with indices (3 * cur.triangle_total)
+//   prev = cur; swap the prev_* and cur_* array sets
 //
 // The first frame passes ActiveLayout{} as prev. Buffers that live from frame to frame:
-//   - the previous layout's five arrays (ids, vc, tc, voff, toff), read by both calls;
+//   - the previous layout's five arrays, read by both calls (so not overwritten before them);
 //   - ActiveArrays active (defragment.h): the active vertex and triangle arrays;
 //   - StagingBuffers staging: reused to avoid reallocating; its contents matter only between
 //     streamCollect and defragment of one frame.
@@ -66,7 +67,8 @@ struct StreamCounts {
 // Fills `staging` with what `current` needs beyond what `previous` held, gathered from `host`,
 // and returns the counts. Both layouts are read only (they may share arrays, e.g. an unchanged
 // frame); previous may be ActiveLayout{} (first frame, or the SNC baseline). Objects in
-// `current` with vc = 0 contribute nothing. Thread-parallel on the host; the device is not used.
+// `current` with vc = 0 contribute nothing. Throws std::invalid_argument if current's ids are
+// not strictly ascending. Thread-parallel on the host; the device is not used.
 StreamCounts streamCollect(const ActiveLayout& previous, const ActiveLayout& current, const HostGeometry& host,
                            StagingBuffers& staging);
 

@@ -17,7 +17,7 @@ struct PathOptions {
     std::string scene, output;
     int64_t frames = 300;  // signed, so that "--frames -1" gets our message rather than a wrap
     uint64_t seed = 1;
-    std::string avoid = "boxes";
+    std::string avoid = "triangles";  // the plant's bent pipes have AABBs over most corridors
 };
 
 void checkOptions(const PathOptions& o) {

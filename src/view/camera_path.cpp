@@ -10,8 +10,8 @@
 #include <atomic>
 #include <bit>
 #include <charconv>
-#include <cmath>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -271,7 +271,7 @@ constexpr double kEyeAboveFloor = 1.7;
 constexpr double kFloorCell = 0.25;
 constexpr uint32_t kMaxGridCells = 2048;   // per side, for floors; larger scenes get a window
 // Scenes without floors.
-constexpr uint32_t kGenericCells = 192;    // along the longer of x and z
+constexpr uint32_t kGenericCells = 512;    // along the longer of x and z: 50 per tile of a 10-wide lattice
 constexpr int kCandidateHeights = 16;
 constexpr int kNearbyCells = 16;           // an object this close along a ray surrounds a cell
 // The walkable region.
@@ -283,7 +283,8 @@ constexpr size_t kMinWalkCells = 64;
 constexpr int kTurnDistance = 8;     // start turning when an obstacle is this close ahead
 constexpr int kRunCap = 48;          // how far the walker looks along a direction
 constexpr int kOpenRun = 16;         // a side way this long counts as open
-constexpr double kExploreChance = 0.03;  // per cell, of taking an open side way once straight for kOpenRun
+constexpr int kExploreAfter = 32;    // straight steps before a side way tempts the walker
+constexpr double kExploreChance = 0.02;  // per cell, of taking an open side way then
 constexpr int kPeek = 6;             // visited cells this far along a way make it less attractive
 // Smoothing and cameras.
 constexpr double kSmoothSigma = 3.0;  // in walk steps
@@ -646,7 +647,7 @@ public:
         if (goal_ == direction_) {
             if (run(direction_) < kTurnDistance) {
                 chooseTurn();
-            } else if (straight_ >= kOpenRun && random_.uniform() < kExploreChance) {
+            } else if (straight_ >= kExploreAfter && random_.uniform() < kExploreChance) {
                 const bool open_left = opensUp(turned(direction_, 2));
                 const bool open_right = opensUp(turned(direction_, -2));
                 if (open_left || open_right) {
@@ -859,8 +860,9 @@ WalkPath walkPath(const PathScene& scene, uint32_t frames, uint64_t seed, Avoid 
     }
     checkCameras(scene, "walk", result.cameras);
 
-    // The promise of the header, checked on the floats written: each eye in a free cell (the
-    // cell rule is monotone, so outside every AABB in the slab), inside the bounds.
+    // The promise of the header, checked on the floats written: each eye inside the bounds and in
+    // a free cell (Grid::column and row are monotone, so a point inside an AABB or a triangle's
+    // rectangle in the slab maps to one of the cells it occupies).
     for (uint32_t f = 0; f < frames; ++f) {
         const glm::dvec3 eye(result.cameras[f].eye);
         const int64_t i = g.column(eye.x), j = g.row(eye.z);

@@ -58,7 +58,7 @@ struct PathScene {
 };
 
 // The AABBs of every object of a .oss scene, named after its file, and its triangles at full
-// detail (the returned scene refers to `file`, which must outlive it).
+// detail (the returned scene refers to `file`, which must outlive it and not be moved).
 PathScene pathSceneOf(const OssFile& file);
 
 // `frames` cameras circling the union of the objects' AABBs: centre C, bounding-sphere radius R;

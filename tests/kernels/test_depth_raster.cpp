@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <random>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
@@ -97,7 +98,8 @@ std::vector<float> referenceRaster(const Mesh& mesh, const Camera& camera) {
             const float wx = (clip[0] * inv_w * 0.5f + 0.5f) * float(width);
             const float wy = (clip[1] * inv_w * 0.5f + 0.5f) * float(height);
             sz[i] = clip[2] * inv_w * 0.5f + 0.5f;
-            drawn = std::abs(wx) <= kDepthRasterGuardBand && std::abs(wy) <= kDepthRasterGuardBand && std::isfinite(sz[i]);
+            drawn = std::abs(wx) <= kDepthRasterGuardBand && std::abs(wy) <= kDepthRasterGuardBand &&
+                    std::isfinite(sz[i]);
             sx[i] = int64_t(std::floor(wx * 256.0f + 0.5f));
             sy[i] = int64_t(std::floor(wy * 256.0f + 0.5f));
         }
@@ -111,7 +113,8 @@ std::vector<float> referenceRaster(const Mesh& mesh, const Camera& camera) {
             area2 = -area2;
         }
         float weight[3];
-        for (int i = 0; i < 3; ++i) weight[i] = sz[i] / float(area2);
+        const float inv_area = 1.0f / float(area2);
+        for (int i = 0; i < 3; ++i) weight[i] = sz[i] * inv_area;
         const int64_t x0 = std::max<int64_t>(0, *std::min_element(sx, sx + 3) / 256 - 1);
         const int64_t x1 = std::min<int64_t>(width - 1, *std::max_element(sx, sx + 3) / 256 + 1);
         const int64_t y0 = std::max<int64_t>(0, *std::min_element(sy, sy + 3) / 256 - 1);
@@ -283,6 +286,28 @@ TEST(DepthRaster, NoTrianglesClearsToFar) {
     EXPECT_TRUE(std::all_of(depth.begin(), depth.end(), [](float d) { return d == 1.0f; }));
 }
 
+// One small triangle around each pixel centre of a 128 x 128 viewport, each at its own depth:
+// 16384 triangles, so several binning chunks, and losing any one triangle leaves a pixel far.
+TEST(DepthRaster, EveryTriangleOfALargeSceneLands) {
+    const Camera c = identityCamera(128, 128);
+    Mesh mesh;
+    std::vector<float> expected;
+    for (uint32_t py = 0; py < 128; ++py)
+        for (uint32_t px = 0; px < 128; ++px) {
+            const float x = px + 0.5f, y = py + 0.5f, d = float(py * 128 + px) / 32768.0f + 0.25f;
+            mesh.add(atWindow(c, x - 0.25f, y - 0.25f, d), atWindow(c, x + 0.5f, y - 0.25f, d),
+                     atWindow(c, x - 0.25f, y + 0.5f, d));
+            expected.push_back(d);
+        }
+    const std::vector<float> depth = rasterize(mesh, c);
+    for (uint32_t i = 0; i < expected.size(); ++i) ASSERT_NEAR(depth[i], expected[i] + kEps, 0.3f * kEps) << i;
+}
+
+TEST(DepthRaster, ViewportBeyondLimitIsRejected) {
+    DepthRasterScratch scratch;
+    EXPECT_THROW(depthRaster(nullptr, nullptr, 0, identityCamera(32769, 1), nullptr, scratch), std::invalid_argument);
+}
+
 // Random triangles of every size, some behind the eye, across the near plane or off screen.
 Mesh randomScene(std::mt19937& rng, uint32_t triangle_count) {
     std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
@@ -332,7 +357,7 @@ Mesh coplanarScene(std::mt19937& rng, const Camera& c, uint32_t triangle_count) 
 TEST(DepthRaster, RandomScenesMatchScalarReferenceBitForBit) {
     std::mt19937 rng(7);
     DepthRasterScratch scratch;  // one scratch across sizes: reuse and growth
-    const uint32_t sizes[][3] = {{77, 45, 3000}, {256, 256, 20000}, {31, 97, 500}, {512, 512, 5000}, {1, 1, 100}};
+    const uint32_t sizes[][3] = {{77, 45, 3000}, {256, 256, 20000}, {31, 97, 4097}, {512, 512, 5000}, {1, 1, 100}};
     for (const auto& size : sizes) {
         const Camera c = perspectiveCamera(size[0], size[1]);
         const Mesh mesh = randomScene(rng, size[2]);

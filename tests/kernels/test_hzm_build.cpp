@@ -40,7 +40,8 @@ std::vector<float> referencePyramid(const std::vector<float>& base, uint32_t wid
             for (uint32_t x = 0; x < aw; ++x) {
                 float m = below[uint64_t(2 * y) * w + 2 * x];
                 for (uint32_t by = 2 * y; by < std::min(2 * y + 2, h); ++by)
-                    for (uint32_t bx = 2 * x; bx < std::min(2 * x + 2, w); ++bx) m = std::max(m, below[uint64_t(by) * w + bx]);
+                    for (uint32_t bx = 2 * x; bx < std::min(2 * x + 2, w); ++bx)
+                        m = std::max(m, below[uint64_t(by) * w + bx]);
                 above[uint64_t(y) * aw + x] = m;
             }
         out.insert(out.end(), above.begin(), above.end());

@@ -71,6 +71,7 @@ TEST(Reform, TheFigureMeshAtEveryLevelMatchesTheHandWalk) {
     const KernelArray<uint64_t> vertex_first = toKernel(std::vector<uint64_t>{0});
     KernelArray<ObjectInfo> objects(1);
     objects[0] = ObjectInfo{};
+    objects[0].vertex_count = 7;
     for (uint32_t k = 4; k <= 7; ++k) {
         SCOPED_TRACE(testing::Message() << "k = " << k);
         Frame f({0}, {k}, {kFigureMap[k]}, {kFigureTriangles});
@@ -88,7 +89,11 @@ TEST(Reform, InstancesAtDifferentLevelsGetTheirOwnOffsetsAndMeshes) {
     const KernelArray<int32_t> ecol_k = toKernel(ecol);
     const KernelArray<uint64_t> vertex_first = toKernel(std::vector<uint64_t>{0, 3});
     KernelArray<ObjectInfo> objects(4);
-    for (uint32_t i = 0; i < 4; ++i) objects[i] = ObjectInfo{}, objects[i].mesh = i == 1 ? 0 : 1;
+    for (uint32_t i = 0; i < 4; ++i) {
+        objects[i] = ObjectInfo{};
+        objects[i].mesh = i == 1 ? 0 : 1;
+        objects[i].vertex_count = i == 1 ? 3 : 7;
+    }
     const std::vector<uint32_t> triangle{2, 0, 1};
     Frame f({0, 1, 2, 3}, {4, 3, 6, 0}, {2, 1, 6, 0}, {kFigureTriangles, triangle, kFigureTriangles, {}});
     reform(f.layout, objects.data(), vertex_first.data(), ecol_k.data(), f.triangles.data(), f.indices.data());
@@ -135,6 +140,7 @@ TEST(Reform, MatchesTheScalarWalkOnRandomMeshesAndLayouts) {
             const uint32_t m = std::uniform_int_distribution<uint32_t>(0, mesh_count - 1)(rng);
             objects[o] = ObjectInfo{};
             objects[o].mesh = m;
+            objects[o].vertex_count = mesh_vertices[m];
             if (rng() % 4 == 0) continue;  // not in this frame
             const bool drawn = rng() % 8 != 0;
             ids.push_back(o);

@@ -260,6 +260,17 @@ TEST(Streaming, DefragmentRejectsStagingCollectedForOtherLayouts) {
     const Layout other(Blocks{{0, 6}}), next(Blocks{{0, 5}, {2, 5}});
     streamCollect(s.previous->layout, other.layout, scene.host(), s.staging);
     EXPECT_THROW(defragment(s.previous->layout, next.layout, s.staging, s.active), std::invalid_argument);
+    expectHolds(s.active, fromScratch(scene, {{0, 3}, {2, 5}}));  // untouched
+}
+
+TEST(Streaming, LayoutsWhoseIdsAreNotAscendingAreRejected) {
+    const Scene& scene = smallScene();
+    Streamer s(scene);
+    s.frame({{0, 3}, {2, 5}});
+    Layout unsorted(Blocks{{0, 3}, {2, 5}});
+    std::swap(unsorted.ids[0], unsorted.ids[1]);
+    EXPECT_THROW(streamCollect(s.previous->layout, unsorted.layout, scene.host(), s.staging), std::invalid_argument);
+    EXPECT_THROW(defragment(s.previous->layout, unsorted.layout, s.staging, s.active), std::invalid_argument);
 }
 
 TEST(Streaming, RandomFrameSequencesMatchAFreshBuild) {
