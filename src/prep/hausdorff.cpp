@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <utility>
 
 namespace occ {
 
@@ -29,8 +30,8 @@ float distance2(const glm::vec3& a, const glm::vec3& b) {
     return glm::dot(d, d);
 }
 
-// Ericson's routine (see closestPointOnTriangle in the header), inline: the hierarchy calls it
-// for every triangle of every leaf it opens, and a call per triangle costs a fifth of a query.
+// Ericson's routine (see closestPointOnTriangle in the header), inline because the hierarchy
+// calls it for every triangle of every leaf it opens, about ten per query.
 inline glm::vec3 closestPoint(const glm::vec3& p, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
     const glm::vec3 ab = b - a, ac = c - a, ap = p - a;
     const float d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
@@ -106,8 +107,8 @@ public:
         std::iota(order.begin(), order.end(), 0u);
         nodes_.reserve(2 * (tc / kLeafSize + 1));
         nodes_.push_back({});
-        // Explicit stack of (node, first, end) instead of recursion: depth is only log2 of the
-        // triangle count, but a flat loop keeps the build cheap for thousands of tiny meshes.
+        // Ranges of `order` still to split, from an explicit stack; a node's two children are
+        // appended together, after it, which the bottom-up bounds pass below relies on.
         struct Range {
             uint32_t node, first, end;
         };
@@ -155,8 +156,6 @@ public:
             }
         }
     }
-
-    bool empty() const { return nodes_.empty(); }
 
     // Squared distance from p to the closest triangle, and that triangle (leaf order) so the
     // next, nearby query can start from it: its distance bounds the search from the start.

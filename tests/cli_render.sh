@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# occswitch render --no-display runs a walk and an orbit end to end on a real scene and writes
+# one CSV row per frame with the columns the issue names; impossible options exit 2.
+set -u
+exe=$1
+dir=$(mktemp -d)
+trap 'rm -rf "$dir"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+"$exe" gen plant --objects 800 -o "$dir/p.glb" 2>/dev/null || fail "gen"
+"$exe" prep "$dir/p.glb" -o "$dir/p.oss" 2>/dev/null || fail "prep"
+"$exe" path walk "$dir/p.oss" --frames 30 -o "$dir/walk.cam" 2>/dev/null || fail "path walk"
+"$exe" path orbit "$dir/p.oss" --frames 12 -o "$dir/orbit.cam" 2>/dev/null || fail "path orbit"
+for mode in full lod oc+lod; do
+  for stream in sc snc ns; do
+    out=$("$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display --mode $mode --stream $stream \
+          --size 256x192 --stats "$dir/s.csv") || fail "render $mode $stream"
+    echo "$out" | grep -q "^render: .* 30 frames at 256x192, mode $mode, stream $stream" || fail "summary: $out"
+    [ "$(wc -l <"$dir/s.csv")" -eq 31 ] || fail "$mode $stream: CSV has $(wc -l <"$dir/s.csv") lines"
+  done
+done
+header=$(head -1 "$dir/s.csv")
+for column in frame objects_in_frustum objects_occluded objects_visible aos_size active_triangles active_vertices \
+              streamed_triangles streamed_vertices ms_frustum_cull ms_depth_raster ms_hzm_build ms_hzm_test \
+              ms_lod_select ms_scan ms_stream_collect ms_defragment ms_reform ms_total; do
+  echo "$header" | tr ',' '\n' | grep -qx "$column" || fail "CSV lacks column $column"
+done
+"$exe" render "$dir/p.oss" --path "$dir/orbit.cam" --no-display >/dev/null || fail "orbit"
+for bad in "--size 0x10" "--size big" "--mode none" "--stream fast" "--alpha 1" "--pet -1"; do
+  "$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display $bad >/dev/null 2>"$dir/err"; status=$?
+  [ $status -eq 2 ] || fail "render $bad: exit $status"
+  grep -q "^error: " "$dir/err" || fail "render $bad: $(cat "$dir/err")"
+done
+"$exe" render "$dir/p.oss" --path "$dir/missing.cam" --no-display >/dev/null 2>"$dir/err"
+[ $? -eq 2 ] && grep -q "missing.cam" "$dir/err" || fail "a missing path file: $(cat "$dir/err")"
+echo ok

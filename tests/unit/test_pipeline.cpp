@@ -1,0 +1,198 @@
+// SPDX-License-Identifier: MIT
+#include "frustum_cull.h"
+#include "import/plant.h"
+#include "pipeline/pipeline.h"
+#include "prep/prepare.h"
+#include "scene/errors.h"
+#include "test_support.h"
+#include "view/camera_path.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+
+namespace occ {
+namespace {
+
+// A small procedural plant, preprocessed once for all pipeline tests, and the cameras of a walk
+// through it (occlusion matters) followed by an orbit (everything at a distance).
+struct PipelineFixture {
+    std::string path;
+    std::unique_ptr<OssFile> file;
+    std::vector<CameraPose> cameras;
+
+    PipelineFixture() {
+        path = (test::scratchDir() / "pipeline_plant.oss").string();
+        writeOss(path, prepareScene(generatePlant({600, 5}), PrepOptions{}));
+        file = std::make_unique<OssFile>(OssFile::open(path));
+        const PathScene scene = pathSceneOf(*file);
+        cameras = walkPath(scene, 24, 3, Avoid::triangles).cameras;
+        const std::vector<CameraPose> orbit = orbitPath(scene, 8);
+        cameras.insert(cameras.end(), orbit.begin(), orbit.end());
+    }
+};
+
+const PipelineFixture& fixture() {
+    static const PipelineFixture f;
+    return f;
+}
+
+PipelineOptions smallOptions(StreamMode stream) {
+    PipelineOptions o;
+    o.width = 160;
+    o.height = 120;
+    o.stream = stream;
+    o.pvs_occluder_triangles = 20000;
+    return o;
+}
+
+// Invariant: every drawn block of the index buffer is the object's LOD prefix computed straight
+// from the .oss (first tc triangles, corners walked through ecol below vc, plus the block's
+// vertex offset), and the active vertices are the mesh's first vc positions.
+TEST(Pipeline, ReformedTrianglesEqualTheLodPrefixOfTheOss) {
+    const PipelineFixture& f = fixture();
+    Pipeline pipeline(*f.file, smallOptions(StreamMode::Coherent));
+    for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
+        pipeline.runFrame(f.cameras[frame], frame);
+        const k::ActiveLayout& l = pipeline.layout();
+        uint64_t checked = 0;
+        for (uint32_t j = 0; j < l.count; ++j) {
+            const uint32_t vc = l.vertex_count[j], tc = l.triangle_count[j];
+            const OssFile::MeshView mesh = f.file->mesh(f.file->objects()[l.objects[j]].mesh);
+            ASSERT_EQ(tc, vc ? mesh.map[vc] : 0u);
+            for (uint32_t v = 0; v < vc; ++v)
+                ASSERT_EQ(pipeline.activeVertices()[l.vertex_offset[j] + v], mesh.positions[v]);
+            for (uint32_t c = 0; c < 3 * tc; ++c) {
+                uint32_t v = mesh.triangles[c];
+                while (v >= vc) v = uint32_t(mesh.ecol[v]);
+                ASSERT_EQ(pipeline.indices()[3 * l.triangle_offset[j] + c], l.vertex_offset[j] + v)
+                    << "frame " << frame << " object " << l.objects[j];
+            }
+            checked += tc;
+        }
+        ASSERT_EQ(checked, l.triangle_total);
+    }
+}
+
+// Invariant: with coherent streaming the active arrays after any camera sequence are those a
+// from-scratch build (no coherence) makes for the same frame.
+TEST(Pipeline, CoherentStreamingMatchesAFreshBuildEveryFrame) {
+    const PipelineFixture& f = fixture();
+    Pipeline coherent(*f.file, smallOptions(StreamMode::Coherent));
+    Pipeline scratch(*f.file, smallOptions(StreamMode::NonCoherent));
+    Pipeline by_object(*f.file, smallOptions(StreamMode::None));
+    uint64_t streamed_coherent = 0, streamed_scratch = 0;
+    for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
+        const FrameStats a = coherent.runFrame(f.cameras[frame], frame);
+        const FrameStats b = scratch.runFrame(f.cameras[frame], frame);
+        by_object.runFrame(f.cameras[frame], frame);
+        streamed_coherent += a.streamed_bytes;
+        streamed_scratch += b.streamed_bytes;
+        const k::ActiveLayout& la = coherent.layout();
+        const k::ActiveLayout& lb = scratch.layout();
+        ASSERT_EQ(la.vertex_total, lb.vertex_total);
+        ASSERT_EQ(la.triangle_total, lb.triangle_total);
+        for (Pipeline* other : {&scratch, &by_object}) {
+            ASSERT_TRUE(std::equal(coherent.activeVertices(), coherent.activeVertices() + la.vertex_total,
+                                   other->activeVertices()))
+                << "frame " << frame;
+            ASSERT_TRUE(std::equal(coherent.indices(), coherent.indices() + 3 * la.triangle_total, other->indices()))
+                << "frame " << frame;
+        }
+    }
+    EXPECT_LT(streamed_coherent * 5, streamed_scratch);  // coherence is the point
+}
+
+// Invariant: the PVS never lacks an object that is in the frustum and not behind the occluders'
+// depth. Reference: a plain scalar test of each culled object's projected AABB against every
+// pixel of the full-resolution depth buffer it touches (the HZM may only be less aggressive).
+TEST(Pipeline, OcclusionCullsOnlyWhatTheFullResolutionDepthHides) {
+    const PipelineFixture& f = fixture();
+    const PipelineOptions options = smallOptions(StreamMode::Coherent);
+    Pipeline pipeline(*f.file, options);
+    uint64_t culled = 0;
+    for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
+        const FrameStats s = pipeline.runFrame(f.cameras[frame], frame);
+        const k::Camera camera = toKernelCamera(f.cameras[frame], options.width, options.height);
+        const k::Frustum frustum = k::frustumFromViewProj(camera.view_proj);
+        std::vector<uint8_t> visible(f.file->objectCount(), 0);
+        for (uint32_t id : pipeline.visibleObjects()) visible[id] = 1;
+        const float* depth = pipeline.occluderDepth();
+        for (uint32_t id = 0; id < f.file->objectCount(); ++id) {
+            if (visible[id]) continue;
+            const k::ObjectInfo& o = pipeline.scene().objects[id];
+            uint8_t in_frustum = 0;
+            k::frustumCull(&o, 1, frustum, &in_frustum);
+            if (!in_frustum) continue;
+            ++culled;
+            float xmin = INFINITY, ymin = INFINITY, xmax = -INFINITY, ymax = -INFINITY, zmin = INFINITY;
+            for (int c = 0; c < 8; ++c) {
+                const glm::vec3 p((c & 1) ? o.aabb.max.x : o.aabb.min.x, (c & 2) ? o.aabb.max.y : o.aabb.min.y,
+                                  (c & 4) ? o.aabb.max.z : o.aabb.min.z);
+                const glm::vec4 clip = camera.view_proj * glm::vec4(p, 1.0f);
+                ASSERT_GT(clip.w, camera.near_plane) << "culled object " << id << " crosses the near plane";
+                const glm::vec3 ndc = glm::vec3(clip) / clip.w;
+                xmin = std::min(xmin, (ndc.x * 0.5f + 0.5f) * options.width);
+                xmax = std::max(xmax, (ndc.x * 0.5f + 0.5f) * options.width);
+                ymin = std::min(ymin, (ndc.y * 0.5f + 0.5f) * options.height);
+                ymax = std::max(ymax, (ndc.y * 0.5f + 0.5f) * options.height);
+                zmin = std::min(zmin, ndc.z * 0.5f + 0.5f);
+            }
+            const int x0 = std::max(0, int(std::floor(xmin))), x1 = std::min(int(options.width) - 1, int(std::floor(xmax)));
+            const int y0 = std::max(0, int(std::floor(ymin))), y1 = std::min(int(options.height) - 1, int(std::floor(ymax)));
+            for (int y = y0; y <= y1; ++y)
+                for (int x = x0; x <= x1; ++x)
+                    ASSERT_GT(zmin, depth[size_t(y) * options.width + size_t(x)])
+                        << "frame " << frame << ": object " << id << " culled but visible at pixel " << x << "," << y;
+        }
+        EXPECT_EQ(s.objects_occluded + s.objects_visible, s.objects_in_frustum);
+    }
+    EXPECT_GT(culled, 0u) << "the walk should see some occlusion";
+}
+
+// Invariant: the frame's vertices stay within the budget N except where the floors q force more.
+TEST(Pipeline, VertexBudgetIsRespectedUpToTheFloors) {
+    const PipelineFixture& f = fixture();
+    PipelineOptions options = smallOptions(StreamMode::Coherent);
+    options.budget = 20000;
+    Pipeline pipeline(*f.file, options);
+    for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
+        const FrameStats s = pipeline.runFrame(f.cameras[frame], frame);
+        const k::ActiveLayout& l = pipeline.layout();
+        uint64_t floors = 0;
+        for (uint32_t j = 0; j < l.count; ++j)
+            if (l.vertex_count[j] > 0) {
+                floors += pipeline.scene().objects[l.objects[j]].q;
+                ASSERT_GE(l.vertex_count[j], pipeline.scene().objects[l.objects[j]].q);
+            }
+        EXPECT_LE(s.active_vertices, std::max<uint64_t>(uint64_t(options.budget), floors)) << "frame " << frame;
+    }
+}
+
+TEST(Pipeline, FullModeDrawsEveryFrustumObjectAtFullDetail) {
+    const PipelineFixture& f = fixture();
+    PipelineOptions options = smallOptions(StreamMode::Coherent);
+    options.mode = CullMode::Full;
+    Pipeline pipeline(*f.file, options);
+    const FrameStats s = pipeline.runFrame(f.cameras.back(), 0);
+    EXPECT_EQ(s.objects_occluded, 0u);
+    const k::ActiveLayout& l = pipeline.layout();
+    for (uint32_t j = 0; j < l.count; ++j)
+        EXPECT_EQ(l.vertex_count[j], pipeline.scene().objects[l.objects[j]].vertex_count);
+}
+
+TEST(Pipeline, ImpossibleOptionsAreRefused) {
+    const PipelineFixture& f = fixture();
+    PipelineOptions o = smallOptions(StreamMode::Coherent);
+    o.width = 0;
+    EXPECT_THROW(Pipeline(*f.file, o), UsageError);
+    o = smallOptions(StreamMode::Coherent);
+    o.alpha = 1.0f;
+    EXPECT_THROW(Pipeline(*f.file, o), UsageError);
+    EXPECT_THROW(parseCullMode("everything"), UsageError);
+    EXPECT_THROW(parseStreamMode("fast"), UsageError);
+}
+
+}  // namespace
+}  // namespace occ
