@@ -16,13 +16,15 @@ struct ReformTile {
     const int32_t* ecol;
     const uint32_t* triangles;
     uint32_t* indices;
+    const uint32_t* walk_vertex_count;
 
     OCC_HD void operator()(uint64_t tile) const {
         const uint64_t total = layout.triangle_total;
         const uint64_t begin = tile * kRunTile, end = begin + kRunTile < total ? begin + kRunTile : total;
         forEachRun(layout.triangle_offset, layout.count, total, begin, end,
                    [&](uint32_t j, uint64_t first, uint64_t length) {
-                       const uint32_t vc = layout.vertex_count[j];
+                       const uint32_t vc = walk_vertex_count ? walk_vertex_count[j] : layout.vertex_count[j];
+                       if (vc == 0) return;  // resident but not drawn this frame
                        const uint32_t offset = uint32_t(layout.vertex_offset[j]);
                        const ObjectInfo& object = objects[layout.objects[j]];
                        const uint64_t corner = 3 * (layout.triangle_offset[j] + first);
@@ -64,11 +66,11 @@ struct ReformTile {
 }  // namespace
 
 void reform(const ActiveLayout& layout, const ObjectInfo* objects, const uint64_t* vertex_first, const int32_t* ecol,
-            const uint32_t* active_triangles, uint32_t* indices) {
+            const uint32_t* active_triangles, uint32_t* indices, const uint32_t* walk_vertex_count) {
     if (layout.triangle_total == 0) return;
     thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0),
                        (layout.triangle_total + kRunTile - 1) / kRunTile,
-                       ReformTile{layout, objects, vertex_first, ecol, active_triangles, indices});
+                       ReformTile{layout, objects, vertex_first, ecol, active_triangles, indices, walk_vertex_count});
 }
 
 }  // namespace occ::k

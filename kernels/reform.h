@@ -20,11 +20,15 @@ namespace occ::k {
 //   active_triangles  3 * layout.triangle_total corners (ActiveArrays::triangles.data());
 //   indices           out: 3 * layout.triangle_total entries (kernel memory), triangle t of the
 //                     active array becoming indices[3t, 3t+3).
+//   walk_vertex_count optional, per block: walk corners below this many vertices instead of
+//                     layout.vertex_count (a block may hold more vertices than the frame draws,
+//                     kept resident for later frames; its triangles past the drawn LOD's map
+//                     come out degenerate and are not drawn). Blocks with 0 are skipped.
 // Requires layout.vertex_total <= 2^32 (indices are 32-bit) and, for every drawn block,
 // vc >= the mesh's q (lodSelect's floor) so that no walk reaches ecol = -1. Nothing is written
 // when triangle_total is 0. On the GPU one thread reforms one triangle; on the CPU a thread
 // takes a run of consecutive triangles.
 void reform(const ActiveLayout& layout, const ObjectInfo* objects, const uint64_t* vertex_first, const int32_t* ecol,
-            const uint32_t* active_triangles, uint32_t* indices);
+            const uint32_t* active_triangles, uint32_t* indices, const uint32_t* walk_vertex_count = nullptr);
 
 }  // namespace occ::k

@@ -33,8 +33,10 @@ struct FrameStats {
     uint64_t objects_drawn = 0;       // visible and above the pixel error threshold
     uint64_t aos_size = 0;            // active occluders rastered (Eq. 3 top-K + extra)
     uint64_t occluder_triangles = 0;  // triangles rastered into the depth buffer
-    uint64_t active_triangles = 0;
+    uint64_t active_triangles = 0;    // drawn this frame
     uint64_t active_vertices = 0;
+    uint64_t resident_triangles = 0;  // in the active arrays (drawn + kept for later frames)
+    uint64_t resident_vertices = 0;
     uint64_t budget_vertices = 0;
     uint64_t streamed_triangles = 0;  // host -> device this frame
     uint64_t streamed_vertices = 0;

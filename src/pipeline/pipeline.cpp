@@ -55,12 +55,14 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     aos_.resize(options.aos);
     hzm_.resize(size_t(k::hzmTotalTexels(options.width, options.height)));
     for (LayoutArrays& l : layouts_) {
-        l.ids.resize(n);
-        l.vc.resize(n);
-        l.tc.resize(n);
+        for (k::KernelArray<uint32_t>* a : {&l.ids, &l.vc, &l.tc, &l.draw_vc, &l.draw_tc}) a->resize(n);
         l.voff.resize(n);
         l.toff.resize(n);
     }
+    pvs_vc_.resize(n);
+    pvs_tc_.resize(n);
+    resident_vc_.assign(n, 0);
+    last_drawn_.assign(n, 0);
 }
 
 void Pipeline::chooseOccluders(const k::Camera& camera) {
@@ -127,6 +129,67 @@ void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
     stats.occluder_triangles = triangle_base.back();
 }
 
+// The blocks of this frame's active arrays: every object drawn now, and (coherent streaming)
+// every object still resident from recent frames, with at least the vertices it draws.
+void Pipeline::buildLayout(uint64_t frame, FrameStats& stats) {
+    LayoutArrays& l = layouts_[cur_index_];
+    const bool retain = options_.stream == StreamMode::Coherent && options_.retain_frames > 0;
+    const uint32_t* prev_ids = prev_.objects;
+    uint32_t a = 0, b = 0, out = 0;
+    uint64_t resident = 0;
+    const auto residentTriangles = [&](uint32_t id, uint32_t vc) {
+        return vc ? scene_.maps[scene_.map_first[scene_.objects[id].mesh] + vc] : 0u;
+    };
+    // Merge last frame's resident ids with this frame's PVS (both ascending).
+    while (a < prev_.count || b < pvs_.size()) {
+        const uint32_t pa = a < prev_.count ? prev_ids[a] : UINT32_MAX;
+        const uint32_t pb = b < pvs_.size() ? pvs_[b] : UINT32_MAX;
+        const uint32_t id = std::min(pa, pb);
+        uint32_t draw = 0, draw_tc = 0;
+        if (pb == id) {
+            draw = pvs_vc_[b];
+            draw_tc = pvs_tc_[b];
+            ++b;
+        }
+        if (pa == id) ++a;
+        if (draw > 0) last_drawn_[id] = frame;
+        uint32_t keep = draw;
+        if (retain && resident_vc_[id] > draw && frame - last_drawn_[id] <= options_.retain_frames)
+            keep = resident_vc_[id];
+        if (keep == 0) {
+            resident_vc_[id] = 0;
+            continue;
+        }
+        l.ids[out] = id;
+        l.vc[out] = keep;
+        l.tc[out] = keep == draw ? draw_tc : residentTriangles(id, keep);
+        l.draw_vc[out] = draw;
+        l.draw_tc[out] = draw_tc;
+        resident += keep;
+        stats.active_vertices += draw;
+        stats.active_triangles += draw_tc;
+        stats.objects_drawn += draw > 0;
+        ++out;
+    }
+    // Over the memory cap, residency starts again from what this frame draws.
+    if (retain && double(resident) > options_.resident_factor * budget_) {
+        uint32_t kept = 0;
+        for (uint32_t j = 0; j < out; ++j) {
+            if (l.draw_vc[j] == 0) continue;
+            l.ids[kept] = l.ids[j];
+            l.vc[kept] = l.draw_vc[j];
+            l.tc[kept] = l.draw_tc[j];
+            l.draw_vc[kept] = l.draw_vc[j];
+            l.draw_tc[kept] = l.draw_tc[j];
+            ++kept;
+        }
+        out = kept;
+    }
+    std::fill(resident_vc_.begin(), resident_vc_.end(), 0u);
+    for (uint32_t j = 0; j < out; ++j) resident_vc_[l.ids[j]] = l.vc[j];
+    layout_count_ = out;
+}
+
 FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
     using Clock = std::chrono::steady_clock;
     FrameStats stats;
@@ -173,27 +236,26 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
     stats.objects_visible = pvs_.size();
     stats.objects_occluded = in_count - pvs_.size();
 
-    LayoutArrays& l = layouts_[cur_index_];
     const uint32_t count = uint32_t(pvs_.size());
-    std::memcpy(l.ids.data(), pvs_.data(), count * sizeof(uint32_t));
     if (options_.mode == CullMode::Full) {
         for (uint32_t j = 0; j < count; ++j) {
-            l.vc[j] = objects[pvs_[j]].vertex_count;
-            l.tc[j] = objects[pvs_[j]].triangle_count;
+            pvs_vc_[j] = objects[pvs_[j]].vertex_count;
+            pvs_tc_[j] = objects[pvs_[j]].triangle_count;
         }
     } else {
         const k::LodParams params{float(budget_), options_.alpha, options_.pet};
-        k::lodSelect(objects, l.ids.data(), count, camera, params, scene_.map_first.data(), scene_.maps.data(),
-                     l.vc.data(), l.tc.data());
+        k::lodSelect(objects, pvs_.data(), count, camera, params, scene_.map_first.data(), scene_.maps.data(),
+                     pvs_vc_.data(), pvs_tc_.data());
     }
-    for (uint32_t j = 0; j < count; ++j) stats.objects_drawn += l.vc[j] > 0;
     lap(Stage::LodSelect);
-
-    const uint64_t vertex_total = k::exclusiveScan(l.vc.data(), count, l.voff.data());
-    const uint64_t triangle_total = k::exclusiveScan(l.tc.data(), count, l.toff.data());
-    cur_ = {l.ids.data(), l.vc.data(), l.tc.data(), l.voff.data(), l.toff.data(), count, vertex_total, triangle_total};
-    stats.active_vertices = vertex_total;
-    stats.active_triangles = triangle_total;
+    buildLayout(frame, stats);
+    LayoutArrays& l = layouts_[cur_index_];
+    const uint32_t blocks = layout_count_;
+    const uint64_t vertex_total = k::exclusiveScan(l.vc.data(), blocks, l.voff.data());
+    const uint64_t triangle_total = k::exclusiveScan(l.tc.data(), blocks, l.toff.data());
+    cur_ = {l.ids.data(), l.vc.data(), l.tc.data(), l.voff.data(), l.toff.data(), blocks, vertex_total, triangle_total};
+    stats.resident_vertices = vertex_total;
+    stats.resident_triangles = triangle_total;
     lap(Stage::Scan);
 
     k::StreamCounts sent;
@@ -218,7 +280,7 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
 
     indices_.resize(size_t(3 * triangle_total));
     k::reform(cur_, objects, scene_.vertex_first.data(), scene_.ecol.data(), active_.triangles.data(),
-              indices_.data());
+              indices_.data(), l.draw_vc.data());
     lap(Stage::Reform);
 
     prev_ = cur_;

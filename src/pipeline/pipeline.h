@@ -33,6 +33,12 @@ struct PipelineOptions {
     // many full-detail triangles (0 = Eq. 3's AOS only).
     uint64_t pvs_occluder_triangles = 0;
     double budget = 0;                   // N, vertices per frame; 0 = 10 % of the scene's vertices
+    // Beyond the paper: with coherent streaming, vertices a frame no longer draws stay resident
+    // in the active arrays (an object that shrinks keeps its finer prefix, one that leaves the
+    // PVS keeps its block) for this many frames, so LOD oscillation and objects that come back
+    // cost no streaming; resident vertices are capped at resident_factor x the budget.
+    uint32_t retain_frames = 60;
+    double resident_factor = 2.0;
     float alpha = 3.0f;                  // Eq. 1 exponent
     float pet = 1.0f;                    // pixel error threshold
 };
@@ -50,7 +56,12 @@ public:
 
     // Results of the last frame, valid until the next runFrame.
     const std::vector<uint32_t>& visibleObjects() const { return pvs_; }  // PVS, ascending ids
-    const k::ActiveLayout& layout() const { return cur_; }          // drawn blocks of the active arrays
+    // Blocks of the active arrays: resident vertex / triangle counts, offsets, ids (ascending).
+    const k::ActiveLayout& layout() const { return cur_; }
+    // Per block of layout(): what this frame draws, a prefix of the resident block (0 = resident
+    // only). Block j's triangles to draw are indices()[3 * triangle_offset[j], + 3 * drawTriangles()[j]).
+    const uint32_t* drawVertices() const { return layouts_[cur_index_ ^ 1].draw_vc.data(); }
+    const uint32_t* drawTriangles() const { return layouts_[cur_index_ ^ 1].draw_tc.data(); }
     const glm::vec3* activeVertices() const { return active_.vertices.data(); }
     const uint32_t* activeTriangles() const { return active_.triangles.data(); }
     const uint32_t* indices() const { return indices_.data(); }     // 3 * layout().triangle_total
@@ -61,11 +72,12 @@ public:
 
 private:
     struct LayoutArrays {
-        k::KernelArray<uint32_t> ids, vc, tc;
+        k::KernelArray<uint32_t> ids, vc, tc, draw_vc, draw_tc;
         k::KernelArray<uint64_t> voff, toff;
     };
     void chooseOccluders(const k::Camera& camera);
     void rasterOccluders(const k::Camera& camera, FrameStats& stats);
+    void buildLayout(uint64_t frame, FrameStats& stats);
 
     const OssFile& file_;
     PipelineOptions options_;
@@ -82,9 +94,13 @@ private:
     k::KernelArray<uint32_t> raster_triangles_;
     k::DepthRasterScratch raster_scratch_;
     k::KernelArray<float> hzm_;
+    k::KernelArray<uint32_t> pvs_vc_, pvs_tc_;  // Eq. 1's choice for each PVS object
+    std::vector<uint32_t> resident_vc_;         // per object, vertices in the active arrays
+    std::vector<uint64_t> last_drawn_;          // per object, last frame it was drawn
 
     LayoutArrays layouts_[2];
     uint32_t cur_index_ = 0;
+    uint32_t layout_count_ = 0;
     k::ActiveLayout prev_{}, cur_{};
     k::StagingBuffers staging_;
     k::ActiveArrays active_;
