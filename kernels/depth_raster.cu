@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "depth_raster.h"
 
+#include "hzm.h"
+
 #include <thrust/execution_policy.h>
 #include <thrust/fill.h>
 #include <thrust/for_each.h>
@@ -27,12 +29,14 @@ static_assert(sizeof(DepthRasterVertex) == 16);
 // One triangle after projection and snapping, as the tiles read it.
 struct DepthRasterTriangle {
     int32_t x[3], y[3];  // window position in 1/256 pixel, counter-clockwise (y up)
-    // depth at a point = sum over corners i of edgeFunction(edge opposite i) * weight[i]: the
-    // edge functions over twice the area are the barycentric coordinates, so weight[i] is
-    // corner i's window depth over twice the snapped area.
-    float weight[3];
-    // At most every depth (before the epsilon) the triangle writes, or below every depth: a
-    // triangle whose box is already nearer everywhere changes nothing and can be passed over.
+    // The depth written at pixel (px, py) is the plane
+    //   (z_ref + gy * (py - y_lo)) + gx * (px - x_lo)
+    // in float arithmetic, in that order: z_ref, the plane at the centre of pixel (x_lo, y_lo),
+    // already carries the push away (kDepthRasterEpsilon plus a bound on that arithmetic's
+    // rounding), so what is written is never nearer than the triangle.
+    float z_ref, gx, gy;
+    // The nearest corner depth: below every depth the triangle writes, so a triangle whose box
+    // is already at least that near everywhere changes nothing and can be passed over.
     float lower_bound;
     // Pixels whose centres may be covered, inclusive, clamped to the viewport; the triangle is
     // empty (skipped, or covers no centre) when x_lo > x_hi.
@@ -43,7 +47,8 @@ static_assert(sizeof(DepthRasterTriangle) == 48);
 namespace {
 
 // Arithmetic without fused multiply-adds: nvcc contracts a*b+c in device code by default while
-// g++ for our x86-64 target does not, and the raster must be the same bits on both back ends.
+// g++ for our x86-64 target does not, and the raster must be the same bits on both back ends
+// (and its rounding bounds must hold).
 OCC_HD inline float mulRn(float a, float b) {
 #if defined(__CUDA_ARCH__)
     return __fmul_rn(a, b);
@@ -66,6 +71,28 @@ OCC_HD inline float divRn(float a, float b) {
 #endif
 }
 
+OCC_HD inline double mulRn(double a, double b) {
+#if defined(__CUDA_ARCH__)
+    return __dmul_rn(a, b);
+#else
+    return a * b;
+#endif
+}
+OCC_HD inline double addRn(double a, double b) {
+#if defined(__CUDA_ARCH__)
+    return __dadd_rn(a, b);
+#else
+    return a + b;
+#endif
+}
+OCC_HD inline double divRn(double a, double b) {
+#if defined(__CUDA_ARCH__)
+    return __ddiv_rn(a, b);
+#else
+    return a / b;
+#endif
+}
+
 // A tile's triangles are scattered over the setup array, which outgrows the caches: on the CPU,
 // ask for the triangle a few pairs ahead while drawing this one (about 15 % of the whole call on
 // 400 K triangles whose objects come in random order).
@@ -79,7 +106,9 @@ OCC_HD inline void prefetch(const void* p) {
 }
 
 OCC_HD inline int64_t floorDiv(int64_t a, int64_t b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+// Plain comparisons rather than fminf/fmaxf, which g++ calls out of line without -ffast-math.
 OCC_HD inline float minf(float a, float b) { return a < b ? a : b; }
+OCC_HD inline float maxf(float a, float b) { return a > b ? a : b; }
 OCC_HD inline int64_t abs64(int64_t a) { return a < 0 ? -a : a; }
 OCC_HD inline int64_t min64(int64_t a, int64_t b) { return a < b ? a : b; }
 OCC_HD inline int64_t max64(int64_t a, int64_t b) { return a > b ? a : b; }
@@ -88,12 +117,11 @@ constexpr int64_t kUnits = kDepthRasterSubpixelUnits;
 constexpr int64_t kHalfPixel = kUnits / 2;
 constexpr int64_t kMargin = kDepthRasterMarginUnits;
 constexpr uint32_t kTile = kDepthRasterTileSize;
-// Pixel boxes are kept in 16 bits.
-constexpr uint32_t kMaxSide = 32768;
 // Triangles per binning chunk, and a cap on the tile x chunk count matrix (32 MB).
 constexpr uint64_t kChunkTriangles = 4096;
 constexpr uint64_t kMaxCountCells = uint64_t(1) << 22;
-// Above every depth a triangle can produce (those are finite): no triangle yet.
+// Far above every depth a covered pixel can get (corners are at most kDepthRasterMaxDepth) and
+// every value the plane takes over a box: no triangle yet.
 constexpr float kFar = 3.0e38f;
 
 // One thread per vertex: projection, the skip rules that concern one vertex, snapping.
@@ -109,13 +137,14 @@ struct ProjectVertices {
         for (int r = 0; r < 4; ++r)
             clip[r] = addRn(addRn(addRn(mulRn(m[r], p.x), mulRn(m[4 + r], p.y)), mulRn(m[8 + r], p.z)), m[12 + r]);
         DepthRasterVertex out{0, 0, 0.0f, 0};
-        // Negated comparisons so that NaNs skip too.
+        // Comparisons that fail on NaN, so that NaNs skip too.
         if (clip[3] > 0.0f && clip[2] >= -clip[3]) {
             const float inv_w = divRn(1.0f, clip[3]);
             const float wx = mulRn(addRn(mulRn(mulRn(clip[0], inv_w), 0.5f), 0.5f), width);
             const float wy = mulRn(addRn(mulRn(mulRn(clip[1], inv_w), 0.5f), 0.5f), height);
             out.z = addRn(mulRn(mulRn(clip[2], inv_w), 0.5f), 0.5f);
-            if (fabsf(wx) <= kDepthRasterGuardBand && fabsf(wy) <= kDepthRasterGuardBand && out.z <= 3.0e38f) {
+            if (fabsf(wx) <= kDepthRasterGuardBand && fabsf(wy) <= kDepthRasterGuardBand &&
+                out.z <= kDepthRasterMaxDepth) {
                 // Inside the guard band, so exact in float after scaling by 256 and within int32.
                 out.x = int32_t(floorf(addRn(mulRn(wx, float(kUnits)), 0.5f)));
                 out.y = int32_t(floorf(addRn(mulRn(wy, float(kUnits)), 0.5f)));
@@ -126,7 +155,7 @@ struct ProjectVertices {
     }
 };
 
-// One thread per triangle: its box of candidate pixels, orientation and depth weights.
+// One thread per triangle: its box of candidate pixels, orientation and depth plane.
 struct SetupTriangles {
     const DepthRasterVertex* vertices;
     const uint32_t* triangles;
@@ -136,39 +165,52 @@ struct SetupTriangles {
     OCC_HD void operator()(uint32_t t) const {
         // Most triangles of a detailed occluder cover no pixel centre: leave as early as possible.
         setup[t].x_lo = 1, setup[t].x_hi = 0;
-        const DepthRasterVertex c0 = vertices[triangles[3 * t]], c1 = vertices[triangles[3 * t + 1]],
-                                c2 = vertices[triangles[3 * t + 2]];
-        if (!(c0.drawn & c1.drawn & c2.drawn)) return;
+        const DepthRasterVertex c0 = vertices[triangles[3 * t]], v1 = vertices[triangles[3 * t + 1]],
+                                v2 = vertices[triangles[3 * t + 2]];
+        if (!(c0.drawn & v1.drawn & v2.drawn)) return;
 
         // A covered centre is at least the margin inside every edge, so inside the snapped
         // box shrunk by the margin: 256*x + 128 in [min + margin, max - margin].
-        const int64_t x_min = min64(c0.x, min64(c1.x, c2.x)), x_max = max64(c0.x, max64(c1.x, c2.x));
-        const int64_t y_min = min64(c0.y, min64(c1.y, c2.y)), y_max = max64(c0.y, max64(c1.y, c2.y));
+        const int64_t x_min = min64(c0.x, min64(v1.x, v2.x)), x_max = max64(c0.x, max64(v1.x, v2.x));
+        const int64_t y_min = min64(c0.y, min64(v1.y, v2.y)), y_max = max64(c0.y, max64(v1.y, v2.y));
         const int64_t x_lo = max64(0, -floorDiv(-(x_min + kMargin - kHalfPixel), kUnits));
         const int64_t x_hi = min64(last_x, floorDiv(x_max - kMargin - kHalfPixel, kUnits));
         const int64_t y_lo = max64(0, -floorDiv(-(y_min + kMargin - kHalfPixel), kUnits));
         const int64_t y_hi = min64(last_y, floorDiv(y_max - kMargin - kHalfPixel, kUnits));
         if (x_lo > x_hi || y_lo > y_hi) return;
 
-        int64_t area2 = int64_t(c1.x - c0.x) * (c2.y - c0.y) - int64_t(c1.y - c0.y) * (c2.x - c0.x);
+        int64_t area2 = int64_t(v1.x - c0.x) * (v2.y - c0.y) - int64_t(v1.y - c0.y) * (v2.x - c0.x);
         if (area2 == 0) return;
         // Both windings are drawn: store it counter-clockwise.
-        const DepthRasterVertex& second = area2 > 0 ? c1 : c2;
-        const DepthRasterVertex& third = area2 > 0 ? c2 : c1;
-        const float inv_area = divRn(1.0f, float(abs64(area2)));
+        const DepthRasterVertex& c1 = area2 > 0 ? v1 : v2;
+        const DepthRasterVertex& c2 = area2 > 0 ? v2 : v1;
+        area2 = abs64(area2);
         DepthRasterTriangle s;
-        s.x[0] = c0.x, s.x[1] = second.x, s.x[2] = third.x;
-        s.y[0] = c0.y, s.y[1] = second.y, s.y[2] = third.y;
-        s.weight[0] = mulRn(c0.z, inv_area);
-        s.weight[1] = mulRn(second.z, inv_area);
-        s.weight[2] = mulRn(third.z, inv_area);
-        // Depth is a convex combination of the corner depths computed with 7 roundings on each
-        // path, so for positive corners it is at least z_min * (1 - 7 * 2^-24) > z_min * (1 - 2^-21).
-        // (Tiny and negative depths get no bound.)
-        const float z_min = minf(c0.z, minf(c1.z, c2.z));
-        s.lower_bound = z_min > 1.0e-30f ? mulRn(z_min, 1.0f - 1.0f / (1 << 20)) : -kFar;
+        s.x[0] = c0.x, s.x[1] = c1.x, s.x[2] = c2.x;
+        s.y[0] = c0.y, s.y[1] = c1.y, s.y[2] = c2.y;
         s.x_lo = uint16_t(x_lo), s.x_hi = uint16_t(x_hi);
         s.y_lo = uint16_t(y_lo), s.y_hi = uint16_t(y_hi);
+
+        // The depth plane through the snapped corners, in double (the integers are exact there),
+        // per 1/256 pixel: z = z0 + gx * (X - X0) + gy * (Y - Y0) by Cramer's rule.
+        const double d1x = double(c1.x - c0.x), d1y = double(c1.y - c0.y);
+        const double d2x = double(c2.x - c0.x), d2y = double(c2.y - c0.y);
+        const double dz1 = addRn(double(c1.z), -double(c0.z)), dz2 = addRn(double(c2.z), -double(c0.z));
+        const double area = double(area2);
+        const double gx = divRn(addRn(mulRn(dz1, d2y), -mulRn(dz2, d1y)), area);
+        const double gy = divRn(addRn(mulRn(d1x, dz2), -mulRn(d2x, dz1)), area);
+        const double ref = addRn(addRn(double(c0.z), mulRn(gx, double(x_lo * kUnits + kHalfPixel - c0.x))),
+                                 mulRn(gy, double(y_lo * kUnits + kHalfPixel - c0.y)));
+        s.gx = float(mulRn(gx, double(kUnits)));
+        s.gy = float(mulRn(gy, double(kUnits)));
+        // Every value in the float evaluation of the plane is at most `magnitude`, so its
+        // rounding stays below 8 * 2^-24 * magnitude; push by twice that on top of the epsilon.
+        const float magnitude = addRn(addRn(maxf(fabsf(c0.z), maxf(fabsf(c1.z), fabsf(c2.z))),
+                                            mulRn(fabsf(s.gx), float(x_hi - x_lo + 1))),
+                                      mulRn(fabsf(s.gy), float(y_hi - y_lo + 1)));
+        const float push = addRn(kDepthRasterEpsilon, mulRn(magnitude, 1.0f / (1 << 20)));
+        s.z_ref = float(addRn(ref, double(push)));
+        s.lower_bound = minf(c0.z, minf(c1.z, c2.z));
         setup[t] = s;
     }
 };
@@ -228,9 +270,24 @@ struct FillPerChunk {
     }
 };
 
-// One thread per tile: draws its triangles into a tile-sized buffer with edge functions
-// stepped in exact integers, then writes the tile out. The minimum makes the order of
-// triangles irrelevant.
+// Rows of a triangle's box at most this wide are drawn testing every pixel; wider ones first
+// find the covered span with one division per edge.
+constexpr uint32_t kNarrowRow = 8;
+
+// Narrows [first, last] to the i with e + i * step >= threshold, exactly (last < first if none).
+OCC_HD inline void edgeSpan(int64_t e, int64_t step, int64_t threshold, int64_t& first, int64_t& last) {
+    if (step > 0) {
+        if (e < threshold) first = max64(first, -floorDiv(-(threshold - e), step));
+    } else if (step < 0) {
+        last = e < threshold ? -1 : min64(last, floorDiv(e - threshold, -step));
+    } else if (e < threshold) {
+        last = -1;
+    }
+}
+
+// One thread per tile: draws its triangles into a tile-sized buffer with edge functions in exact
+// integers and depth from the triangle's plane, then writes the tile out. The minimum makes the
+// order of triangles irrelevant.
 struct RasterTiles {
     const DepthRasterTriangle* setup;
     const uint32_t* pair_triangle;
@@ -239,12 +296,15 @@ struct RasterTiles {
     uint32_t width, height, tiles_x, chunk_count;
 
     // Whether every pixel of the box (tile coordinates, inclusive) is already at or nearer
-    // than `bound`; gives up at the first that is not.
+    // than `bound`; gives up after the first row that is not. Counting rather than breaking
+    // out lets the compiler vectorise the row, and hidden triangles scan their whole box.
     OCC_HD static bool hidden(const float* nearest, float bound, uint32_t x_lo, uint32_t x_hi, uint32_t y_lo,
                               uint32_t y_hi) {
-        for (uint32_t y = y_lo; y <= y_hi; ++y)
-            for (uint32_t x = x_lo; x <= x_hi; ++x)
-                if (nearest[y * kTile + x] > bound) return false;
+        for (uint32_t y = y_lo; y <= y_hi; ++y) {
+            uint32_t farther = 0;
+            for (uint32_t x = x_lo; x <= x_hi; ++x) farther += nearest[y * kTile + x] > bound ? 1u : 0u;
+            if (farther) return false;
+        }
         return true;
     }
 
@@ -252,8 +312,6 @@ struct RasterTiles {
         const uint32_t px0 = tile % tiles_x * kTile, py0 = tile / tiles_x * kTile;
         const uint32_t px1 = px0 + kTile < width ? px0 + kTile : width;
         const uint32_t py1 = py0 + kTile < height ? py0 + kTile : height;
-        // Nearest depth so far before the epsilon, which is added once at the end: rounding is
-        // monotonic, so min(a + eps, b + eps) = min(a, b) + eps.
         float nearest[kTile * kTile];
         for (uint32_t i = 0; i < kTile * kTile; ++i) nearest[i] = kFar;
 
@@ -280,20 +338,33 @@ struct RasterTiles {
                 // distance = e / |edge|_2 >= margin, made integer by |edge|_1 >= |edge|_2
                 threshold[k] = kMargin * (abs64(ex) + abs64(ey));
             }
+            const int64_t columns = int64_t(x_hi - x_lo) + 1;
             for (uint32_t y = y_lo; y <= y_hi; ++y) {
-                int64_t e0 = row[0], e1 = row[1], e2 = row[2];
-                float* out = nearest + (y - py0) * kTile - px0;
-                for (uint32_t x = x_lo; x <= x_hi; ++x) {
-                    // Without branches, since whether a centre is covered is close to random
-                    // for the small triangles that dominate: all three e_k - threshold_k are
-                    // non-negative when their OR is, and an uncovered centre's candidate is
-                    // pushed beyond every depth.
-                    const int64_t outside = (e0 - threshold[0]) | (e1 - threshold[1]) | (e2 - threshold[2]);
-                    const float d = addRn(addRn(mulRn(float(e0), s.weight[0]), mulRn(float(e1), s.weight[1])),
-                                          mulRn(float(e2), s.weight[2]));
-                    const float candidate = addRn(d, mulRn(float(uint64_t(outside) >> 63), kFar));
-                    out[x] = candidate < out[x] ? candidate : out[x];
-                    e0 += step_x[0], e1 += step_x[1], e2 += step_x[2];
+                const float row_depth = addRn(s.z_ref, mulRn(s.gy, float(int32_t(y - s.y_lo))));
+                // out[x] and the plane's column term both start at x_lo.
+                float* out = nearest + (y - py0) * kTile + (x_lo - px0);
+                const float gx = s.gx;
+                const int32_t column0 = int32_t(x_lo - s.x_lo);
+                if (columns <= int64_t(kNarrowRow)) {
+                    int64_t e0 = row[0], e1 = row[1], e2 = row[2];
+                    for (int64_t x = 0; x < columns; ++x) {
+                        // Without branches, since whether a centre is covered is close to
+                        // random for the small triangles drawn here: all three
+                        // e_k - threshold_k are non-negative when their OR is, and an
+                        // uncovered centre's candidate is pushed beyond every depth.
+                        const int64_t outside = (e0 - threshold[0]) | (e1 - threshold[1]) | (e2 - threshold[2]);
+                        const float d = addRn(row_depth, mulRn(gx, float(column0 + int32_t(x))));
+                        const float candidate = addRn(d, mulRn(float(uint64_t(outside) >> 63), kFar));
+                        out[x] = candidate < out[x] ? candidate : out[x];
+                        e0 += step_x[0], e1 += step_x[1], e2 += step_x[2];
+                    }
+                } else {
+                    int64_t first = 0, last = columns - 1;
+                    for (int k = 0; k < 3; ++k) edgeSpan(row[k], step_x[k], threshold[k], first, last);
+                    for (int64_t x = first; x <= last; ++x) {
+                        const float d = addRn(row_depth, mulRn(gx, float(column0 + int32_t(x))));
+                        out[x] = d < out[x] ? d : out[x];
+                    }
                 }
                 row[0] += step_y[0], row[1] += step_y[1], row[2] += step_y[2];
             }
@@ -301,7 +372,7 @@ struct RasterTiles {
 
         for (uint32_t y = py0; y < py1; ++y)
             for (uint32_t x = px0; x < px1; ++x) {
-                const float d = addRn(nearest[(y - py0) * kTile + (x - px0)], kDepthRasterEpsilon);
+                const float d = nearest[(y - py0) * kTile + (x - px0)];
                 depth[uint64_t(y) * width + x] = d < 1.0f ? d : 1.0f;
             }
     }
@@ -312,7 +383,8 @@ struct RasterTiles {
 void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
                  const Camera& camera, float* depth, DepthRasterScratch& scratch) {
     const uint32_t width = camera.width, height = camera.height;
-    if (width > kMaxSide || height > kMaxSide)
+    // The HZM's limit, which also keeps pixel boxes within 16 bits.
+    if (width > kHzmMaxSide || height > kHzmMaxSide)
         throw std::invalid_argument("depthRaster: viewport " + std::to_string(width) + "x" + std::to_string(height) +
                                     " is larger than 32768x32768");
     if (width == 0 || height == 0) return;

@@ -17,14 +17,19 @@ namespace occ::k {
 // occluder never covers a centre it does not really cover.
 inline constexpr int32_t kDepthRasterSubpixelUnits = 256;
 inline constexpr int32_t kDepthRasterMarginUnits = 4;
-// A covered pixel gets the triangle's window depth at its centre plus this (pushed away), the
-// MIN over every triangle covering it. It absorbs our interpolation rounding (a few float ulps,
-// since depth is a convex combination of corner depths) and a GPU's.
+// A covered pixel gets the triangle's window depth at its centre pushed away, the MIN over every
+// triangle covering it. The push is this epsilon (for a GPU's rounding and ours) plus 2^-20
+// times the largest |depth| the triangle's plane takes over its pixel box (a bound on the
+// rounding of the float plane evaluation): about 2 * kDepthRasterEpsilon for a triangle that is
+// not seen nearly edge-on, never less than kDepthRasterEpsilon.
 inline constexpr float kDepthRasterEpsilon = 1.0f / (1 << 20);
 // Triangles with a corner farther than this from the viewport's origin in window x or y are
 // skipped (so that snapped coordinates fit 32-bit and edge functions 64-bit integers). Only
 // triangles with a corner just in front of the near plane and far off to the side get there.
 inline constexpr float kDepthRasterGuardBand = float(1 << 20);
+// Triangles with a corner of larger window depth are skipped: no perspective projection with
+// far >= 2 * near puts anything there, and it keeps every depth small and finite.
+inline constexpr float kDepthRasterMaxDepth = 2.0f;
 // Screen tiles of this many pixels square are the unit of parallel work.
 inline constexpr uint32_t kDepthRasterTileSize = 32;
 
@@ -50,12 +55,13 @@ struct DepthRasterScratch {
 // depth follow kernels.md: window x = (ndc.x*0.5+0.5)*W, y up, depth = ndc.z*0.5+0.5.
 // depth: W*H floats, row-major (index y*W+x); this function CLEARS it to 1.0 (far) and then,
 // for every pixel whose centre a triangle covers (see the rules above), writes the minimum over
-// those triangles of depth-at-centre + kDepthRasterEpsilon (values above 1 leave 1).
+// those triangles of their pushed depth at the centre (values above 1 leave 1).
 // Skipped, which only loses occlusion: triangles with a corner behind the near plane
-// (clip.w <= 0 or clip.z < -clip.w), a corner outside the guard band, a NaN, or zero snapped
-// area. Both windings are drawn. The margin holds on every edge, shared ones too: a centre
-// within 1/64 pixel of the edge between two triangles of one mesh belongs to neither and stays
-// far. Deterministic: the result depends neither on the thread count nor on the back end.
+// (clip.w <= 0 or clip.z < -clip.w), a corner outside the guard band or deeper than
+// kDepthRasterMaxDepth, a NaN, or zero snapped area. Both windings are drawn. The margin holds
+// on every edge, shared ones too: a centre within 1/64 pixel of the edge between two triangles
+// of one mesh belongs to neither and stays far. Deterministic: the result depends neither on the
+// thread count nor on the back end.
 // Memory: scratch grows to 16 bytes per vertex, 48 per triangle, 4 per (32x32 tile, triangle)
 // pair of overlapping screen boxes, and 8 per (tile, 4096 triangles), at most 32 MB.
 void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,

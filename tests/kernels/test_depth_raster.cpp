@@ -76,8 +76,9 @@ std::vector<float> rasterize(const Mesh& mesh, const Camera& camera) {
 }
 
 // The rules of depth_raster.h, one triangle and one pixel at a time: plain projection, snapping
-// to 1/256 pixel, exact integer edge functions evaluated (not stepped) at every pixel centre of
-// the triangle's box, and the same float sums for the depth so that results match bit for bit.
+// to 1/256 pixel, the pixel box, exact integer edge functions evaluated (not stepped) at every
+// pixel centre of the box, and the same float and double sums for the depth plane and its push
+// so that results match bit for bit.
 std::vector<float> referenceRaster(const Mesh& mesh, const Camera& camera) {
     const uint32_t width = camera.width, height = camera.height;
     std::vector<float> depth(uint64_t(width) * height, 1.0f);
@@ -99,11 +100,19 @@ std::vector<float> referenceRaster(const Mesh& mesh, const Camera& camera) {
             const float wy = (clip[1] * inv_w * 0.5f + 0.5f) * float(height);
             sz[i] = clip[2] * inv_w * 0.5f + 0.5f;
             drawn = std::abs(wx) <= kDepthRasterGuardBand && std::abs(wy) <= kDepthRasterGuardBand &&
-                    std::isfinite(sz[i]);
+                    sz[i] <= kDepthRasterMaxDepth;
             sx[i] = int64_t(std::floor(wx * 256.0f + 0.5f));
             sy[i] = int64_t(std::floor(wy * 256.0f + 0.5f));
         }
         if (!drawn) continue;
+        // Centres 256 p + 128 at least the margin (4) inside the snapped bounding box.
+        const auto [sx_min, sx_max] = std::minmax({sx[0], sx[1], sx[2]});
+        const auto [sy_min, sy_max] = std::minmax({sy[0], sy[1], sy[2]});
+        const int64_t x0 = std::max<int64_t>(0, int64_t(std::ceil((sx_min + 4 - 128) / 256.0)));
+        const int64_t x1 = std::min<int64_t>(width - 1, int64_t(std::floor((sx_max - 4 - 128) / 256.0)));
+        const int64_t y0 = std::max<int64_t>(0, int64_t(std::ceil((sy_min + 4 - 128) / 256.0)));
+        const int64_t y1 = std::min<int64_t>(height - 1, int64_t(std::floor((sy_max - 4 - 128) / 256.0)));
+        if (x0 > x1 || y0 > y1) continue;
         int64_t area2 = (sx[1] - sx[0]) * (sy[2] - sy[0]) - (sy[1] - sy[0]) * (sx[2] - sx[0]);
         if (area2 == 0) continue;
         if (area2 < 0) {
@@ -112,26 +121,26 @@ std::vector<float> referenceRaster(const Mesh& mesh, const Camera& camera) {
             std::swap(sz[1], sz[2]);
             area2 = -area2;
         }
-        float weight[3];
-        const float inv_area = 1.0f / float(area2);
-        for (int i = 0; i < 3; ++i) weight[i] = sz[i] * inv_area;
-        const int64_t x0 = std::max<int64_t>(0, *std::min_element(sx, sx + 3) / 256 - 1);
-        const int64_t x1 = std::min<int64_t>(width - 1, *std::max_element(sx, sx + 3) / 256 + 1);
-        const int64_t y0 = std::max<int64_t>(0, *std::min_element(sy, sy + 3) / 256 - 1);
-        const int64_t y1 = std::min<int64_t>(height - 1, *std::max_element(sy, sy + 3) / 256 + 1);
+        const double dz1 = double(sz[1]) - double(sz[0]), dz2 = double(sz[2]) - double(sz[0]);
+        const double d1x = double(sx[1] - sx[0]), d1y = double(sy[1] - sy[0]);
+        const double d2x = double(sx[2] - sx[0]), d2y = double(sy[2] - sy[0]);
+        const double gx = (dz1 * d2y - dz2 * d1y) / double(area2), gy = (d1x * dz2 - d2x * dz1) / double(area2);
+        const double ref = sz[0] + gx * double(x0 * 256 + 128 - sx[0]) + gy * double(y0 * 256 + 128 - sy[0]);
+        const float gx_px = float(gx * 256.0), gy_px = float(gy * 256.0);
+        const float magnitude = std::max({std::abs(sz[0]), std::abs(sz[1]), std::abs(sz[2])}) +
+                                std::abs(gx_px) * float(x1 - x0 + 1) + std::abs(gy_px) * float(y1 - y0 + 1);
+        const float z_ref = float(ref + double(kEps + magnitude / float(1 << 20)));
         for (int64_t py = y0; py <= y1; ++py)
             for (int64_t px = x0; px <= x1; ++px) {
                 const int64_t cx = px * 256 + 128, cy = py * 256 + 128;
-                int64_t e[3];
                 bool inside = true;
                 for (int k = 0; k < 3; ++k) {
                     const int a = (k + 1) % 3, b = (k + 2) % 3;
                     const int64_t ex = sx[b] - sx[a], ey = sy[b] - sy[a];
-                    e[k] = ex * (cy - sy[a]) - ey * (cx - sx[a]);
-                    inside = inside && e[k] >= 4 * (std::abs(ex) + std::abs(ey));
+                    inside = inside && ex * (cy - sy[a]) - ey * (cx - sx[a]) >= 4 * (std::abs(ex) + std::abs(ey));
                 }
                 if (!inside) continue;
-                const float d = float(e[0]) * weight[0] + float(e[1]) * weight[1] + float(e[2]) * weight[2] + kEps;
+                const float d = z_ref + gy_px * float(py - y0) + gx_px * float(px - x0);
                 float& out = depth[uint64_t(py) * width + px];
                 out = std::min(out, d);
             }
@@ -139,13 +148,19 @@ std::vector<float> referenceRaster(const Mesh& mesh, const Camera& camera) {
     return depth;
 }
 
+// A plane depth as written: pushed by kEps plus 2^-20 times `magnitude`, the largest corner
+// |depth| plus the plane's slopes across the triangle's pixel box (depth_raster.h).
+float pushed(float plane, float magnitude) { return plane + kEps * (1.0f + magnitude); }
+
 int coveredCount(const std::vector<float>& depth) {
     return int(std::count_if(depth.begin(), depth.end(), [](float d) { return d < 1.0f; }));
 }
 
 // Window corners (0,0), (8,0), (0,8) at depths 0.25, 0.75, 0.5: the depth plane is
 // 0.25 + x/16 + y/32 and the centres with px + py <= 6 are inside (28 of them); those with
-// px + py = 7 lie exactly on the hypotenuse.
+// px + py = 7 lie exactly on the hypotenuse. Its pixel box is all 8 x 8, so the magnitude of
+// its push is 0.75 + 8/16 + 8/32.
+constexpr float kKnownMagnitude = 1.5f;
 Mesh knownTriangle(const Camera& c) {
     Mesh mesh;
     mesh.add(atWindow(c, 0, 0, 0.25f), atWindow(c, 8, 0, 0.75f), atWindow(c, 0, 8, 0.5f));
@@ -156,17 +171,17 @@ TEST(DepthRaster, KnownTriangleCoversCentresWithInterpolatedDepth) {
     const Camera c = identityCamera(8, 8);
     const std::vector<float> depth = rasterize(knownTriangle(c), c);
     // hand-computed plane values at a few centres
-    EXPECT_NEAR(depth[0 * 8 + 0], 0.296875f + kEps, 0.3f * kEps);  // (0.5, 0.5)
-    EXPECT_NEAR(depth[3 * 8 + 2], 0.515625f + kEps, 0.3f * kEps);  // (2.5, 3.5)
-    EXPECT_NEAR(depth[0 * 8 + 6], 0.671875f + kEps, 0.3f * kEps);  // (6.5, 0.5)
-    EXPECT_NEAR(depth[6 * 8 + 0], 0.484375f + kEps, 0.3f * kEps);  // (0.5, 6.5)
+    EXPECT_NEAR(depth[0 * 8 + 0], pushed(0.296875f, kKnownMagnitude), 0.3f * kEps);  // (0.5, 0.5)
+    EXPECT_NEAR(depth[3 * 8 + 2], pushed(0.515625f, kKnownMagnitude), 0.3f * kEps);  // (2.5, 3.5)
+    EXPECT_NEAR(depth[0 * 8 + 6], pushed(0.671875f, kKnownMagnitude), 0.3f * kEps);  // (6.5, 0.5)
+    EXPECT_NEAR(depth[6 * 8 + 0], pushed(0.484375f, kKnownMagnitude), 0.3f * kEps);  // (0.5, 6.5)
     for (uint32_t py = 0; py < 8; ++py)
         for (uint32_t px = 0; px < 8; ++px) {
             const float d = depth[py * 8 + px];
             if (px + py <= 6) {
                 const float plane = 0.25f + (px + 0.5f) / 16 + (py + 0.5f) / 32;
-                EXPECT_NEAR(d, plane + kEps, 0.3f * kEps) << px << "," << py;
-                EXPECT_GT(d, plane) << "pushed away, " << px << "," << py;
+                EXPECT_NEAR(d, pushed(plane, kKnownMagnitude), 0.3f * kEps) << px << "," << py;
+                EXPECT_GE(d, plane + kEps) << "pushed away, " << px << "," << py;
             } else {
                 EXPECT_EQ(d, 1.0f) << px << "," << py;
             }
@@ -206,8 +221,9 @@ TEST(DepthRaster, OverlappingTrianglesKeepTheNearerDepth) {
     const Camera c = identityCamera(8, 8);
     Mesh flat, tilted;
     flat.add(atWindow(c, -8, -8, 0.5f), atWindow(c, 24, -8, 0.5f), atWindow(c, -8, 24, 0.5f));
-    // depth 0.125 + x/16 over the whole viewport: nearer than 0.5 for columns 0..5
-    tilted.add(atWindow(c, -1, -8, 0.0625f), atWindow(c, 31, -8, 2.0625f), atWindow(c, -1, 56, 0.0625f));
+    // depth 0.125 + x/16 over the whole viewport: nearer than 0.5 for columns 0..5 (the push
+    // magnitudes are 0.5 for the flat one, 1.5625 + 8/16 for this one)
+    tilted.add(atWindow(c, -1, -8, 0.0625f), atWindow(c, 23, -8, 1.5625f), atWindow(c, -1, 40, 0.0625f));
     Mesh both = flat;
     both.add(tilted.positions[0], tilted.positions[1], tilted.positions[2]);
     Mesh reversed = tilted;
@@ -216,8 +232,8 @@ TEST(DepthRaster, OverlappingTrianglesKeepTheNearerDepth) {
     const std::vector<float> depth = rasterize(both, c);
     for (uint32_t py = 0; py < 8; ++py)
         for (uint32_t px = 0; px < 8; ++px) {
-            const float expected = px <= 5 ? 0.125f + (px + 0.5f) / 16 : 0.5f;
-            EXPECT_NEAR(depth[py * 8 + px], expected + kEps, 0.3f * kEps) << px << "," << py;
+            const float expected = px <= 5 ? pushed(0.125f + (px + 0.5f) / 16, 2.0625f) : pushed(0.5f, 0.5f);
+            EXPECT_NEAR(depth[py * 8 + px], expected, 0.3f * kEps) << px << "," << py;
         }
     EXPECT_EQ(rasterize(reversed, c), depth);
 }
@@ -251,7 +267,7 @@ TEST(DepthRaster, TriangleLargerThanScreenCoversEveryPixel) {
     const std::vector<float> depth = rasterize(wall, c);
     const glm::vec4 clip = c.view_proj * glm::vec4(0, 0, -10, 1);
     const float wall_depth = clip.z / clip.w * 0.5f + 0.5f;
-    for (float d : depth) ASSERT_NEAR(d, wall_depth + kEps, 0.5f * kEps);
+    for (float d : depth) ASSERT_NEAR(d, pushed(wall_depth, wall_depth), 0.5f * kEps);
     EXPECT_EQ(depth, referenceRaster(wall, c));
 }
 
@@ -273,11 +289,15 @@ TEST(DepthRaster, CentresOnSharedEdgeStayFar) {
         }
 }
 
-TEST(DepthRaster, CornerOutsideGuardBandSkipsTriangle) {
+TEST(DepthRaster, CornerOutsideGuardBandOrTooDeepSkipsTriangle) {
     const Camera c = identityCamera(8, 8);
-    Mesh mesh;
-    mesh.add(atWindow(c, -8, -8, 0.5f), atWindow(c, 2 * kDepthRasterGuardBand, -8, 0.5f), atWindow(c, -8, 24, 0.5f));
-    EXPECT_EQ(coveredCount(rasterize(mesh, c)), 0);
+    Mesh wide, deep, control;
+    wide.add(atWindow(c, -8, -8, 0.5f), atWindow(c, 2 * kDepthRasterGuardBand, -8, 0.5f), atWindow(c, -8, 24, 0.5f));
+    deep.add(atWindow(c, -8, -8, 0.5f), atWindow(c, 24, -8, 2.5f), atWindow(c, -8, 24, 0.5f));
+    control.add(atWindow(c, -8, -8, 0.5f), atWindow(c, 24, -8, 1.5f), atWindow(c, -8, 24, 0.5f));
+    EXPECT_EQ(coveredCount(rasterize(wide, c)), 0);
+    EXPECT_EQ(coveredCount(rasterize(deep, c)), 0);
+    EXPECT_EQ(coveredCount(rasterize(control, c)), 64);
 }
 
 TEST(DepthRaster, NoTrianglesClearsToFar) {
@@ -300,12 +320,52 @@ TEST(DepthRaster, EveryTriangleOfALargeSceneLands) {
             expected.push_back(d);
         }
     const std::vector<float> depth = rasterize(mesh, c);
-    for (uint32_t i = 0; i < expected.size(); ++i) ASSERT_NEAR(depth[i], expected[i] + kEps, 0.3f * kEps) << i;
+    for (uint32_t i = 0; i < expected.size(); ++i)
+        ASSERT_NEAR(depth[i], pushed(expected[i], expected[i]), 0.3f * kEps) << i;
 }
 
 TEST(DepthRaster, ViewportBeyondLimitIsRejected) {
     DepthRasterScratch scratch;
     EXPECT_THROW(depthRaster(nullptr, nullptr, 0, identityCamera(32769, 1), nullptr, scratch), std::invalid_argument);
+}
+
+// The push must outweigh the rounding of the float plane evaluation for every triangle, the
+// steep ones especially: one random triangle at a time (corners on the 1/256 grid, so snapping
+// changes nothing), every covered centre at least kEps behind the exact plane through them.
+TEST(DepthRaster, PushedDepthIsNeverNearerThanTheTriangle) {
+    const Camera c = identityCamera(64, 64);
+    std::mt19937 rng(11);
+    std::uniform_int_distribution<int> units(-64 * 256, 128 * 256);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    DepthRasterScratch scratch;
+    int covered = 0;
+    for (int t = 0; t < 1500; ++t) {
+        long double x[3], y[3], z[3];
+        Mesh mesh;
+        glm::vec3 corners[3];
+        const float spread = t % 3 == 0 ? 1.0f : t % 3 == 1 ? 1e-3f : 1e-6f;  // steep to flat
+        const float base = unit(rng);
+        for (int i = 0; i < 3; ++i) {
+            x[i] = units(rng) / 256.0L, y[i] = units(rng) / 256.0L;
+            corners[i] = atWindow(c, float(x[i]), float(y[i]), base + spread * unit(rng));
+            z[i] = corners[i].z * 0.5f + 0.5f;  // the depth the raster sees (the round trip rounds)
+        }
+        mesh.add(corners[0], corners[1], corners[2]);
+        const std::vector<float> depth = rasterize(mesh, c, scratch);
+        const long double area = (x[1] - x[0]) * (y[2] - y[0]) - (y[1] - y[0]) * (x[2] - x[0]);
+        for (uint32_t py = 0; py < 64; ++py)
+            for (uint32_t px = 0; px < 64; ++px) {
+                if (depth[py * 64 + px] >= 1.0f) continue;
+                ++covered;
+                const long double cx = px + 0.5L, cy = py + 0.5L;
+                const long double b0 = ((x[1] - cx) * (y[2] - cy) - (y[1] - cy) * (x[2] - cx)) / area;
+                const long double b1 = ((x[2] - cx) * (y[0] - cy) - (y[2] - cy) * (x[0] - cx)) / area;
+                const long double plane = b0 * z[0] + b1 * z[1] + (1 - b0 - b1) * z[2];
+                ASSERT_GE(depth[py * 64 + px], plane + 0.999L * kEps)
+                    << "triangle " << t << " pixel " << px << "," << py;
+            }
+    }
+    EXPECT_GT(covered, 10000);
 }
 
 // Random triangles of every size, some behind the eye, across the near plane or off screen.
