@@ -288,12 +288,9 @@ constexpr double kExploreChance = 0.02;  // per cell, of taking an open side way
 constexpr int kPeek = 6;             // visited cells this far along a way make it less attractive
 // Smoothing and cameras.
 constexpr double kSmoothSigma = 3.0;  // in walk steps
-// A person's pace at 60 frames per second: on the plant's 0.25 m cells, 0.1 cells per frame is
-// 1.5 m/s, and the view turns at most 60 degrees per second. Faster paths measure how fast the
-// camera moves more than how well frame-to-frame coherence works.
-constexpr double kSpeed = 0.1;        // cells per frame
+constexpr double kSpeed = kWalkCellsPerFrame;
 constexpr double kLookAhead = 6.0;    // cells
-constexpr double kMaxTurnDegrees = 1.0;  // per frame
+constexpr double kMaxTurnDegrees = kWalkMaxTurnDegreesPerFrame;
 constexpr double kNearInCells = 0.2;
 
 // splitmix64 (Steele, Lea & Flood, "Fast splittable pseudorandom number generators", 2014): the

@@ -71,6 +71,12 @@ PathScene pathSceneOf(const OssFile& file);
 // bounds are a single point, or the scene is too far from the origin for float cameras.
 std::vector<CameraPose> orbitPath(const PathScene& scene, uint32_t frames);
 
+// A person's pace at 60 frames per second: on the plant's 0.25 m cells, 0.1 cells per frame is
+// 1.5 m/s, and the view turns at most 60 degrees per second. Faster paths measure how fast the
+// camera moves more than how well frame-to-frame coherence works.
+inline constexpr double kWalkCellsPerFrame = 0.1;
+inline constexpr double kWalkMaxTurnDegreesPerFrame = 1.0;
+
 // What the eyes of a walk keep clear of.
 enum class Avoid {
     boxes,      // every object's AABB: a conservative and cheap rule, but the AABB of a bent pipe

@@ -122,7 +122,8 @@ k::Aabb boundsOf(const PathScene& scene) {
 // What every generated walk promises, checked on the cameras.
 void expectSmoothLevelWalk(const WalkPath& walk, const PathScene& scene) {
     const k::Aabb bounds = boundsOf(scene);
-    const float step = 0.4f * walk.cell_size * 1.0001f;
+    // float positions of size ~100 carry ~1e-5 of rounding per step
+    const float step = float(kWalkCellsPerFrame) * walk.cell_size * 1.001f;
     for (size_t f = 0; f < walk.cameras.size(); ++f) {
         const CameraPose& c = walk.cameras[f];
         ASSERT_TRUE(poseDefect(c).empty()) << "camera " << f << ": " << poseDefect(c);
@@ -134,7 +135,7 @@ void expectSmoothLevelWalk(const WalkPath& walk, const PathScene& scene) {
         if (f == 0) continue;
         const CameraPose& p = walk.cameras[f - 1];
         ASSERT_LE(glm::length(c.eye - p.eye), step) << "camera " << f << " jumps";
-        ASSERT_LE(degreesBetween(viewDirection(c), viewDirection(p)), 4.01) << "camera " << f << " turns abruptly";
+        ASSERT_LE(degreesBetween(viewDirection(c), viewDirection(p)), kWalkMaxTurnDegreesPerFrame + 0.01) << "camera " << f << " turns abruptly";
     }
 }
 
@@ -384,7 +385,7 @@ TEST(Walk, OnAFloorKeepsEyeHeightAndStaysOutOfEveryBox) {
                 ASSERT_GE(footprintDistance(c.eye, scene.objects[b]), walk.cell_size * 0.999f) << "box " << b;
             }
         }
-    EXPECT_GT(eyePathLength(walk.cameras), 0.99 * 2999 * 0.1);
+    EXPECT_GT(eyePathLength(walk.cameras), 0.99 * 2999 * kWalkCellsPerFrame * walk.cell_size);
 }
 
 TEST(Walk, SmoothingDoesNotCutCornersOfANarrowCorridor) {
@@ -495,7 +496,7 @@ TEST(Walk, ShortAndSingleFramePaths) {
     const PathScene scene = floorWithBoxes();
     EXPECT_EQ(walkPath(scene, 1, 1).cameras.size(), 1u);
     const WalkPath two = walkPath(scene, 2, 1);
-    EXPECT_NEAR(glm::length(two.cameras[1].eye - two.cameras[0].eye), 0.1f, 1e-4f);
+    EXPECT_NEAR(glm::length(two.cameras[1].eye - two.cameras[0].eye), float(kWalkCellsPerFrame) * two.cell_size, 1e-4f);
     EXPECT_THROW(walkPath(scene, 0, 1), std::invalid_argument);
     EXPECT_THROW(walkPath(scene, kMaxPathFrames + 1, 1), std::invalid_argument);
 }
