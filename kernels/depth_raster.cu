@@ -15,6 +15,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace occ::k {
 
@@ -26,8 +27,10 @@ struct DepthRasterVertex {
 };
 static_assert(sizeof(DepthRasterVertex) == 16);
 
-// One triangle after projection and snapping, as the tiles read it.
-struct DepthRasterTriangle {
+// One triangle after projection and snapping, as the tiles read it. 52 bytes padded to a cache
+// line (alignas): tiles read triangles in scattered order, and at 48 bytes half of them
+// straddled two lines.
+struct alignas(64) DepthRasterTriangle {
     int32_t x[3], y[3];  // window position in 1/256 pixel, counter-clockwise (y up)
     // The depth written at pixel (px, py) is the plane
     //   (z_ref + gy * (py - y_lo)) + gx * (px - x_lo)
@@ -41,8 +44,11 @@ struct DepthRasterTriangle {
     // Pixels whose centres may be covered, inclusive, clamped to the viewport; the triangle is
     // empty (skipped, or covers no centre) when x_lo > x_hi.
     uint16_t x_lo, y_lo, x_hi, y_hi;
+    // Bit k set: edge k (opposite corner k) is shared within its mesh, so it takes the tie rule
+    // instead of the margin.
+    uint32_t shared_edges;
 };
-static_assert(sizeof(DepthRasterTriangle) == 48);
+static_assert(sizeof(DepthRasterTriangle) == 64);
 
 namespace {
 
@@ -159,6 +165,7 @@ struct ProjectVertices {
 struct SetupTriangles {
     const DepthRasterVertex* vertices;
     const uint32_t* triangles;
+    const uint8_t* edge_flags;  // may be null
     DepthRasterTriangle* setup;
     int64_t last_x, last_y;  // viewport size - 1
 
@@ -168,28 +175,38 @@ struct SetupTriangles {
         const DepthRasterVertex c0 = vertices[triangles[3 * t]], v1 = vertices[triangles[3 * t + 1]],
                                 v2 = vertices[triangles[3 * t + 2]];
         if (!(c0.drawn & v1.drawn & v2.drawn)) return;
+        const uint32_t flags = edge_flags ? edge_flags[t] & 7u : 0u;
 
         // A covered centre is at least the margin inside every edge, so inside the snapped
-        // box shrunk by the margin: 256*x + 128 in [min + margin, max - margin].
+        // box shrunk by the margin: 256*x + 128 in [min + margin, max - margin]. (The box side
+        // at a corner is that far in when both edges at the corner keep the margin; shrinking
+        // only triangles without a shared edge keeps it simple and loses next to nothing.)
+        const int64_t margin = flags ? 0 : kMargin;
         const int64_t x_min = min64(c0.x, min64(v1.x, v2.x)), x_max = max64(c0.x, max64(v1.x, v2.x));
         const int64_t y_min = min64(c0.y, min64(v1.y, v2.y)), y_max = max64(c0.y, max64(v1.y, v2.y));
-        const int64_t x_lo = max64(0, -floorDiv(-(x_min + kMargin - kHalfPixel), kUnits));
-        const int64_t x_hi = min64(last_x, floorDiv(x_max - kMargin - kHalfPixel, kUnits));
-        const int64_t y_lo = max64(0, -floorDiv(-(y_min + kMargin - kHalfPixel), kUnits));
-        const int64_t y_hi = min64(last_y, floorDiv(y_max - kMargin - kHalfPixel, kUnits));
+        const int64_t x_lo = max64(0, -floorDiv(-(x_min + margin - kHalfPixel), kUnits));
+        const int64_t x_hi = min64(last_x, floorDiv(x_max - margin - kHalfPixel, kUnits));
+        const int64_t y_lo = max64(0, -floorDiv(-(y_min + margin - kHalfPixel), kUnits));
+        const int64_t y_hi = min64(last_y, floorDiv(y_max - margin - kHalfPixel, kUnits));
         if (x_lo > x_hi || y_lo > y_hi) return;
 
         int64_t area2 = int64_t(v1.x - c0.x) * (v2.y - c0.y) - int64_t(v1.y - c0.y) * (v2.x - c0.x);
         if (area2 == 0) return;
         // Both windings are drawn: store it counter-clockwise.
-        const DepthRasterVertex& c1 = area2 > 0 ? v1 : v2;
-        const DepthRasterVertex& c2 = area2 > 0 ? v2 : v1;
+        const bool reversed = area2 < 0;
+        const DepthRasterVertex& c1 = reversed ? v2 : v1;
+        const DepthRasterVertex& c2 = reversed ? v1 : v2;
         area2 = abs64(area2);
         DepthRasterTriangle s;
         s.x[0] = c0.x, s.x[1] = c1.x, s.x[2] = c2.x;
         s.y[0] = c0.y, s.y[1] = c1.y, s.y[2] = c2.y;
         s.x_lo = uint16_t(x_lo), s.x_hi = uint16_t(x_hi);
         s.y_lo = uint16_t(y_lo), s.y_hi = uint16_t(y_hi);
+        // Edge k of the stored triangle runs between its corners k+1 and k+2: edge 0 is the
+        // input's edge 1 either way, edges 1 and 2 are the input's 2 and 0, or 0 and 2 when the
+        // winding was reversed.
+        const uint32_t e0 = flags & 1u, e1 = flags >> 1 & 1u, e2 = flags >> 2 & 1u;
+        s.shared_edges = reversed ? e1 | e0 << 1 | e2 << 2 : e1 | e2 << 1 | e0 << 2;
 
         // The depth plane through the snapped corners, in double (the integers are exact there),
         // per 1/256 pixel: z = z0 + gx * (X - X0) + gy * (Y - Y0) by Cramer's rule.
@@ -327,6 +344,7 @@ struct RasterTiles {
 
             // Edge k is the one opposite corner k, from corner k+1 to corner k+2:
             // e_k(p) = (b - a) x (p - a), positive inside a counter-clockwise triangle.
+            // A centre is covered when e_k >= threshold_k for every k.
             int64_t row[3], step_x[3], step_y[3], threshold[3];
             const int64_t cx = int64_t(x_lo) * kUnits + kHalfPixel, cy = int64_t(y_lo) * kUnits + kHalfPixel;
             for (int k = 0; k < 3; ++k) {
@@ -335,8 +353,17 @@ struct RasterTiles {
                 row[k] = ex * (cy - s.y[a]) - ey * (cx - s.x[a]);
                 step_x[k] = -ey * kUnits;
                 step_y[k] = ex * kUnits;
-                // distance = e / |edge|_2 >= margin, made integer by |edge|_1 >= |edge|_2
-                threshold[k] = kMargin * (abs64(ex) + abs64(ey));
+                if (s.shared_edges >> k & 1u) {
+                    // The top-left rule (D3D's), for counter-clockwise triangles with y up: a
+                    // centre on the edge belongs to this triangle when the edge is a left edge
+                    // (going down) or a top edge (horizontal, going left). The neighbour across
+                    // it runs it the other way, its edge function exactly negated, so exactly
+                    // one of the two covers each centre on it.
+                    threshold[k] = ey < 0 || (ey == 0 && ex < 0) ? 0 : 1;
+                } else {
+                    // distance = e / |edge|_2 >= margin, made integer by |edge|_1 >= |edge|_2
+                    threshold[k] = kMargin * (abs64(ex) + abs64(ey));
+                }
             }
             const int64_t columns = int64_t(x_hi - x_lo) + 1;
             for (uint32_t y = y_lo; y <= y_hi; ++y) {
@@ -380,8 +407,45 @@ struct RasterTiles {
 
 }  // namespace
 
+void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* flags) {
+    // Every edge under its undirected key (smaller index, larger index); sorting brings the
+    // triangles using one edge together, whatever the indices (a counting sort by vertex would
+    // need them compact).
+    struct Use {
+        uint64_t key;
+        uint32_t triangle;
+        uint8_t edge, forward;  // forward: runs from the smaller index to the larger
+    };
+    std::vector<Use> uses;
+    uses.reserve(size_t(tri_count) * 3);
+    for (uint32_t t = 0; t < tri_count; ++t) {
+        flags[t] = 0;
+        for (uint8_t e = 0; e < 3; ++e) {
+            const uint32_t a = triangles[3 * size_t(t) + e], b = triangles[3 * size_t(t) + (e + 1) % 3];
+            if (a == b) continue;  // a degenerate edge borders nothing
+            const uint64_t key = a < b ? uint64_t(a) << 32 | b : uint64_t(b) << 32 | a;
+            uses.push_back({key, t, e, uint8_t(a < b)});
+        }
+    }
+    std::sort(uses.begin(), uses.end(), [](const Use& l, const Use& r) { return l.key < r.key; });
+    for (size_t i = 0; i < uses.size();) {
+        size_t j = i + 1;
+        while (j < uses.size() && uses[j].key == uses[i].key) ++j;
+        // Shared: exactly two uses, by two triangles, in opposite directions.
+        if (j - i == 2) {
+            const Use& u = uses[i];
+            const Use& v = uses[i + 1];
+            if (u.forward != v.forward && u.triangle != v.triangle) {
+                flags[u.triangle] |= uint8_t(1u << u.edge);
+                flags[v.triangle] |= uint8_t(1u << v.edge);
+            }
+        }
+        i = j;
+    }
+}
+
 void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
-                 const Camera& camera, float* depth, DepthRasterScratch& scratch) {
+                 const uint8_t* edge_flags, const Camera& camera, float* depth, DepthRasterScratch& scratch) {
     const uint32_t width = camera.width, height = camera.height;
     // The HZM's limit, which also keeps pixel boxes within 16 bits.
     if (width > kHzmMaxSide || height > kHzmMaxSide)
@@ -410,8 +474,8 @@ void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t
         for (int i = 0; i < 16; ++i) project.m[i] = camera.view_proj[i / 4][i % 4];
         thrust::for_each_n(thrust::device, first, vertex_count, project);
         thrust::for_each_n(thrust::device, first, tri_count,
-                           SetupTriangles{scratch.vertices.data(), triangles, scratch.setup.data(), int64_t(width) - 1,
-                                          int64_t(height) - 1});
+                           SetupTriangles{scratch.vertices.data(), triangles, edge_flags, scratch.setup.data(),
+                                          int64_t(width) - 1, int64_t(height) - 1});
         thrust::for_each_n(thrust::device, first, chunk_count, CountPerChunk{scratch.setup.data(), cells, grid});
         // One more cell than there are, counting 0, so that the scan leaves the total there.
         thrust::exclusive_scan(thrust::device, cells, cells + cell_count + 1, cells);

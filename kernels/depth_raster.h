@@ -12,9 +12,18 @@ namespace occ::k {
 // Window coordinates are snapped to 1/256 pixel, the sub-pixel grid GPUs rasterise on (8 bits,
 // D3D11 and Vulkan's usual subPixelPrecisionBits), so coverage is decided exactly in integers
 // and the same on every back end. A pixel centre is covered when it lies inside the snapped
-// triangle at least kDepthRasterMarginUnits/256 pixel (1/64) from every edge, so a pixel centre
-// on an edge, or within 1/64 pixel of it, is never covered: whatever fill rule a GPU uses, the
-// occluder never covers a centre it does not really cover.
+// triangle at least kDepthRasterMarginUnits/256 pixel (1/64) from every boundary edge, so a
+// pixel centre on an occluder's boundary, or within 1/64 pixel of it, is never covered: whatever
+// fill rule a GPU uses, the occluder never covers a centre it does not really cover.
+// Edges shared within a mesh (sharedEdgeFlags) lie inside the occluder, where the margin would
+// leave a crack that no triangle covers and that the max-pyramid spreads over its coarse levels.
+// They take no margin but the top-left tie rule on the snapped edge functions instead: a centre
+// strictly inside either triangle is covered by it, and one exactly on the edge by exactly one
+// of the two, so that a tessellated surface covers every centre inside its boundary margin.
+// (Where a mesh folds over on screen, its two triangles on the same side of the shared edge,
+// that edge is a silhouette drawn exactly, as a GPU's top-left rule draws it from the same
+// snapped corners: only there can a GPU's different rounding of a corner, below 1/256 pixel,
+// uncover a centre that this raster covers.)
 inline constexpr int32_t kDepthRasterSubpixelUnits = 256;
 inline constexpr int32_t kDepthRasterMarginUnits = 4;
 // A covered pixel gets the triangle's window depth at its centre pushed away, the MIN over every
@@ -46,25 +55,39 @@ struct DepthRasterScratch {
     KernelArray<uint32_t> pair_triangle;      // one per (tile, triangle) pair, grouped by tile
 };
 
+// Marks the edges that a triangle list shares within itself, once per mesh: flags[t] gets bit e
+// (e = 0, 1, 2) set when edge e of triangle t, from corner e to corner (e + 1) % 3, is used by
+// exactly one other triangle of the list and in the opposite direction, as in a consistently
+// wound surface; the other bits are cleared. Edges that three or more triangles use, that two
+// use in the same direction, or whose two corners are one index are not shared (they keep the
+// margin, which only loses occlusion).
+// triangles: 3 * tri_count corner indices, any values (may be empty). flags: tri_count bytes.
+// Host code, one thread. Cost: a sort of the 3 * tri_count edges, O(n log n) time and 16 bytes
+// per edge of temporary memory (a few ms for 100 K triangles).
+void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* flags);
+
 // Conservative software depth rasterisation of occluder triangles into a W x H depth buffer,
 // W = camera.width, H = camera.height (each in [0, 32768], else std::invalid_argument; 0 draws
 // nothing).
 // positions: world-space vertices (already transformed by the caller). Every vertex up to the
 // largest index in `triangles` is projected, so pass a compact array (the occluders' vertices,
-// not the whole scene's). triangles: 3 * tri_count corner indices (may be empty). Projection and
-// depth follow kernels.md: window x = (ndc.x*0.5+0.5)*W, y up, depth = ndc.z*0.5+0.5.
+// not the whole scene's). triangles: 3 * tri_count corner indices (may be empty). edge_flags:
+// tri_count bytes as sharedEdgeFlags makes them (for the triangles of each mesh, so that only
+// edges shared within one mesh are flagged: two meshes that touch are still two boundaries), or
+// null, which gives every edge the margin. Projection and depth follow kernels.md:
+// window x = (ndc.x*0.5+0.5)*W, y up, depth = ndc.z*0.5+0.5.
 // depth: W*H floats, row-major (index y*W+x); this function CLEARS it to 1.0 (far) and then,
 // for every pixel whose centre a triangle covers (see the rules above), writes the minimum over
 // those triangles of their pushed depth at the centre (values above 1 leave 1).
 // Skipped, which only loses occlusion: triangles with a corner behind the near plane
 // (clip.w <= 0 or clip.z < -clip.w), a corner outside the guard band or deeper than
-// kDepthRasterMaxDepth, a NaN, or zero snapped area. Both windings are drawn. The margin holds
-// on every edge, shared ones too: a centre within 1/64 pixel of the edge between two triangles
-// of one mesh belongs to neither and stays far. Deterministic: the result depends neither on the
-// thread count nor on the back end.
-// Memory: scratch grows to 16 bytes per vertex, 48 per triangle, 4 per (32x32 tile, triangle)
+// kDepthRasterMaxDepth, a NaN, or zero snapped area. Both windings are drawn. Without flags
+// the margin holds on every edge, shared ones too: a centre within 1/64 pixel of the edge
+// between two triangles of one mesh then belongs to neither and stays far. Deterministic: the
+// result depends neither on the thread count nor on the back end.
+// Memory: scratch grows to 16 bytes per vertex, 64 per triangle, 4 per (32x32 tile, triangle)
 // pair of overlapping screen boxes, and 8 per (tile, 4096 triangles), at most 32 MB.
 void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
-                 const Camera& camera, float* depth, DepthRasterScratch& scratch);
+                 const uint8_t* edge_flags, const Camera& camera, float* depth, DepthRasterScratch& scratch);
 
 }  // namespace occ::k

@@ -20,5 +20,6 @@ Command addPrepCommand(CLI::App& app);
 Command addVerifyCommand(CLI::App& app);
 Command addPathCommand(CLI::App& app);
 Command addRenderCommand(CLI::App& app);
+Command addBenchCommand(CLI::App& app);
 
 }  // namespace occ::cli

@@ -20,7 +20,8 @@ int main(int argc, char** argv) {
 
     const std::vector<occ::cli::Command> commands{occ::cli::addInfoCommand(app), occ::cli::addGenCommand(app),
                                                    occ::cli::addPrepCommand(app), occ::cli::addVerifyCommand(app),
-                                                   occ::cli::addPathCommand(app), occ::cli::addRenderCommand(app)};
+                                                   occ::cli::addPathCommand(app), occ::cli::addRenderCommand(app),
+                                                   occ::cli::addBenchCommand(app)};
 
     try {
         app.parse(argc, argv);

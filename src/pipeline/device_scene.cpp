@@ -1,7 +1,13 @@
 // SPDX-License-Identifier: MIT
 #include "pipeline/device_scene.h"
 
+#include "depth_raster.h"
+
+#include <algorithm>
 #include <cstring>
+#include <execution>
+#include <numeric>
+#include <vector>
 
 namespace occ {
 
@@ -33,6 +39,16 @@ DeviceScene DeviceScene::upload(const OssFile& file) {
     copyInto(d.ecol, file.allEcol());
     copyInto(d.maps, file.allMaps());
     copyInto(d.cos, file.cos());
+
+    // Meshes are independent and most are small: one task each.
+    const std::span<const uint32_t> triangles = file.allTriangles();
+    d.edge_flags.resize(triangles.size() / 3);
+    std::vector<uint32_t> mesh_ids(d.mesh_count);
+    std::iota(mesh_ids.begin(), mesh_ids.end(), 0u);
+    std::for_each(std::execution::par, mesh_ids.begin(), mesh_ids.end(), [&](uint32_t m) {
+        k::sharedEdgeFlags(triangles.data() + 3 * meshes[m].triangle_first, meshes[m].triangle_count,
+                           d.edge_flags.data() + meshes[m].triangle_first);
+    });
 
     const std::span<const oss::ObjectDisk> objects = file.objects();
     d.objects.resize(d.object_count);

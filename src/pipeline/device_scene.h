@@ -21,6 +21,9 @@ struct DeviceScene {
     k::KernelArray<uint64_t> map_first;     // per mesh, into maps
     k::KernelArray<int32_t> ecol;           // all meshes back to back
     k::KernelArray<uint32_t> maps;          // all meshes back to back, vertex_count + 1 each
+    // Per triangle, the edges it shares within its mesh (k::sharedEdgeFlags), all meshes back to
+    // back like the file's triangles: mesh m's triangle t is at triangle_first[m] + t.
+    k::KernelArray<uint8_t> edge_flags;
 
     // file must outlive the DeviceScene.
     static DeviceScene upload(const OssFile& file);

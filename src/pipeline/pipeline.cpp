@@ -109,6 +109,7 @@ void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
     }
     raster_positions_.resize(vertex_base.back());
     raster_triangles_.resize(3 * triangle_base.back());
+    raster_edge_flags_.resize(triangle_base.back());
     std::vector<uint32_t> slots(occluders_.size());
     std::iota(slots.begin(), slots.end(), 0u);
     std::for_each(std::execution::par, slots.begin(), slots.end(), [&](uint32_t j) {
@@ -122,9 +123,11 @@ void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
         uint32_t* out = raster_triangles_.data() + 3 * triangle_base[j];
         const uint32_t base = uint32_t(vertex_base[j]);
         for (uint64_t c = 0; c < 3ull * o.triangle_count; ++c) out[c] = tri[c] + base;
+        std::copy_n(scene_.edge_flags.data() + scene_.triangle_first[o.mesh], o.triangle_count,
+                    raster_edge_flags_.data() + triangle_base[j]);
     });
-    k::depthRaster(raster_positions_.data(), raster_triangles_.data(), uint32_t(triangle_base.back()), camera,
-                   hzm_.data(), raster_scratch_);
+    k::depthRaster(raster_positions_.data(), raster_triangles_.data(), uint32_t(triangle_base.back()),
+                   raster_edge_flags_.data(), camera, hzm_.data(), raster_scratch_);
     stats.aos_size = occluders_.size();
     stats.occluder_triangles = triangle_base.back();
 }

@@ -1,11 +1,14 @@
 // SPDX-License-Identifier: MIT
 #include "depth_raster.h"
+#include "hzm.h"
+#include "hzm_build.h"
 #include "kernel_memory.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdlib>
 #include <random>
@@ -52,34 +55,49 @@ struct Mesh {
     std::vector<glm::vec3> positions;
     std::vector<uint32_t> triangles;
 
+    // A triangle of its own three corners: it shares no edge.
     void add(glm::vec3 a, glm::vec3 b, glm::vec3 c) {
         const uint32_t first = uint32_t(positions.size());
         positions.insert(positions.end(), {a, b, c});
         triangles.insert(triangles.end(), {first, first + 1, first + 2});
     }
+    uint32_t triangleCount() const { return uint32_t(triangles.size() / 3); }
 };
 
-std::vector<float> rasterize(const Mesh& mesh, const Camera& camera, DepthRasterScratch& scratch) {
+std::vector<uint8_t> sharedFlags(const std::vector<uint32_t>& triangles) {
+    std::vector<uint8_t> flags(triangles.size() / 3, 0xff);  // every bit must be written
+    sharedEdgeFlags(triangles.data(), uint32_t(flags.size()), flags.data());
+    return flags;
+}
+std::vector<uint8_t> sharedFlags(const Mesh& mesh) { return sharedFlags(mesh.triangles); }
+
+// flags: one per triangle, or empty for none (null).
+std::vector<float> rasterize(const Mesh& mesh, const Camera& camera, DepthRasterScratch& scratch,
+                             const std::vector<uint8_t>& flags = {}) {
     KernelArray<glm::vec3> positions(mesh.positions.size());
     std::copy(mesh.positions.begin(), mesh.positions.end(), positions.begin());
     KernelArray<uint32_t> triangles(mesh.triangles.size());
     std::copy(mesh.triangles.begin(), mesh.triangles.end(), triangles.begin());
+    KernelArray<uint8_t> edge_flags(flags.size());
+    std::copy(flags.begin(), flags.end(), edge_flags.begin());
     KernelArray<float> depth(uint64_t(camera.width) * camera.height);
     std::fill(depth.begin(), depth.end(), -3.0f);  // the raster must clear it
-    depthRaster(positions.data(), triangles.data(), uint32_t(mesh.triangles.size() / 3), camera, depth.data(), scratch);
+    depthRaster(positions.data(), triangles.data(), mesh.triangleCount(), flags.empty() ? nullptr : edge_flags.data(),
+                camera, depth.data(), scratch);
     return std::vector<float>(depth.begin(), depth.end());
 }
 
-std::vector<float> rasterize(const Mesh& mesh, const Camera& camera) {
+std::vector<float> rasterize(const Mesh& mesh, const Camera& camera, const std::vector<uint8_t>& flags = {}) {
     DepthRasterScratch scratch;
-    return rasterize(mesh, camera, scratch);
+    return rasterize(mesh, camera, scratch, flags);
 }
 
 // The rules of depth_raster.h, one triangle and one pixel at a time: plain projection, snapping
 // to 1/256 pixel, the pixel box, exact integer edge functions evaluated (not stepped) at every
 // pixel centre of the box, and the same float and double sums for the depth plane and its push
-// so that results match bit for bit.
-std::vector<float> referenceRaster(const Mesh& mesh, const Camera& camera) {
+// so that results match bit for bit. flags: per triangle as sharedEdgeFlags gives them, or
+// empty for none.
+std::vector<float> referenceRaster(const Mesh& mesh, const Camera& camera, const std::vector<uint8_t>& flags = {}) {
     const uint32_t width = camera.width, height = camera.height;
     std::vector<float> depth(uint64_t(width) * height, 1.0f);
     const glm::mat4& m = camera.view_proj;
@@ -105,20 +123,25 @@ std::vector<float> referenceRaster(const Mesh& mesh, const Camera& camera) {
             sy[i] = int64_t(std::floor(wy * 256.0f + 0.5f));
         }
         if (!drawn) continue;
-        // Centres 256 p + 128 at least the margin (4) inside the snapped bounding box.
+        const uint8_t shared = flags.empty() ? 0 : flags[t / 3] & 7;
+        // Centres 256 p + 128 at least the margin (4) inside the snapped bounding box, for a
+        // triangle without shared edges; inside the box for one with.
+        const int64_t box_margin = shared ? 0 : 4;
         const auto [sx_min, sx_max] = std::minmax({sx[0], sx[1], sx[2]});
         const auto [sy_min, sy_max] = std::minmax({sy[0], sy[1], sy[2]});
-        const int64_t x0 = std::max<int64_t>(0, int64_t(std::ceil((sx_min + 4 - 128) / 256.0)));
-        const int64_t x1 = std::min<int64_t>(width - 1, int64_t(std::floor((sx_max - 4 - 128) / 256.0)));
-        const int64_t y0 = std::max<int64_t>(0, int64_t(std::ceil((sy_min + 4 - 128) / 256.0)));
-        const int64_t y1 = std::min<int64_t>(height - 1, int64_t(std::floor((sy_max - 4 - 128) / 256.0)));
+        const int64_t x0 = std::max<int64_t>(0, int64_t(std::ceil((sx_min + box_margin - 128) / 256.0)));
+        const int64_t x1 = std::min<int64_t>(width - 1, int64_t(std::floor((sx_max - box_margin - 128) / 256.0)));
+        const int64_t y0 = std::max<int64_t>(0, int64_t(std::ceil((sy_min + box_margin - 128) / 256.0)));
+        const int64_t y1 = std::min<int64_t>(height - 1, int64_t(std::floor((sy_max - box_margin - 128) / 256.0)));
         if (x0 > x1 || y0 > y1) continue;
         int64_t area2 = (sx[1] - sx[0]) * (sy[2] - sy[0]) - (sy[1] - sy[0]) * (sx[2] - sx[0]);
         if (area2 == 0) continue;
+        int corner[3] = {0, 1, 2};  // which input corner each counter-clockwise corner is
         if (area2 < 0) {
             std::swap(sx[1], sx[2]);
             std::swap(sy[1], sy[2]);
             std::swap(sz[1], sz[2]);
+            std::swap(corner[1], corner[2]);
             area2 = -area2;
         }
         const double dz1 = double(sz[1]) - double(sz[0]), dz2 = double(sz[2]) - double(sz[0]);
@@ -137,7 +160,16 @@ std::vector<float> referenceRaster(const Mesh& mesh, const Camera& camera) {
                 for (int k = 0; k < 3; ++k) {
                     const int a = (k + 1) % 3, b = (k + 2) % 3;
                     const int64_t ex = sx[b] - sx[a], ey = sy[b] - sy[a];
-                    inside = inside && ex * (cy - sy[a]) - ey * (cx - sx[a]) >= 4 * (std::abs(ex) + std::abs(ey));
+                    const int64_t e = ex * (cy - sy[a]) - ey * (cx - sx[a]);
+                    // the input edge between input corners i and j: from i to i+1 or from j to j+1
+                    const int i = corner[a], j = corner[b];
+                    const int input_edge = (i + 1) % 3 == j ? i : j;
+                    if (shared >> input_edge & 1) {
+                        const bool top_left = ey < 0 || (ey == 0 && ex < 0);
+                        inside = inside && (e > 0 || (e == 0 && top_left));
+                    } else {
+                        inside = inside && e >= 4 * (std::abs(ex) + std::abs(ey));
+                    }
                 }
                 if (!inside) continue;
                 const float d = z_ref + gy_px * float(py - y0) + gx_px * float(px - x0);
@@ -271,13 +303,103 @@ TEST(DepthRaster, TriangleLargerThanScreenCoversEveryPixel) {
     EXPECT_EQ(depth, referenceRaster(wall, c));
 }
 
-// The margin applies to every edge, shared or not: centres on the diagonal that splits a quad
-// into two triangles belong to neither and stay far. (Only occlusion is lost.)
-TEST(DepthRaster, CentresOnSharedEdgeStayFar) {
+// Vertex indices of an (nx + 1) x (ny + 1) grid of nx x ny quads, each split into two
+// counter-clockwise triangles (when the grid's x and y run right and up), along alternating
+// diagonals when `alternate` so that both directions of shared diagonal are drawn.
+std::vector<uint32_t> gridTriangles(uint32_t nx, uint32_t ny, bool alternate) {
+    std::vector<uint32_t> triangles;
+    for (uint32_t j = 0; j < ny; ++j)
+        for (uint32_t i = 0; i < nx; ++i) {
+            const uint32_t a = j * (nx + 1) + i, b = a + 1, d = a + nx + 1, e = d + 1;  // d e above a b
+            if (alternate && (i + j) % 2) {
+                triangles.insert(triangles.end(), {a, b, d, b, e, d});
+            } else {
+                triangles.insert(triangles.end(), {a, b, e, a, e, d});
+            }
+        }
+    return triangles;
+}
+
+// A square wall of n x n quads (side `side`, centred on the origin in the xy plane) placed by
+// `place`.
+Mesh wall(uint32_t n, float side, const glm::mat4& place, bool alternate) {
+    Mesh mesh;
+    for (uint32_t j = 0; j <= n; ++j)
+        for (uint32_t i = 0; i <= n; ++i) {
+            const glm::vec4 p(side * (float(i) / n - 0.5f), side * (float(j) / n - 0.5f), 0, 1);
+            mesh.positions.push_back(glm::vec3(place * p));
+        }
+    mesh.triangles = gridTriangles(n, n, alternate);
+    return mesh;
+}
+
+// How many pixels each triangle of the mesh covers on its own, with its own flags: tells
+// exactly which triangle covers which centre, even where they have the same depth.
+std::vector<int> coverageCounts(const Mesh& mesh, const Camera& c, const std::vector<uint8_t>& flags) {
+    std::vector<int> counts(uint64_t(c.width) * c.height, 0);
+    DepthRasterScratch scratch;
+    for (uint32_t t = 0; t < mesh.triangleCount(); ++t) {
+        Mesh one{mesh.positions, {mesh.triangles.begin() + 3 * t, mesh.triangles.begin() + 3 * t + 3}};
+        const std::vector<float> depth = rasterize(one, c, scratch, {flags[t]});
+        for (size_t i = 0; i < depth.size(); ++i) counts[i] += depth[i] < 1.0f;
+    }
+    return counts;
+}
+
+TEST(SharedEdgeFlags, QuadDiagonalIsSharedOuterEdgesAreNot) {
+    // 0 -> 1 -> 2 and 0 -> 2 -> 3: the diagonal is edge 2 (2 -> 0) of the first triangle and
+    // edge 0 (0 -> 2) of the second
+    EXPECT_EQ(sharedFlags({0, 1, 2, 0, 2, 3}), (std::vector<uint8_t>{4, 1}));
+    // the same quad with its triangles rotated and given in the other order
+    EXPECT_EQ(sharedFlags({2, 3, 0, 1, 2, 0}), (std::vector<uint8_t>{4, 2}));
+}
+
+TEST(SharedEdgeFlags, ClosedTetrahedronSharesEveryEdge) {
+    EXPECT_EQ(sharedFlags({0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3}), (std::vector<uint8_t>{7, 7, 7, 7}));
+}
+
+TEST(SharedEdgeFlags, EdgeOfThreeTrianglesIsNotShared) {
+    // 0-1 is used by all three (0 -> 1, 1 -> 0, 1 -> 0); 1-2 only by the first
+    EXPECT_EQ(sharedFlags({0, 1, 2, 1, 0, 3, 1, 0, 4}), (std::vector<uint8_t>{0, 0, 0}));
+    // and by four, two in each direction
+    EXPECT_EQ(sharedFlags({0, 1, 2, 1, 0, 3, 0, 1, 4, 1, 0, 5}), (std::vector<uint8_t>{0, 0, 0, 0}));
+}
+
+TEST(SharedEdgeFlags, SameDirectionDuplicateIsNotShared) {
+    EXPECT_EQ(sharedFlags({0, 1, 2, 0, 1, 3}), (std::vector<uint8_t>{0, 0}));
+    // a triangle given twice: every edge twice in the same direction
+    EXPECT_EQ(sharedFlags({4, 5, 6, 5, 6, 4}), (std::vector<uint8_t>{0, 0}));
+}
+
+TEST(SharedEdgeFlags, DegenerateEdgesAreNotShared) {
+    // 0 -> 1 -> 0 uses 0-1 both ways, but it is one triangle; 0 -> 0 is no edge
+    EXPECT_EQ(sharedFlags({0, 1, 0}), (std::vector<uint8_t>{0}));
+    EXPECT_EQ(sharedFlags({3, 3, 3, 3, 3, 3}), (std::vector<uint8_t>{0, 0}));
+    EXPECT_TRUE(sharedFlags(std::vector<uint32_t>{}).empty());
+}
+
+TEST(SharedEdgeFlags, GridSharesExactlyItsInteriorEdges) {
+    for (bool alternate : {false, true}) {
+        const uint32_t nx = 7, ny = 4;
+        const std::vector<uint8_t> flags = sharedFlags(gridTriangles(nx, ny, alternate));
+        int bits = 0;
+        for (uint8_t f : flags) bits += std::popcount(f);
+        // diagonals, then the edges between rows, then those between columns, each twice
+        EXPECT_EQ(bits, 2 * int(nx * ny + nx * (ny - 1) + (nx - 1) * ny)) << alternate;
+        // the first quad's two triangles: two outer edges, the diagonal, and two inner edges
+        EXPECT_EQ(std::popcount(flags[0]) + std::popcount(flags[1]), 4) << alternate;
+    }
+}
+
+// Without flags the margin applies to every edge, shared or not: centres on the diagonal that
+// splits a quad into two triangles belong to neither and stay far. With them the diagonal is
+// exact: each of its centres belongs to exactly one of the two triangles.
+TEST(DepthRaster, CentresOnSharedEdgeStayFarOnlyWithoutFlags) {
     const Camera c = perspectiveCamera(70, 50);
     Mesh quad;  // its diagonal projects to y - 25 = x - 35, through the centres with py = px - 10
-    quad.add(glm::vec3(-1000, -1000, -10), glm::vec3(1000, -1000, -10), glm::vec3(1000, 1000, -10));
-    quad.add(glm::vec3(-1000, -1000, -10), glm::vec3(1000, 1000, -10), glm::vec3(-1000, 1000, -10));
+    quad.positions = {glm::vec3(-1000, -1000, -10), glm::vec3(1000, -1000, -10), glm::vec3(1000, 1000, -10),
+                      glm::vec3(-1000, 1000, -10)};
+    quad.triangles = {0, 1, 2, 0, 2, 3};
     const std::vector<float> depth = rasterize(quad, c);
     for (uint32_t py = 0; py < 50; ++py)
         for (uint32_t px = 0; px < 70; ++px) {
@@ -287,6 +409,192 @@ TEST(DepthRaster, CentresOnSharedEdgeStayFar) {
                 EXPECT_LT(depth[py * 70 + px], 1.0f) << px << "," << py;
             }
         }
+
+    const std::vector<uint8_t> flags = sharedFlags(quad);
+    ASSERT_EQ(flags, (std::vector<uint8_t>{4, 1}));
+    EXPECT_EQ(coveredCount(rasterize(quad, c, flags)), 70 * 50);
+    const std::vector<int> counts = coverageCounts(quad, c, flags);
+    EXPECT_TRUE(std::all_of(counts.begin(), counts.end(), [](int n) { return n == 1; }));
+}
+
+// Which of the two triangles gets the centres exactly on their shared edge: the one for which
+// it is a left or top edge, counter-clockwise, whatever the winding of the input.
+TEST(DepthRaster, CentresOnSharedEdgeGoToTheTriangleWhoseLeftOrTopEdgeItIs) {
+    const Camera c = identityCamera(8, 8);
+    // diagonal from (-8, -8) to (16, 16), exactly through the centres with px = py
+    const glm::vec3 bl = atWindow(c, -8, -8, 0.5f), br = atWindow(c, 16, -8, 0.5f), tr = atWindow(c, 16, 16, 0.5f),
+                    tl = atWindow(c, -8, 16, 0.5f);
+    for (bool clockwise : {false, true}) {
+        Mesh quad;
+        quad.positions = {bl, br, tr, tl};
+        // In the lower-right triangle, counter-clockwise, the diagonal runs down-left (its left
+        // edge); in the upper-left one up-right (a right edge).
+        quad.triangles = clockwise ? std::vector<uint32_t>{0, 2, 1, 0, 3, 2} : std::vector<uint32_t>{0, 1, 2, 0, 2, 3};
+        const std::vector<uint8_t> flags = sharedFlags(quad);
+        const Mesh lower{quad.positions, {quad.triangles.begin(), quad.triangles.begin() + 3}};
+        const Mesh upper{quad.positions, {quad.triangles.begin() + 3, quad.triangles.end()}};
+        const std::vector<float> lower_depth = rasterize(lower, c, {flags[0]});
+        const std::vector<float> upper_depth = rasterize(upper, c, {flags[1]});
+        for (uint32_t p = 0; p < 8; ++p) {
+            EXPECT_LT(lower_depth[p * 8 + p], 1.0f) << p << " " << clockwise;
+            EXPECT_EQ(upper_depth[p * 8 + p], 1.0f) << p << " " << clockwise;
+        }
+        // and without flags neither
+        EXPECT_EQ(rasterize(lower, c)[9], 1.0f);
+    }
+    // A horizontal shared edge at y = 3.5 belongs to the triangle below it, for which it runs
+    // left (a top edge).
+    Mesh strip;
+    strip.positions = {atWindow(c, -8, -8, 0.5f), atWindow(c, 16, -8, 0.5f), atWindow(c, 16, 3.5f, 0.5f),
+                       atWindow(c, -8, 3.5f, 0.5f), atWindow(c, 4, 16, 0.5f)};
+    strip.triangles = {0, 1, 2, 0, 2, 3, 3, 2, 4};
+    const std::vector<uint8_t> flags = sharedFlags(strip);
+    ASSERT_EQ(flags, (std::vector<uint8_t>{4, 3, 1}));
+    const std::vector<int> below = coverageCounts(Mesh{strip.positions, {0, 1, 2, 0, 2, 3}}, c, {4, 3});
+    const std::vector<float> above = rasterize(Mesh{strip.positions, {3, 2, 4}}, c, {1});
+    for (uint32_t px = 0; px < 8; ++px) {
+        EXPECT_EQ(below[3 * 8 + px], 1) << px;
+        EXPECT_EQ(above[3 * 8 + px], 1.0f) << px;
+        EXPECT_LT(above[4 * 8 + px], 1.0f) << px;
+    }
+}
+
+// Corners on the half-pixel grid, so that many centres lie exactly on shared edges and exactly
+// on shared corners: the top-left rule gives each of them to exactly one triangle, whichever
+// way the diagonals run and whichever winding the triangles have.
+TEST(DepthRaster, SharedEdgesAndCornersCoverEachCentreExactlyOnce) {
+    const Camera c = identityCamera(48, 40);
+    std::mt19937 rng(5);
+    std::uniform_int_distribution<int> jitter(-2, 2);
+    for (bool alternate : {false, true})
+        for (bool mirrored : {false, true}) {
+            Mesh mesh;
+            const uint32_t n = 8;
+            for (uint32_t j = 0; j <= n; ++j)
+                for (uint32_t i = 0; i <= n; ++i) {
+                    // a 64 x 56 pixel grid around the viewport, corners moved by up to one pixel
+                    float x = -8.0f + 8.0f * i + 0.5f * jitter(rng), y = -8.0f + 7.0f * j + 0.5f * jitter(rng);
+                    if (mirrored) x = 48.0f - x;
+                    mesh.positions.push_back(atWindow(c, x, y, 0.5f + 0.01f * float(i + j)));
+                }
+            mesh.triangles = gridTriangles(n, n, alternate);
+            const std::vector<uint8_t> flags = sharedFlags(mesh);
+            const std::vector<int> counts = coverageCounts(mesh, c, flags);
+            for (uint32_t py = 0; py < c.height; ++py)
+                for (uint32_t px = 0; px < c.width; ++px)
+                    ASSERT_EQ(counts[py * c.width + px], 1) << px << "," << py << " " << alternate << mirrored;
+            EXPECT_EQ(rasterize(mesh, c, flags), referenceRaster(mesh, c, flags));
+        }
+}
+
+// The max-pyramid spreads every far pixel upwards: with the margin on shared edges, the cracks of
+// a tessellated wall that fills the screen turn its coarse levels far; with flags, no level has
+// a far texel.
+TEST(DepthRaster, TessellatedWallHasNoCracksAtAnyHzmLevel) {
+    const Camera c = perspectiveCamera(160, 128);
+    // 20 x 20 quads of about 9 pixels, turned a little about every axis so that its edges run
+    // at odd slopes through the pixel grid
+    const glm::mat4 place = glm::rotate(glm::rotate(glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(0, 0, -10)),
+                                                                0.13f, glm::vec3(0, 0, 1)),
+                                                    0.2f, glm::vec3(0, 1, 0)),
+                                        0.1f, glm::vec3(1, 0, 0));
+    HzmLevels layout;
+    hzmLayout(c.width, c.height, layout);
+    const uint32_t levels = layout.level_count;
+    auto farShares = [&](const Mesh& mesh, const std::vector<uint8_t>& flags) {
+        KernelArray<float> pyramid(size_t(hzmTotalTexels(c.width, c.height)));
+        const std::vector<float> depth = rasterize(mesh, c, flags);
+        std::copy(depth.begin(), depth.end(), pyramid.begin());
+        hzmBuild(pyramid.data(), c.width, c.height);
+        std::vector<double> shares;
+        for (uint32_t l = 0; l < levels; ++l) {
+            const float* level = pyramid.data() + layout.offset[l];
+            const uint64_t texels = uint64_t(layout.width[l]) * layout.height[l];
+            shares.push_back(double(std::count(level, level + texels, 1.0f)) / double(texels));
+        }
+        return shares;
+    };
+    for (bool alternate : {false, true}) {
+        const Mesh mesh = wall(20, 22.0f, place, alternate);
+        const std::vector<double> with_flags = farShares(mesh, sharedFlags(mesh));
+        for (uint32_t l = 0; l < levels; ++l) EXPECT_EQ(with_flags[l], 0.0) << "level " << l << " " << alternate;
+        // null flags: the margin on every edge, as before
+        const std::vector<double> without = farShares(mesh, {});
+        EXPECT_GT(without[0], 0.005) << alternate;
+        EXPECT_GT(without[3], 0.3) << alternate;
+        EXPECT_EQ(without[levels - 1], 1.0) << alternate;
+    }
+}
+
+// A wall that does not fill the screen: every texel of every level whose pixels all lie in the
+// wall, its boundary margin included, stays near.
+TEST(DepthRaster, TessellatedWallIsNearEverywhereInsideItsSilhouette) {
+    const Camera c = identityCamera(128, 96);
+    // a 20 x 20 quad wall turned by 0.1 radian about its centre (64, 48), 80 pixels on a side
+    const glm::mat4 place = glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(64, 48, 0)), 0.1f, glm::vec3(0, 0, 1));
+    Mesh mesh = wall(20, 80.0f, place, true);
+    for (glm::vec3& p : mesh.positions) p = atWindow(c, p.x, p.y, 0.4f + p.x / 1024.0f);
+    const std::vector<uint8_t> flags = sharedFlags(mesh);
+    KernelArray<float> pyramid(size_t(hzmTotalTexels(c.width, c.height)));
+    const std::vector<float> depth = rasterize(mesh, c, flags);
+    EXPECT_EQ(depth, referenceRaster(mesh, c, flags));
+    std::copy(depth.begin(), depth.end(), pyramid.begin());
+    hzmBuild(pyramid.data(), c.width, c.height);
+    HzmLevels layout;
+    hzmLayout(c.width, c.height, layout);
+    // inside the wall: the centre rotated back into the wall's frame lies 1/16 pixel inside
+    const float half = 40.0f - 1.0f / 16, cos_a = std::cos(0.1f), sin_a = std::sin(0.1f);
+    auto inside = [&](float x, float y) {
+        const float dx = x - 64, dy = y - 48;
+        return std::abs(cos_a * dx + sin_a * dy) < half && std::abs(-sin_a * dx + cos_a * dy) < half;
+    };
+    int near_texels[3] = {0, 0, 0};
+    for (uint32_t l = 0; l < layout.level_count; ++l) {
+        const uint32_t size = 1u << l;  // pixels per texel side (the last odd ones fold in: skipped)
+        for (uint32_t ty = 0; ty < layout.height[l]; ++ty)
+            for (uint32_t tx = 0; tx < layout.width[l]; ++tx) {
+                const uint32_t x0 = tx * size, y0 = ty * size;
+                if (x0 + size > c.width || y0 + size > c.height) continue;
+                // the texel's corner centres inside a convex wall: all of its centres are
+                if (!inside(x0 + 0.5f, y0 + 0.5f) || !inside(x0 + size - 0.5f, y0 + 0.5f) ||
+                    !inside(x0 + 0.5f, y0 + size - 0.5f) || !inside(x0 + size - 0.5f, y0 + size - 0.5f))
+                    continue;
+                EXPECT_LT(pyramid[layout.offset[l] + ty * layout.width[l] + tx], 1.0f)
+                    << "level " << l << " texel " << tx << "," << ty;
+                if (l < 3) ++near_texels[l];
+            }
+    }
+    EXPECT_GT(near_texels[0], 5000);
+    EXPECT_GT(near_texels[2], 300);
+}
+
+// Flags leave the boundary alone: the margin still holds on an outer edge of a quad whose
+// diagonal is shared (the test above for one triangle, now for a flagged pair).
+TEST(DepthRaster, BoundaryEdgesKeepTheMarginWithSharedEdges) {
+    const Camera c = identityCamera(8, 8);
+    auto columnTwoCovered = [&](float inset) {
+        // left edge at x = 2.5 - inset from y = -16 to 24, the rest far off screen
+        const float x = 2.5f - inset;
+        Mesh quad;
+        quad.positions = {atWindow(c, x, -16, 0.5f), atWindow(c, 40, -16, 0.5f), atWindow(c, 40, 24, 0.5f),
+                          atWindow(c, x, 24, 0.5f)};
+        quad.triangles = {0, 1, 2, 0, 2, 3};
+        const std::vector<uint8_t> flags = sharedFlags(quad);
+        EXPECT_EQ(flags, (std::vector<uint8_t>{4, 1}));
+        const std::vector<float> d = rasterize(quad, c, flags);
+        EXPECT_EQ(d, referenceRaster(quad, c, flags));
+        int column_two = 0;
+        for (uint32_t py = 0; py < 8; ++py) {
+            column_two += d[py * 8 + 2] < 1.0f;
+            EXPECT_EQ(d[py * 8 + 1], 1.0f);
+            for (uint32_t px = 3; px < 8; ++px) EXPECT_LT(d[py * 8 + px], 1.0f) << px << "," << py;
+        }
+        EXPECT_TRUE(column_two == 0 || column_two == 8) << inset;
+        return column_two == 8;
+    };
+    EXPECT_FALSE(columnTwoCovered(0.0f));        // on the edge
+    EXPECT_FALSE(columnTwoCovered(1.0f / 128));  // inside, but closer than the margin
+    EXPECT_TRUE(columnTwoCovered(1.0f / 64));    // exactly the margin
 }
 
 TEST(DepthRaster, CornerOutsideGuardBandOrTooDeepSkipsTriangle) {
@@ -326,7 +634,8 @@ TEST(DepthRaster, EveryTriangleOfALargeSceneLands) {
 
 TEST(DepthRaster, ViewportBeyondLimitIsRejected) {
     DepthRasterScratch scratch;
-    EXPECT_THROW(depthRaster(nullptr, nullptr, 0, identityCamera(32769, 1), nullptr, scratch), std::invalid_argument);
+    EXPECT_THROW(depthRaster(nullptr, nullptr, 0, nullptr, identityCamera(32769, 1), nullptr, scratch),
+                 std::invalid_argument);
 }
 
 // The push must outweigh the rounding of the float plane evaluation for every triangle, the
@@ -412,6 +721,112 @@ Mesh coplanarScene(std::mt19937& rng, const Camera& c, uint32_t triangle_count) 
         mesh.add(corner(), corner(), corner());
     }
     return mesh;
+}
+
+void append(Mesh& into, const Mesh& piece) {
+    const uint32_t base = uint32_t(into.positions.size());
+    into.positions.insert(into.positions.end(), piece.positions.begin(), piece.positions.end());
+    for (uint32_t i : piece.triangles) into.triangles.push_back(base + i);
+}
+
+// Random indexed meshes in front of (and around, and behind) the perspective camera: grids of
+// every size, bumpy enough that some fold over on screen, and fans, some closed. A few
+// triangles are turned round or given twice, so that edges used in the same direction or by
+// three triangles are there too.
+Mesh randomSharedScene(std::mt19937& rng, uint32_t piece_count) {
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    std::uniform_real_distribution<float> angle(0.0f, 6.2831853f);
+    std::uniform_real_distribution<float> log_size(std::log(0.02f), std::log(40.0f));
+    std::uniform_real_distribution<float> distance(-2.0f, 60.0f);
+    std::uniform_int_distribution<int> cells(1, 16), rim(3, 12), percent(0, 99);
+    Mesh scene;
+    for (uint32_t p = 0; p < piece_count; ++p) {
+        const float z = -distance(rng);
+        const glm::vec3 centre(unit(rng) * (0.7f * std::abs(z) + 1.0f), unit(rng) * (0.6f * std::abs(z) + 1.0f), z);
+        const float size = std::exp(log_size(rng));
+        const glm::mat4 place = glm::rotate(glm::translate(glm::mat4(1.0f), centre), angle(rng),
+                                            glm::normalize(glm::vec3(unit(rng), unit(rng), unit(rng)) + 0.01f));
+        Mesh piece;
+        if (p % 3 != 2) {
+            const uint32_t nx = uint32_t(cells(rng)), ny = uint32_t(cells(rng));
+            const float bump = percent(rng) < 50 ? 0.0f : 0.5f * size / float(std::max(nx, ny));
+            for (uint32_t j = 0; j <= ny; ++j)
+                for (uint32_t i = 0; i <= nx; ++i) {
+                    const glm::vec4 local(size * (float(i) / nx - 0.5f), size * (float(j) / ny - 0.5f), bump * unit(rng), 1);
+                    piece.positions.push_back(glm::vec3(place * local));
+                }
+            piece.triangles = gridTriangles(nx, ny, percent(rng) < 50);
+        } else {
+            const uint32_t n = uint32_t(rim(rng));
+            const bool closed = percent(rng) < 70;
+            piece.positions.push_back(glm::vec3(place * glm::vec4(0, 0, 0.2f * size * unit(rng), 1)));
+            for (uint32_t i = 0; i < n; ++i) {
+                const float a = 6.2831853f * (float(i) + 0.3f * unit(rng)) / float(n);
+                const float r = size * (0.5f + 0.4f * unit(rng));
+                piece.positions.push_back(glm::vec3(place * glm::vec4(r * std::cos(a), r * std::sin(a), 0.2f * size * unit(rng), 1)));
+            }
+            for (uint32_t i = 0; i < (closed ? n : n - 1); ++i)
+                piece.triangles.insert(piece.triangles.end(), {0, 1 + i, 1 + (i + 1) % n});
+        }
+        const size_t corners = piece.triangles.size();
+        for (size_t t = 0; t < corners; t += 3) {
+            const int roll = percent(rng);
+            if (roll < 3) std::swap(piece.triangles[t + 1], piece.triangles[t + 2]);
+            if (roll >= 97) {
+                const uint32_t again[3] = {piece.triangles[t], piece.triangles[t + 1], piece.triangles[t + 2]};
+                piece.triangles.insert(piece.triangles.end(), again, again + 3);
+            }
+        }
+        append(scene, piece);
+    }
+    return scene;
+}
+
+// Grids whose corners sit on the half-pixel grid under the identity camera, so that centres lie
+// exactly on shared edges and corners, and exactly at the margin of boundary ones.
+Mesh gridOnHalfPixels(std::mt19937& rng, const Camera& c, uint32_t piece_count) {
+    std::uniform_int_distribution<int> half_pixel(-8, 2 * int(c.width) + 8), cells(1, 6), step(1, 12), percent(0, 99);
+    Mesh scene;
+    for (uint32_t p = 0; p < piece_count; ++p) {
+        const uint32_t nx = uint32_t(cells(rng)), ny = uint32_t(cells(rng));
+        const int x0 = half_pixel(rng), y0 = half_pixel(rng), dx = step(rng), dy = step(rng), shear = step(rng) - 6;
+        Mesh piece;
+        for (uint32_t j = 0; j <= ny; ++j)
+            for (uint32_t i = 0; i <= nx; ++i) {
+                const float x = 0.5f * float(x0 + int(i) * dx + int(j) * shear) + (percent(rng) < 20 ? 1.0f / 64 : 0.0f);
+                const float y = 0.5f * float(y0 + int(j) * dy);
+                piece.positions.push_back(atWindow(c, x, y, float(percent(rng) + 100) / 256.0f));
+            }
+        piece.triangles = gridTriangles(nx, ny, percent(rng) < 50);
+        append(scene, piece);
+    }
+    return scene;
+}
+
+TEST(DepthRaster, RandomMeshesWithSharedEdgesMatchScalarReferenceBitForBit) {
+    std::mt19937 rng(17);
+    DepthRasterScratch scratch;
+    const uint32_t sizes[][3] = {{77, 45, 60}, {256, 256, 400}, {31, 97, 90}, {512, 384, 150}};
+    uint64_t shared_bits = 0, covered = 0;
+    for (const auto& size : sizes) {
+        const Camera c = perspectiveCamera(size[0], size[1]);
+        const Mesh mesh = randomSharedScene(rng, size[2]);
+        const std::vector<uint8_t> flags = sharedFlags(mesh);
+        for (uint8_t f : flags) shared_bits += std::popcount(f);
+        const std::vector<float> depth = rasterize(mesh, c, scratch, flags);
+        EXPECT_EQ(depth, referenceRaster(mesh, c, flags)) << size[0] << "x" << size[1];
+        covered += coveredCount(depth);
+        // null flags still draw the old rules
+        EXPECT_EQ(rasterize(mesh, c, scratch), referenceRaster(mesh, c)) << size[0] << "x" << size[1];
+    }
+    EXPECT_GT(shared_bits, 20000u);
+    EXPECT_GT(covered, 50000u);
+    for (uint32_t w : {8u, 33u, 64u}) {
+        const Camera c = identityCamera(w, w);
+        const Mesh grid = gridOnHalfPixels(rng, c, 40);
+        const std::vector<uint8_t> flags = sharedFlags(grid);
+        EXPECT_EQ(rasterize(grid, c, scratch, flags), referenceRaster(grid, c, flags)) << w;
+    }
 }
 
 TEST(DepthRaster, RandomScenesMatchScalarReferenceBitForBit) {
