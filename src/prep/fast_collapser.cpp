@@ -104,27 +104,29 @@ private:
 
     // An edge used by one triangle is a boundary, by three or more a non-manifold seam: both
     // ends stay, so open CAD sheets keep their outline and non-manifold input stays intact.
+    // Each vertex counts, through its incidence list, how many of its triangles use the edge to
+    // each neighbour (no global sort of edge keys needed).
     void lockNonManifoldEdges() {
-        std::vector<uint64_t> edges;
-        edges.reserve(size_t(t_) * 3);
-        for (uint32_t t = 0; t < t_; ++t)
-            for (int c = 0; c < 3; ++c) {
-                const uint32_t a = corner_[3 * t + c], b = corner_[3 * t + (c + 1) % 3];
-                edges.push_back((uint64_t(std::min(a, b)) << 32) | std::max(a, b));
+        std::vector<uint32_t> uses(n_, 0), touched;
+        for (uint32_t v = 0; v < n_; ++v) {
+            if (head_[v] == kNone) {
+                locked_[v] = 1;  // a vertex used by no triangle has nothing to collapse along
+                continue;
             }
-        std::sort(edges.begin(), edges.end());
-        for (size_t i = 0; i < edges.size();) {
-            size_t j = i;
-            while (j < edges.size() && edges[j] == edges[i]) ++j;
-            if (j - i != 2) {
-                locked_[edges[i] >> 32] = 1;
-                locked_[edges[i] & 0xFFFFFFFFu] = 1;
+            touched.clear();
+            for (uint32_t node = head_[v]; node != kNone; node = node_next_[node]) {
+                const uint32_t t = node_tri_[node];
+                for (int c = 0; c < 3; ++c) {
+                    const uint32_t w = corner_[3 * t + c];
+                    if (w == v) continue;
+                    if (uses[w]++ == 0) touched.push_back(w);
+                }
             }
-            i = j;
+            for (uint32_t w : touched) {
+                if (uses[w] != 2) locked_[v] = locked_[w] = 1;
+                uses[w] = 0;
+            }
         }
-        // A vertex used by no triangle has nothing to collapse along.
-        for (uint32_t v = 0; v < n_; ++v)
-            if (head_[v] == kNone) locked_[v] = 1;
     }
 
     void buildQuadrics() {
@@ -190,13 +192,13 @@ private:
     void pushBest(uint32_t u) {
         float best = INFINITY;
         uint32_t target = kNone;
+        // u is unlocked, so its fan is a closed disk: the corner after u in each triangle visits
+        // every neighbour exactly once.
         forTriangles(u, [&](uint32_t t) {
-            for (int c = 0; c < 3; ++c) {
-                const uint32_t w = corner_[3 * t + c];
-                if (w == u) continue;
-                const float e = cost(u, w);
-                if (e < best || (e == best && w < target)) best = e, target = w;
-            }
+            const uint32_t* c = &corner_[3 * t];
+            const uint32_t w = c[0] == u ? c[1] : (c[1] == u ? c[2] : c[0]);
+            const float e = cost(u, w);
+            if (e < best || (e == best && w < target)) best = e, target = w;
         });
         ++stamp_[u];
         best_cost_[u] = best;
