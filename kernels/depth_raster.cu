@@ -27,9 +27,9 @@ struct DepthRasterVertex {
 };
 static_assert(sizeof(DepthRasterVertex) == 16);
 
-// One triangle after projection and snapping, as the tiles read it. 52 bytes padded to a cache
-// line (alignas): tiles read triangles in scattered order, and at 48 bytes half of them
-// straddled two lines.
+// One triangle after projection and snapping, as the tiles read it: 52 bytes, padded to a cache
+// line (alignas) since tiles read triangles in scattered order and one line per triangle is
+// the least they can touch.
 struct alignas(64) DepthRasterTriangle {
     int32_t x[3], y[3];  // window position in 1/256 pixel, counter-clockwise (y up)
     // The depth written at pixel (px, py) is the plane
@@ -408,40 +408,45 @@ struct RasterTiles {
 }  // namespace
 
 void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* flags) {
-    // Every edge under its undirected key (smaller index, larger index); sorting brings the
-    // triangles using one edge together, whatever the indices (a counting sort by vertex would
-    // need them compact).
-    struct Use {
+    // One slot per undirected edge (smaller index, larger index) in an open-addressing hash
+    // table, whatever the indices, holding its first two uses and how many there are (up to 3).
+    // More than 1.5 slots per use keeps it under 2/3 full even when no edge is shared.
+    struct Slot {
         uint64_t key;
-        uint32_t triangle;
-        uint8_t edge, forward;  // forward: runs from the smaller index to the larger
+        uint32_t triangle[2];
+        uint8_t edge[2], forward[2];  // forward: runs from the smaller index to the larger
+        uint8_t count;                // 0: empty
     };
-    std::vector<Use> uses;
-    uses.reserve(size_t(tri_count) * 3);
+    const size_t uses = 3 * size_t(tri_count);
+    uint32_t bits = 4;
+    while ((size_t(1) << bits) <= uses + uses / 2) ++bits;
+    const size_t mask = (size_t(1) << bits) - 1;
+    std::vector<Slot> slots(mask + 1);
     for (uint32_t t = 0; t < tri_count; ++t) {
         flags[t] = 0;
         for (uint8_t e = 0; e < 3; ++e) {
             const uint32_t a = triangles[3 * size_t(t) + e], b = triangles[3 * size_t(t) + (e + 1) % 3];
             if (a == b) continue;  // a degenerate edge borders nothing
             const uint64_t key = a < b ? uint64_t(a) << 32 | b : uint64_t(b) << 32 | a;
-            uses.push_back({key, t, e, uint8_t(a < b)});
-        }
-    }
-    std::sort(uses.begin(), uses.end(), [](const Use& l, const Use& r) { return l.key < r.key; });
-    for (size_t i = 0; i < uses.size();) {
-        size_t j = i + 1;
-        while (j < uses.size() && uses[j].key == uses[i].key) ++j;
-        // Shared: exactly two uses, by two triangles, in opposite directions.
-        if (j - i == 2) {
-            const Use& u = uses[i];
-            const Use& v = uses[i + 1];
-            if (u.forward != v.forward && u.triangle != v.triangle) {
-                flags[u.triangle] |= uint8_t(1u << u.edge);
-                flags[v.triangle] |= uint8_t(1u << v.edge);
+            // Fibonacci hashing: the top bits of key * 2^64 / golden ratio.
+            size_t i = size_t((key * 0x9E3779B97F4A7C15ull) >> (64 - bits));
+            while (slots[i].count && slots[i].key != key) i = (i + 1) & mask;
+            Slot& slot = slots[i];
+            slot.key = key;
+            if (slot.count < 2) {
+                slot.triangle[slot.count] = t;
+                slot.edge[slot.count] = e;
+                slot.forward[slot.count] = a < b;
             }
+            if (slot.count < 3) ++slot.count;
         }
-        i = j;
     }
+    // Shared: exactly two uses, by two triangles, in opposite directions.
+    for (const Slot& slot : slots)
+        if (slot.count == 2 && slot.forward[0] != slot.forward[1] && slot.triangle[0] != slot.triangle[1]) {
+            flags[slot.triangle[0]] |= uint8_t(1u << slot.edge[0]);
+            flags[slot.triangle[1]] |= uint8_t(1u << slot.edge[1]);
+        }
 }
 
 void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,

@@ -12,18 +12,23 @@ namespace occ::k {
 // Window coordinates are snapped to 1/256 pixel, the sub-pixel grid GPUs rasterise on (8 bits,
 // D3D11 and Vulkan's usual subPixelPrecisionBits), so coverage is decided exactly in integers
 // and the same on every back end. A pixel centre is covered when it lies inside the snapped
-// triangle at least kDepthRasterMarginUnits/256 pixel (1/64) from every boundary edge, so a
-// pixel centre on an occluder's boundary, or within 1/64 pixel of it, is never covered: whatever
-// fill rule a GPU uses, the occluder never covers a centre it does not really cover.
+// triangle at least kDepthRasterMarginUnits/256 pixel (1/64) from every edge not shared within
+// its mesh, so a pixel centre on an occluder's boundary, or within 1/64 pixel of it, is never
+// covered: whatever fill rule a GPU uses, the occluder never covers a centre it does not really
+// cover.
 // Edges shared within a mesh (sharedEdgeFlags) lie inside the occluder, where the margin would
 // leave a crack that no triangle covers and that the max-pyramid spreads over its coarse levels.
-// They take no margin but the top-left tie rule on the snapped edge functions instead: a centre
-// strictly inside either triangle is covered by it, and one exactly on the edge by exactly one
-// of the two, so that a tessellated surface covers every centre inside its boundary margin.
+// They take no margin but the top-left tie rule on the snapped edge functions instead (D3D's):
+// a centre exactly on the edge is covered by the triangle for which, taken counter-clockwise
+// with y up, the edge runs down or runs left horizontally, so by exactly one of the two, and a
+// tessellated surface covers every centre inside its boundary margin, corners where shared
+// edges meet included.
 // (Where a mesh folds over on screen, its two triangles on the same side of the shared edge,
-// that edge is a silhouette drawn exactly, as a GPU's top-left rule draws it from the same
-// snapped corners: only there can a GPU's different rounding of a corner, below 1/256 pixel,
-// uncover a centre that this raster covers.)
+// as at every silhouette of a closed mesh, that edge is a boundary drawn exactly, as a GPU's
+// top-left rule draws it from the same snapped corners: only there can a GPU's different
+// rounding of a corner, below 1/256 pixel, uncover a centre that this raster covers. On
+// plant20k's walk with 30 K PVS occluder triangles, 10 % of the shared edges drawn are such
+// folds, and keeping the margin on them would uncover 0.06 % of the covered pixels.)
 inline constexpr int32_t kDepthRasterSubpixelUnits = 256;
 inline constexpr int32_t kDepthRasterMarginUnits = 4;
 // A covered pixel gets the triangle's window depth at its centre pushed away, the MIN over every
@@ -62,8 +67,9 @@ struct DepthRasterScratch {
 // use in the same direction, or whose two corners are one index are not shared (they keep the
 // margin, which only loses occlusion).
 // triangles: 3 * tri_count corner indices, any values (may be empty). flags: tri_count bytes.
-// Host code, one thread. Cost: a sort of the 3 * tri_count edges, O(n log n) time and 16 bytes
-// per edge of temporary memory (a few ms for 100 K triangles).
+// Host code, one thread. Cost: a hash table of the edges, O(tri_count) expected time and 24
+// bytes per slot, 4.5 to 9 slots per triangle, of temporary memory (108 to 216 bytes per
+// triangle); the 3.7 M triangles of the 20 000 meshes of plant20k.oss take 0.17 s on one core.
 void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* flags);
 
 // Conservative software depth rasterisation of occluder triangles into a W x H depth buffer,
