@@ -182,6 +182,25 @@ TEST(Pipeline, VertexBudgetIsRespectedUpToTheFloors) {
     }
 }
 
+// Beyond the paper: a frame whose view (so complexities and drawn set) did not change streams,
+// moves and reforms nothing, and still draws the right thing.
+TEST(Pipeline, AnUnchangedFrameStreamsMovesAndReformsNothing) {
+    const PipelineFixture& f = fixture();
+    // Occluders from Eq. 3 only, so that what a frame culls depends on its camera alone.
+    PipelineOptions options = smallOptions(StreamMode::Coherent);
+    options.pvs_occluder_triangles = 0;
+    Pipeline pipeline(*f.file, options);
+    for (size_t frame = 0; frame < 6; ++frame) pipeline.runFrame(f.cameras[frame], frame);
+    const CameraPose still = f.cameras[5];
+    const FrameStats repeat = pipeline.runFrame(still, 6);
+    EXPECT_EQ(repeat.streamed_bytes, 0u);
+    EXPECT_EQ(repeat.moved_bytes, 0u);
+    options.stream = StreamMode::NonCoherent;
+    Pipeline fresh(*f.file, options);
+    fresh.runFrame(still, 0);
+    EXPECT_EQ(drawnGeometry(pipeline), drawnGeometry(fresh));
+}
+
 TEST(Pipeline, FullModeDrawsEveryFrustumObjectAtFullDetail) {
     const PipelineFixture& f = fixture();
     PipelineOptions options = smallOptions(StreamMode::Coherent);
