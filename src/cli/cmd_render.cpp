@@ -45,6 +45,13 @@ int runRender(RenderOptions o) {
 
     std::ofstream csv;
     std::string tmp;
+    // The stats file appears whole or not at all: a failed run removes its partial temporary.
+    struct RemoveOnFailure {
+        std::string* path;
+        ~RemoveOnFailure() {
+            if (!path->empty()) std::remove(path->c_str());
+        }
+    } cleanup{&tmp};
     if (!o.stats.empty()) {
         tmp = o.stats + ".tmp";
         csv.open(tmp, std::ios::trunc);
@@ -66,6 +73,7 @@ int runRender(RenderOptions o) {
         csv.close();
         if (!csv) throw InputError(o.stats, "write failed");
         std::filesystem::rename(tmp, o.stats);
+        tmp.clear();
     }
     const double frames = double(cameras.size());
     std::printf("render: %s, %zu frames at %ux%u, mode %s, stream %s, backend %s: mean %.2f ms/frame (%.1f fps); "
