@@ -7,6 +7,18 @@
 
 #if defined(__CUDACC__)
 #include <cuda_runtime.h>
+
+#include <stdexcept>
+
+// Every CUDA runtime call goes through this: a failure becomes one exception naming the call,
+// where it was made and CUDA's own words (e.g. "no CUDA-capable device is detected").
+#define OCC_CUDA_CHECK(call)                                                                           \
+    do {                                                                                               \
+        const cudaError_t occ_cuda_status = (call);                                                    \
+        if (occ_cuda_status != cudaSuccess)                                                            \
+            throw std::runtime_error(std::string("CUDA: ") + #call + " failed at " + __FILE__ + ":" +  \
+                                     std::to_string(__LINE__) + ": " + cudaGetErrorString(occ_cuda_status)); \
+    } while (0)
 #endif
 
 namespace occ::k {
@@ -15,14 +27,13 @@ namespace occ::k {
 
 void* kernelAlloc(size_t bytes) {
     void* p = nullptr;
-    const cudaError_t e = cudaMallocManaged(&p, bytes ? bytes : 1);
-    if (e != cudaSuccess) throw std::bad_alloc();
+    OCC_CUDA_CHECK(cudaMallocManaged(&p, bytes ? bytes : 1));
     return p;
 }
 void kernelFree(void* p) {
-    if (p) cudaFree(p);
+    if (p) cudaFree(p);  // in destructors: a failure here has nowhere to go
 }
-void kernelSynchronize() { cudaDeviceSynchronize(); }
+void kernelSynchronize() { OCC_CUDA_CHECK(cudaDeviceSynchronize()); }
 const char* kernelBackend() { return "cuda"; }
 
 #else
