@@ -2,6 +2,7 @@
 #include "import/plant.h"
 
 #include "scene/errors.h"
+#include "scene/splitmix.h"
 
 #include <algorithm>
 #include <array>
@@ -64,19 +65,10 @@ const std::array<glm::vec4, 6> kPipeColours{{{0.95f, 0.80f, 0.10f, 1.0f},
                                              {0.30f, 0.50f, 0.85f, 1.0f},
                                              {0.95f, 0.50f, 0.10f, 1.0f}}};
 
-// splitmix64 (Steele, Lea & Flood, "Fast splittable pseudorandom number generators", 2014).
-// Our own generator and our own conversions, because std:: distributions differ between
-// standard libraries and the scene must not.
-class Random {
+// The plant's random choices, on our own generator (scene/splitmix.h).
+class Random : public SplitMix64 {
 public:
-    explicit Random(uint64_t seed) : state_(seed) {}
-
-    uint64_t next() {
-        uint64_t z = (state_ += 0x9e3779b97f4a7c15ull);
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-        return z ^ (z >> 31);
-    }
+    using SplitMix64::SplitMix64;
     float unit() { return float(next() >> 40) * 0x1p-24f; }  // [0, 1)
     float uniform(float lo, float hi) { return lo + (hi - lo) * unit(); }
     // Sizes and tessellations in a plant are heavy-tailed: many small pipes, few large ones.
@@ -88,9 +80,6 @@ public:
     const T& pick(const std::array<T, N>& items) {
         return items[below(uint32_t(N))];
     }
-
-private:
-    uint64_t state_;
 };
 
 glm::mat4 translation(const glm::vec3& t) {

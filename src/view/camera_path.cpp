@@ -3,6 +3,7 @@
 
 #include "scene/errors.h"
 #include "scene/oss_file.h"
+#include "scene/splitmix.h"
 
 #include <glm/gtc/type_ptr.hpp>
 
@@ -293,22 +294,12 @@ constexpr double kLookAhead = 6.0;    // cells
 constexpr double kMaxTurnDegrees = kWalkMaxTurnDegreesPerFrame;
 constexpr double kNearInCells = 0.2;
 
-// splitmix64 (Steele, Lea & Flood, "Fast splittable pseudorandom number generators", 2014): the
-// same stream on every platform, unlike the standard distributions.
-class Random {
+// The walk's random choices, on our own generator (scene/splitmix.h).
+class Random : public SplitMix64 {
 public:
-    explicit Random(uint64_t seed) : state_(seed) {}
-    uint64_t next() {
-        uint64_t z = (state_ += 0x9e3779b97f4a7c15ull);
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-        return z ^ (z >> 31);
-    }
+    using SplitMix64::SplitMix64;
     double uniform() { return double(next() >> 11) * 0x1.0p-53; }  // [0, 1)
     uint64_t below(uint64_t n) { return uint64_t(uniform() * double(n)); }
-
-private:
-    uint64_t state_;
 };
 
 // Directions of rays and of the walk in cells, in 45 degree steps from +x towards +z.
