@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "defragment.h"
+#include "host_side.h"
 
 #include <thrust/copy.h>
 #include <thrust/execution_policy.h>
@@ -224,13 +225,6 @@ DefragmentCounts defragment(const ActiveLayout& previous, const ActiveLayout& cu
 }
 
 namespace {
-
-// NS copies from host memory, so it runs where the scene lives (see stream_collect.cu).
-#if defined(__CUDACC__)
-const auto& kHostSide = thrust::host;
-#else
-const auto& kHostSide = thrust::device;
-#endif
 
 template <class T, int W>
 uint64_t copyObjectByObject(const BlockColumn& current, const T* source, const uint64_t* mesh_first,

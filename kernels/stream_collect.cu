@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "stream_collect.h"
+#include "host_side.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
@@ -15,14 +16,6 @@
 namespace occ::k {
 
 namespace {
-
-// The gather reads the scene where it lives, in host memory. Under nvcc that is Thrust's host
-// system; in the CPU build the device system (TBB) works on host memory too, and in parallel.
-#if defined(__CUDACC__)
-const auto& kHostSide = thrust::host;
-#else
-const auto& kHostSide = thrust::device;
-#endif
 
 struct StagedLength {
     BlockColumn previous, current;
