@@ -579,13 +579,7 @@ Command addBenchCommand(CLI::App& app) {
         ->capture_default_str();
     return {bench, [o, prep, po, size] {
                 if (prep->parsed()) return runBenchPrep(*o);
-                unsigned long w = 0, h = 0;
-                char x = 0;
-                if (std::sscanf(size->c_str(), "%lu%c%lu", &w, &x, &h) != 3 || x != 'x' || w == 0 || h == 0 ||
-                    w > 16384 || h > 16384)
-                    throw UsageError("--size " + *size + ": expected WxH, e.g. 512x512");
-                po->width = uint32_t(w);
-                po->height = uint32_t(h);
+                parseViewportSize("--size", *size, po->width, po->height);
                 return runPipelineBench(*po);
             }};
 }

@@ -21,18 +21,9 @@ struct RenderOptions {
     PipelineOptions pipeline;
 };
 
-void parseSize(const std::string& s, uint32_t& w, uint32_t& h) {
-    unsigned long a = 0, b = 0;
-    char x = 0, extra = 0;
-    if (std::sscanf(s.c_str(), "%lu%c%lu%c", &a, &x, &b, &extra) != 3 || x != 'x' || a == 0 || b == 0 ||
-        a > 16384 || b > 16384)
-        throw UsageError("--size " + s + ": expected WxH with 1 <= W, H <= 16384, e.g. 512x512");
-    w = uint32_t(a);
-    h = uint32_t(b);
-}
 
 int runRender(RenderOptions o) {
-    parseSize(o.size, o.pipeline.width, o.pipeline.height);
+    parseViewportSize("--size", o.size, o.pipeline.width, o.pipeline.height);
     o.pipeline.mode = parseCullMode(o.mode);
     o.pipeline.stream = parseStreamMode(o.stream);
     if (!o.no_display)
@@ -87,6 +78,16 @@ int runRender(RenderOptions o) {
 }
 
 }  // namespace
+
+void parseViewportSize(const std::string& option, const std::string& text, uint32_t& width, uint32_t& height) {
+    unsigned long a = 0, b = 0;
+    char x = 0, extra = 0;
+    if (std::sscanf(text.c_str(), "%lu%c%lu%c", &a, &x, &b, &extra) != 3 || x != 'x' || a == 0 || b == 0 ||
+        a > 16384 || b > 16384)
+        throw UsageError(option + " " + text + ": expected WxH with 1 <= W, H <= 16384, e.g. 512x512");
+    width = uint32_t(a);
+    height = uint32_t(b);
+}
 
 Command addRenderCommand(CLI::App& app) {
     auto o = std::make_shared<RenderOptions>();

@@ -14,6 +14,9 @@ struct Command {
     std::function<int()> run;
 };
 
+// Parses a viewport "WxH" (1 <= W, H <= 16384); throws UsageError naming `option` otherwise.
+void parseViewportSize(const std::string& option, const std::string& text, uint32_t& width, uint32_t& height);
+
 Command addInfoCommand(CLI::App& app);
 Command addGenCommand(CLI::App& app);
 Command addPrepCommand(CLI::App& app);

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "prep/hausdorff.h"
 
+#include "scene/splitmix.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -73,23 +75,9 @@ inline glm::vec3 closestPoint(const glm::vec3& p, const glm::vec3& a, const glm:
     return a + ab * (vb / sum) + ac * (vc / sum);
 }
 
-// SplitMix64 (Steele, Lea & Flood 2014, "Fast splittable pseudorandom number generators"):
-// tiny, seedable with any value, and the same sequence on every platform, unlike
-// std::uniform_real_distribution whose output the standard leaves to the implementation.
-class SplitMix64 {
-public:
-    explicit SplitMix64(uint64_t seed) : state_(seed) {}
-    uint64_t next() {
-        uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
-    }
-    double uniform() { return double(next() >> 11) * 0x1.0p-53; }  // [0, 1)
-
-private:
-    uint64_t state_;
-};
+// Uniform in [0, 1) from our seeded generator (scene/splitmix.h): the same samples on every
+// platform, unlike std::uniform_real_distribution whose output the standard leaves open.
+double uniform(SplitMix64& rng) { return double(rng.next() >> 11) * 0x1.0p-53; }
 
 // Bounding volume hierarchy over the triangles of one mesh, for closest-point queries: binary,
 // median split of the centroids along the longest axis, up to kLeafSize triangles per leaf.
@@ -270,10 +258,10 @@ std::vector<glm::vec3> sampleSurface(std::span<const glm::vec3> positions, std::
     for (uint32_t i = 0; i < count; ++i) {
         // Stratified: sample i lands in the i-th of `count` equal slices of the total area, so
         // the positions along the cumulative area rise and t only ever moves forward.
-        const double u = (double(i) + rng.uniform()) / double(count) * total;
+        const double u = (double(i) + uniform(rng)) / double(count) * total;
         while (t + 1 < tc && cumulative[t] <= u) ++t;
         // Uniform in the triangle (Osada et al. 2002, "Shape distributions", Eq. 1).
-        const double s = std::sqrt(rng.uniform()), r = rng.uniform();
+        const double s = std::sqrt(uniform(rng)), r = uniform(rng);
         const glm::dvec3 a = positions[triangles[3 * t]], b = positions[triangles[3 * t + 1]],
                          c = positions[triangles[3 * t + 2]];
         out.push_back(glm::vec3((1.0 - s) * a + s * (1.0 - r) * b + s * r * c));
