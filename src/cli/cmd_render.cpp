@@ -1,15 +1,26 @@
 // SPDX-License-Identifier: MIT
 #include "cli/commands.h"
+#include "cli/progress.h"
 
 #include "kernel_memory.h"
 #include "pipeline/pipeline.h"
 #include "scene/errors.h"
 #include "view/camera_path.h"
 
+#ifdef OCC_HAVE_GL
+#include "render/frame_display.h"
+#include "render/headless_context.h"
+#include "render/png_writer.h"
+#include "render/window.h"
+#endif
+
+#include <atomic>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
+#include <set>
 
 namespace occ::cli {
 
@@ -17,55 +28,154 @@ namespace {
 
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc";
-    bool no_display = false;
+    bool no_display = false, headless = false, exact = false, reference = false;
+    std::string out, debug_views;
+    std::vector<uint64_t> debug_frames;
     PipelineOptions pipeline;
 };
 
+// A folder the run writes into: created if missing; an existing file of that name is an error.
+void makeOutputFolder(const std::string& option, const std::string& dir) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec || !std::filesystem::is_directory(dir))
+        throw InputError(dir, option + ": cannot create the folder" + (ec ? ": " + ec.message() : std::string()));
+}
+
+std::string frameName(uint64_t frame) {
+    char b[32];
+    std::snprintf(b, sizeof b, "frame_%06llu", static_cast<unsigned long long>(frame));
+    return b;
+}
+
+// The stats CSV appears whole or not at all: rows go to a temporary that replaces the file
+// only when the run succeeds.
+class StatsFile {
+public:
+    StatsFile(const std::string& path, const std::string& header) : path_(path) {
+        if (path.empty()) return;
+        tmp_ = path + ".tmp";
+        csv_.open(tmp_, std::ios::trunc);
+        if (!csv_) throw InputError(path, "cannot write the stats file");
+        csv_ << header << '\n';
+    }
+    ~StatsFile() {
+        if (!tmp_.empty()) std::remove(tmp_.c_str());
+    }
+    void row(const std::string& line) {
+        if (csv_.is_open()) csv_ << line << '\n';
+    }
+    void commit() {
+        if (!csv_.is_open()) return;
+        csv_.close();
+        if (!csv_) throw InputError(path_, "write failed");
+        std::filesystem::rename(tmp_, path_);
+        tmp_.clear();
+    }
+
+private:
+    std::string path_, tmp_;
+    std::ofstream csv_;
+};
 
 int runRender(RenderOptions o) {
     parseViewportSize("--size", o.size, o.pipeline.width, o.pipeline.height);
     o.pipeline.mode = parseCullMode(o.mode);
     o.pipeline.stream = parseStreamMode(o.stream);
-    if (!o.no_display)
-        throw UsageError("render: drawing needs the display (a later issue); run with --no-display for now");
-    if (o.path.empty()) throw UsageError("render: --path P.cam is required with --no-display");
+    if (o.no_display && o.headless) throw UsageError("render: --no-display and --headless exclude each other");
+    const bool draws = !o.no_display;
+    if (!draws && (o.exact || o.reference || !o.out.empty() || !o.debug_views.empty()))
+        throw UsageError("render: --exact, --reference, --out and --debug-views need drawing; drop --no-display");
+    if (!o.debug_frames.empty() && o.debug_views.empty())
+        throw UsageError("render: --debug-frames chooses frames for --debug-views DIR, which is missing");
+#ifndef OCC_HAVE_GL
+    if (draws)
+        throw UsageError("render: this occswitch was built without the OpenGL display (OCC_GL=OFF); "
+                         "run with --no-display");
+#endif
+    if (o.path.empty() && (o.no_display || o.headless))
+        throw UsageError(std::string("render: --path P.cam is required with ") +
+                         (o.headless ? "--headless" : "--no-display"));
 
     const OssFile file = OssFile::open(o.scene);
-    const std::vector<CameraPose> cameras = readCameraPath(o.path);
-    Pipeline pipeline(file, o.pipeline);
-
-    std::ofstream csv;
-    std::string tmp;
-    // The stats file appears whole or not at all: a failed run removes its partial temporary.
-    struct RemoveOnFailure {
-        std::string* path;
-        ~RemoveOnFailure() {
-            if (!path->empty()) std::remove(path->c_str());
-        }
-    } cleanup{&tmp};
-    if (!o.stats.empty()) {
-        tmp = o.stats + ".tmp";
-        csv.open(tmp, std::ios::trunc);
-        if (!csv) throw InputError(o.stats, "cannot write the stats file");
-        csv << frameStatsHeader() << '\n';
+#ifdef OCC_HAVE_GL
+    if (draws && !o.headless) {
+        render::WindowOptions w;
+        w.width = o.pipeline.width;
+        w.height = o.pipeline.height;
+        w.path = o.path;
+        w.out = o.out.empty() ? "." : o.out;
+        if (!o.out.empty()) makeOutputFolder("--out", o.out);
+        return render::runWindow(file, o.pipeline, w);
     }
+#endif
+    const std::vector<CameraPose> cameras = readCameraPath(o.path);
+    if (!o.out.empty()) makeOutputFolder("--out", o.out);
+    if (!o.debug_views.empty()) makeOutputFolder("--debug-views", o.debug_views);
+    std::set<uint64_t> debug_frames(o.debug_frames.begin(), o.debug_frames.end());
+    if (!o.debug_views.empty() && debug_frames.empty())
+        debug_frames = {0, cameras.size() / 2, cameras.size() - 1};
+    for (uint64_t f : debug_frames)
+        if (f >= cameras.size())
+            throw UsageError("render: --debug-frames " + std::to_string(f) + " is past the path's last frame " +
+                             std::to_string(cameras.size() - 1));
+
+    Pipeline pipeline(file, o.pipeline);
+#ifdef OCC_HAVE_GL
+    std::unique_ptr<render::HeadlessContext> context;
+    std::unique_ptr<render::FrameDisplay> display;
+    render::DisplayOptions display_options;
+    display_options.exact = o.exact;
+    display_options.reference = o.reference;
+    if (draws) {
+        context = std::make_unique<render::HeadlessContext>();
+        display = std::make_unique<render::FrameDisplay>(pipeline, o.pipeline.width, o.pipeline.height, display_options);
+    }
+    const std::string display_header = draws ? render::displayStatsHeader(display_options) : std::string();
+#else
+    const std::string display_header;
+#endif
+    StatsFile stats(o.stats, frameStatsHeader() + display_header);
+
+    std::atomic<uint64_t> frames_done{0};
+    ProgressBar progress("render", "frames", "frames", [&] {
+        const double done = double(frames_done.load());
+        return ProgressBar::Sample{done, double(cameras.size()), done};
+    });
     double total_ms = 0, visible = 0, in_frustum = 0, occluded = 0, streamed = 0, active = 0;
+    double draw_ms = 0, false_culls = 0, accuracy = 0, exact_occluded = 0, psnr = 0, min_psnr = 1e9, changed = 0;
     for (size_t f = 0; f < cameras.size(); ++f) {
         const FrameStats s = pipeline.runFrame(cameras[f], f);
-        if (csv.is_open()) csv << frameStatsRow(s) << '\n';
+        std::string row = frameStatsRow(s);
+#ifdef OCC_HAVE_GL
+        if (display) {
+            const render::DisplayStats d = display->display(pipeline, cameras[f]);
+            row += render::displayStatsRow(d, display_options);
+            draw_ms += d.ms_draw;
+            false_culls += double(d.false_culls);
+            exact_occluded += double(d.exact_occluded);
+            accuracy += d.culling_accuracy;
+            psnr += d.psnr_db;
+            min_psnr = std::min(min_psnr, d.psnr_db);
+            changed += d.changed_pixel_share;
+            if (!o.out.empty()) {
+                const std::vector<uint8_t>& rgb = display->picture();
+                render::writePng(o.out + "/" + frameName(f) + ".png", o.pipeline.width, o.pipeline.height, 3,
+                                 rgb.data());
+            }
+            if (debug_frames.count(f)) display->writeDebugViews(pipeline, cameras[f], o.debug_views, frameName(f));
+        }
+#endif
+        stats.row(row);
         total_ms += s.ms_total;
         visible += double(s.objects_visible);
         in_frustum += double(s.objects_in_frustum);
         occluded += double(s.objects_occluded);
         streamed += double(s.streamed_triangles);
         active += double(s.active_triangles);
+        frames_done = f + 1;
     }
-    if (csv.is_open()) {
-        csv.close();
-        if (!csv) throw InputError(o.stats, "write failed");
-        std::filesystem::rename(tmp, o.stats);
-        tmp.clear();
-    }
+    stats.commit();
     const double frames = double(cameras.size());
     std::printf("render: %s, %zu frames at %ux%u, mode %s, stream %s, backend %s: mean %.2f ms/frame (%.1f fps); "
                 "%.1f of %u objects in the frustum, %.1f%% of those occluded, %.1f visible; "
@@ -74,6 +184,18 @@ int runRender(RenderOptions o) {
                 o.stream.c_str(), k::kernelBackend(), total_ms / frames, 1000.0 * frames / total_ms,
                 in_frustum / frames, file.objectCount(), in_frustum > 0 ? 100.0 * occluded / in_frustum : 0.0,
                 visible / frames, active / frames, active > 0 ? 100.0 * streamed / active : 0.0);
+#ifdef OCC_HAVE_GL
+    if (draws) std::printf("display: %s, mean %.2f ms/frame to draw\n", context->description().c_str(), draw_ms / frames);
+    if (o.exact)
+        std::printf("exact: %.0f false culls in all (must be 0), %.1f exactly occluded objects per frame, "
+                    "culling accuracy %.2f%% (mean over frames)\n",
+                    false_culls, exact_occluded / frames, accuracy / frames);
+    if (o.reference)
+        std::printf("reference: PSNR %.2f dB mean, %.2f dB lowest; %.3f%% of pixels changed (mean)\n", psnr / frames,
+                    min_psnr, changed / frames);
+    if (!o.out.empty()) std::printf("frames: %s/frame_*.png\n", o.out.c_str());
+    if (!o.debug_views.empty()) std::printf("debug views: %s/\n", o.debug_views.c_str());
+#endif
     return 0;
 }
 
@@ -92,12 +214,26 @@ void parseViewportSize(const std::string& option, const std::string& text, uint3
 Command addRenderCommand(CLI::App& app) {
     auto o = std::make_shared<RenderOptions>();
     CLI::App* sub = app.add_subcommand(
-        "render", "Run a camera path through the frame pipeline: frustum culling, active occluders (Eq. 3),\n"
-                  "HZM occlusion culling, LOD selection under a vertex budget (Eq. 1), streaming and\n"
-                  "triangle reformation. Writes one CSV row per frame with --stats.");
+        "render", "Render a scene through the frame pipeline: frustum culling, active occluders (Eq. 3),\n"
+                  "HZM occlusion culling, LOD selection under a vertex budget (Eq. 1), streaming,\n"
+                  "triangle reformation and OpenGL drawing.\n"
+                  "  occswitch render S.oss                          a window: fly with the mouse and WASD/QE\n"
+                  "  occswitch render S.oss --path P.cam --headless --out frames/   PNG frames, no X server\n"
+                  "  occswitch render S.oss --path P.cam --no-display --stats s.csv every stage but drawing");
     sub->add_option("scene", o->scene, "preprocessed scene (.oss)")->required();
-    sub->add_option("--path", o->path, "camera path file (see `occswitch path`)");
+    sub->add_option("--path", o->path, "camera path file (see `occswitch path`); in a window, played then flown");
+    sub->add_flag("--headless", o->headless, "draw offscreen with EGL (no window, no X server)");
     sub->add_flag("--no-display", o->no_display, "run every stage except drawing");
+    sub->add_option("--out", o->out, "write each frame as DIR/frame_NNNNNN.png (window: where P saves screenshots)");
+    sub->add_flag("--exact", o->exact,
+                  "also draw the full-detail model into an item buffer and depth buffer every frame and add the\n"
+                  "columns exact_visible, false_culls, exact_occluded, culling_accuracy");
+    sub->add_flag("--reference", o->reference,
+                  "also draw the full-detail unculled frame and add the columns psnr_db, changed_pixel_share");
+    sub->add_option("--debug-views", o->debug_views,
+                    "write the occluders' depth, the HZM levels and the culling view of chosen frames into DIR");
+    sub->add_option("--debug-frames", o->debug_frames, "frames for --debug-views (default: first, middle, last)")
+        ->delimiter(',');
     sub->add_option("--stats", o->stats, "write per-frame statistics to this CSV file");
     sub->add_option("--size", o->size, "viewport and occlusion buffer size WxH")->capture_default_str();
     sub->add_option("--mode", o->mode, "full (no LOD, no occlusion), lod ([PC12]) or oc+lod")->capture_default_str();

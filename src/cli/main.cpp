@@ -38,6 +38,9 @@ int main(int argc, char** argv) {
     } catch (const occ::UsageError& e) {
         std::cerr << "error: " << e.what() << "\n";
         return kExitInputError;
+    } catch (const occ::SystemError& e) {
+        std::cerr << "error: " << e.what() << "\n";
+        return 1;
     } catch (const std::bad_alloc&) {
         std::cerr << "error: out of memory\n";
         return kExitInputError;

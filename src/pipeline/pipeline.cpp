@@ -65,6 +65,13 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     last_drawn_.assign(n, 0);
 }
 
+k::HzmLevels Pipeline::hzmLevels() const {
+    k::HzmLevels levels;
+    k::hzmLayout(options_.width, options_.height, levels);
+    levels.data = hzm_.data();
+    return levels;
+}
+
 void Pipeline::chooseOccluders(const k::Camera& camera) {
     occluders_.clear();
     const uint32_t cos_count = uint32_t(scene_.cos.size());
@@ -216,6 +223,7 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
     uint32_t in_count = 0;
     for (uint32_t i = 0; i < n; ++i)
         if (in_frustum_[i]) frustum_ids_[in_count++] = i;
+    frustum_count_ = in_count;
     lap(Stage::FrustumCull);
 
     pvs_.clear();
@@ -226,9 +234,7 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
         lap(Stage::DepthRaster);
         k::hzmBuild(hzm_.data(), options_.width, options_.height);
         lap(Stage::HzmBuild);
-        k::HzmLevels levels;
-        k::hzmLayout(options_.width, options_.height, levels);
-        levels.data = hzm_.data();
+        const k::HzmLevels levels = hzmLevels();
         k::hzmTest(objects, frustum_ids_.data(), in_count, camera, levels, occluded_.data());
         for (uint32_t j = 0; j < in_count; ++j)
             if (!occluded_[j]) pvs_.push_back(frustum_ids_[j]);

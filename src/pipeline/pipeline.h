@@ -10,6 +10,9 @@
 #include "stream_collect.h"
 #include "view/camera.h"
 
+#include "hzm.h"
+
+#include <span>
 #include <vector>
 
 namespace occ {
@@ -56,6 +59,10 @@ public:
     // the time of each stage.
     FrameStats runFrame(const CameraPose& pose, uint64_t frame);
 
+    // Changes what the next frames remove and simplify (the window's 1/2/3 keys).
+    void setMode(CullMode mode) { options_.mode = mode; }
+    CullMode mode() const { return options_.mode; }
+
     // Results of the last frame, valid until the next runFrame.
     const std::vector<uint32_t>& visibleObjects() const { return pvs_; }  // PVS, ascending ids
     // Blocks of the active arrays: resident vertex / triangle counts, offsets, ids (ascending).
@@ -68,6 +75,12 @@ public:
     const uint32_t* activeTriangles() const { return active_.triangles.data(); }
     const uint32_t* indices() const { return indices_.data(); }     // 3 * layout().triangle_total
     const float* occluderDepth() const { return hzm_.data(); }      // W x H, level 0 of the HZM
+    // Every level of the HZM (meaningful after an oc+lod frame).
+    k::HzmLevels hzmLevels() const;
+    // Objects in the frustum, ascending ids.
+    std::span<const uint32_t> frustumObjects() const { return {frustum_ids_.data(), frustum_count_}; }
+    // Eq. 1's vertex count for each PVS object, in visibleObjects() order (0 = below the PET).
+    std::span<const uint32_t> visibleLodVertices() const { return {pvs_vc_.data(), pvs_.size()}; }
     const std::vector<uint32_t>& occluders() const { return occluders_; }
     const DeviceScene& scene() const { return scene_; }
     double budget() const { return budget_; }
@@ -89,6 +102,7 @@ private:
 
     k::KernelArray<uint8_t> in_frustum_, occluded_;
     k::KernelArray<uint32_t> frustum_ids_;
+    uint32_t frustum_count_ = 0;
     k::KernelArray<float> weights_;
     k::KernelArray<uint32_t> aos_;
     std::vector<uint32_t> occluders_, pvs_, previous_pvs_;

@@ -24,4 +24,12 @@ public:
     using std::runtime_error::runtime_error;
 };
 
+// Raised when the machine cannot do what was asked: no OpenGL or EGL, a failed GL or CUDA call,
+// a rank of the job that died. what() names the call or the rank; the command line prints
+// "error: " + what() and exits with status 1.
+class SystemError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
 }  // namespace occ

@@ -1,0 +1,220 @@
+// SPDX-License-Identifier: MIT
+#include "render/frame_display.h"
+
+#include "hzm_build.h"
+#include "hzm_test.h"
+#include "render/gl_check.h"
+#include "render/png_writer.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+
+namespace occ::render {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+// True unless all 8 corners of the box lie outside one clip plane: a box that passes may still
+// be off screen, one that fails has no pixel. Written apart from the kernels' frustum test, as
+// the reference it is checked against.
+bool boxMayHavePixels(const k::Aabb& box, const glm::mat4& view_proj) {
+    int outside[6] = {0, 0, 0, 0, 0, 0};
+    for (int c = 0; c < 8; ++c) {
+        const glm::vec4 p = view_proj * glm::vec4(c & 1 ? box.max.x : box.min.x, c & 2 ? box.max.y : box.min.y,
+                                                  c & 4 ? box.max.z : box.min.z, 1.0f);
+        outside[0] += p.x < -p.w;
+        outside[1] += p.x > p.w;
+        outside[2] += p.y < -p.w;
+        outside[3] += p.y > p.w;
+        outside[4] += p.z < -p.w;
+        outside[5] += p.z > p.w;
+    }
+    for (int o : outside)
+        if (o == 8) return false;
+    return true;
+}
+
+std::string fixed(double v, int digits) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%.*f", digits, v);
+    return b;
+}
+
+}  // namespace
+
+std::string displayStatsHeader(const DisplayOptions& options) {
+    std::string h = ",ms_draw,uploaded_bytes,draw_calls";
+    if (options.exact || options.reference) h += ",ms_exact";
+    if (options.exact) h += ",exact_visible,false_culls,exact_occluded,culling_accuracy";
+    if (options.reference) h += ",psnr_db,changed_pixel_share";
+    return h;
+}
+
+std::string displayStatsRow(const DisplayStats& s, const DisplayOptions& options) {
+    // Appended piece by piece: GCC 12 warns falsely (-Wrestrict, its bug 105329) on "," + string.
+    std::string r;
+    const auto add = [&r](const std::string& v) {
+        r += ',';
+        r += v;
+    };
+    add(fixed(s.ms_draw, 3));
+    add(std::to_string(s.uploaded_bytes));
+    add(std::to_string(s.draw_calls));
+    if (options.exact || options.reference) add(fixed(s.ms_exact, 3));
+    if (options.exact) {
+        add(std::to_string(s.exact_visible));
+        add(std::to_string(s.false_culls));
+        add(std::to_string(s.exact_occluded));
+        add(fixed(s.culling_accuracy, 2));
+    }
+    if (options.reference) {
+        add(fixed(s.psnr_db, 2));
+        add(fixed(s.changed_pixel_share, 3));
+    }
+    return r;
+}
+
+uint64_t markSeenObjects(const uint32_t* items, uint64_t pixels, uint32_t object_count, std::vector<uint8_t>& seen) {
+    seen.assign(object_count, 0);
+    uint64_t count = 0;
+    for (uint64_t p = 0; p < pixels; ++p) {
+        const uint32_t item = items[p];
+        if (item == 0 || item > object_count || seen[item - 1]) continue;
+        seen[item - 1] = 1;
+        ++count;
+    }
+    return count;
+}
+
+double psnrDb(const uint8_t* a, const uint8_t* b, uint64_t bytes) {
+    double sum = 0;
+    for (uint64_t i = 0; i < bytes; ++i) {
+        const double d = double(a[i]) - double(b[i]);
+        sum += d * d;
+    }
+    if (sum == 0 || bytes == 0) return 100.0;
+    return std::min(100.0, 10.0 * std::log10(255.0 * 255.0 / (sum / double(bytes))));
+}
+
+double changedPixelPercent(const uint8_t* a, const uint8_t* b, uint64_t pixels, int channels) {
+    if (pixels == 0) return 0;
+    uint64_t changed = 0;
+    for (uint64_t p = 0; p < pixels; ++p)
+        changed += std::memcmp(a + p * channels, b + p * channels, size_t(channels)) != 0;
+    return 100.0 * double(changed) / double(pixels);
+}
+
+FrameDisplay::FrameDisplay(const Pipeline& pipeline, uint32_t width, uint32_t height, const DisplayOptions& options)
+    : options_(options), width_(width), height_(height), renderer_(pipeline.scene()), frame_(width, height) {
+    if (options.exact || options.reference) full_ = std::make_unique<FrameTarget>(width, height);
+}
+
+const std::vector<uint8_t>& FrameDisplay::picture() {
+    if (!picture_read_) frame_.readColour(picture_);
+    picture_read_ = true;
+    return picture_;
+}
+
+DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& pose) {
+    DisplayStats s;
+    const k::Camera camera = toKernelCamera(pose, width_, height_);
+    Clock::time_point start = Clock::now();
+    frame_.begin(false);
+    const DrawCounts counts = renderer_.drawFrame(pipeline, camera);
+    glFinish();
+    s.ms_draw = msSince(start);
+    s.uploaded_bytes = counts.uploaded_bytes;
+    s.draw_calls = counts.multi_draws;
+    picture_read_ = false;
+    if (!full_) return s;
+
+    start = Clock::now();
+    const uint32_t n = pipeline.scene().object_count;
+    candidates_.clear();
+    for (uint32_t i = 0; i < n; ++i)
+        if (boxMayHavePixels(pipeline.scene().objects[i].aabb, camera.view_proj)) candidates_.push_back(i);
+    full_->begin(true);
+    renderer_.drawFullDetail(candidates_.data(), candidates_.size(), camera);
+    const uint64_t pixels = uint64_t(width_) * height_;
+
+    if (options_.exact) {
+        full_->readItems(items_);
+        s.exact_visible = markSeenObjects(items_.data(), pixels, n, seen_);
+        in_pvs_.assign(n, 0);
+        for (uint32_t id : pipeline.visibleObjects()) in_pvs_[id] = 1;
+        for (uint32_t i = 0; i < n; ++i) s.false_culls += seen_[i] && !in_pvs_[i];
+
+        // Peng 2014's exact culling: each frustum object's box against the full-detail depth
+        // buffer at every pixel it covers (hzmTest against the full buffer's pyramid is that test).
+        const std::span<const uint32_t> frustum = pipeline.frustumObjects();
+        full_hzm_.resize(size_t(k::hzmTotalTexels(width_, height_)));
+        std::vector<float> depth;
+        full_->readDepth(depth);
+        std::memcpy(full_hzm_.data(), depth.data(), pixels * sizeof(float));
+        k::hzmBuild(full_hzm_.data(), width_, height_);
+        k::HzmLevels levels;
+        k::hzmLayout(width_, height_, levels);
+        levels.data = full_hzm_.data();
+        occluded_.resize(std::max<size_t>(1, frustum.size()));
+        k::KernelArray<uint32_t> ids(std::max<size_t>(1, frustum.size()));
+        std::copy(frustum.begin(), frustum.end(), ids.data());
+        k::hzmTest(pipeline.scene().objects.data(), ids.data(), uint32_t(frustum.size()), camera, levels,
+                   occluded_.data());
+        k::kernelSynchronize();
+        for (size_t j = 0; j < frustum.size(); ++j) s.exact_occluded += occluded_[j];
+        const uint64_t ours = frustum.size() - pipeline.visibleObjects().size();
+        s.culling_accuracy = s.exact_occluded == 0 ? (ours == 0 ? 100.0 : 0.0) : 100.0 * double(ours) / double(s.exact_occluded);
+    }
+    if (options_.reference) {
+        full_->readColour(full_picture_);
+        const std::vector<uint8_t>& ours = picture();
+        s.psnr_db = psnrDb(ours.data(), full_picture_.data(), ours.size());
+        s.changed_pixel_share = changedPixelPercent(ours.data(), full_picture_.data(), pixels, 3);
+    }
+    s.ms_exact = msSince(start);
+    return s;
+}
+
+void FrameDisplay::writeDebugViews(const Pipeline& pipeline, const CameraPose& pose, const std::string& dir,
+                                   const std::string& name) {
+    const std::string base = dir + "/" + name;
+    const k::HzmLevels levels = pipeline.hzmLevels();
+    const uint64_t pixels = uint64_t(width_) * height_;
+    writePng(base + "_aos_depth.png", width_, height_, 1, depthToGrey(pipeline.occluderDepth(), pixels).data());
+    // Levels scaled back to W x H (texel of pixel p at level l is p >> l), so that they overlay.
+    std::vector<float> scaled(pixels);
+    for (uint32_t l = 1; l < levels.level_count; ++l) {
+        const float* texels = levels.data + levels.offset[l];
+        for (uint32_t y = 0; y < height_; ++y)
+            for (uint32_t x = 0; x < width_; ++x)
+                scaled[uint64_t(y) * width_ + x] = texels[uint64_t(y >> l) * levels.width[l] + (x >> l)];
+        writePng(base + "_hzm_" + std::to_string(l) + ".png", width_, height_, 1,
+                 depthToGrey(scaled.data(), pixels).data());
+    }
+    // The culling view: the frame as drawn, the occlusion-culled boxes red, the occluders purple
+    // (Peng 2014, Figure 5).
+    const k::Camera camera = toKernelCamera(pose, width_, height_);
+    frame_.begin(false);
+    renderer_.drawFrame(pipeline, camera);
+    std::vector<SceneRenderer::Box> boxes;
+    in_pvs_.assign(pipeline.scene().object_count, 0);
+    for (uint32_t id : pipeline.visibleObjects()) in_pvs_[id] = 1;
+    const auto box = [&](uint32_t id, glm::vec3 colour) {
+        const k::Aabb& b = pipeline.scene().objects[id].aabb;
+        boxes.push_back({glm::vec4(b.min, 0), glm::vec4(b.max, 0), glm::vec4(colour, 1)});
+    };
+    for (uint32_t id : pipeline.frustumObjects())
+        if (!in_pvs_[id]) box(id, {0.95f, 0.15f, 0.1f});
+    for (uint32_t id : pipeline.occluders()) box(id, {0.7f, 0.2f, 0.95f});
+    renderer_.drawBoxes(boxes, camera, false);
+    std::vector<uint8_t> rgb;
+    frame_.readColour(rgb);
+    writePng(base + "_culling.png", width_, height_, 3, rgb.data());
+    picture_read_ = false;
+}
+
+}  // namespace occ::render

@@ -1,0 +1,87 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "kernel_memory.h"
+#include "pipeline/pipeline.h"
+#include "render/scene_renderer.h"
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace occ::render {
+
+struct DisplayOptions {
+    // Every frame, also draw the full-detail model into an item buffer and a depth buffer and
+    // measure culling against them (Peng 2014's "exact culling").
+    bool exact = false;
+    // Every frame, also compare the picture with the full-detail, unculled one.
+    bool reference = false;
+};
+
+// One frame of the display, appended to the pipeline's stats row.
+struct DisplayStats {
+    double ms_draw = 0;       // drawing the pipeline's frame, uploads included, until GL finished
+    double ms_exact = 0;      // the full-detail pass and the comparisons (not part of a frame's cost)
+    uint64_t uploaded_bytes = 0;
+    uint64_t draw_calls = 0;  // multi-draw calls (each draws many objects)
+    // With DisplayOptions::exact:
+    uint64_t exact_visible = 0;   // objects with at least one pixel in the full-detail item buffer
+    uint64_t false_culls = 0;     // of those, objects the pipeline left out of the PVS (must be 0)
+    uint64_t exact_occluded = 0;  // frustum objects whose box is behind the full-detail depth everywhere
+    double culling_accuracy = 0;  // percent: objects we culled by occlusion / exact_occluded (100 if 0 / 0)
+    // With DisplayOptions::reference:
+    double psnr_db = 0;               // RGB, against the full-detail picture; 100 for identical pictures
+    double changed_pixel_share = 0;   // percent of pixels that differ in any channel
+};
+
+// The CSV columns DisplayStats adds for these options, each with a leading comma.
+std::string displayStatsHeader(const DisplayOptions& options);
+std::string displayStatsRow(const DisplayStats& s, const DisplayOptions& options);
+
+// Exact visibility from an item buffer (object id + 1 per pixel, 0 = background): marks every
+// object with a pixel in `seen` (object_count bytes, cleared first) and returns how many.
+uint64_t markSeenObjects(const uint32_t* items, uint64_t pixels, uint32_t object_count, std::vector<uint8_t>& seen);
+
+// PSNR in dB of two same-sized byte images (100 when identical, the cap for "no difference"),
+// and the percent of pixels (groups of `channels` bytes) that differ in any byte.
+double psnrDb(const uint8_t* a, const uint8_t* b, uint64_t bytes);
+double changedPixelPercent(const uint8_t* a, const uint8_t* b, uint64_t pixels, int channels);
+
+// Draws pipeline frames with OpenGL (a context must be current on the calling thread) into an
+// offscreen target the size of the pipeline's viewport, and measures them when asked.
+class FrameDisplay {
+public:
+    FrameDisplay(const Pipeline& pipeline, uint32_t width, uint32_t height, const DisplayOptions& options);
+
+    // Draws the frame pipeline.runFrame(pose) just produced, then the exact and reference passes
+    // the options ask for. The picture stays in target() until the next call.
+    DisplayStats display(const Pipeline& pipeline, const CameraPose& pose);
+
+    // The last frame's picture, 3 * W * H bytes, bottom row first.
+    const std::vector<uint8_t>& picture();
+    FrameTarget& target() { return frame_; }
+    SceneRenderer& renderer() { return renderer_; }
+
+    // Writes the debug pictures of the last frame into dir: NAME_aos_depth.png (the occluders'
+    // depth, level 0 of the HZM), NAME_hzm_L.png for every level (scaled up to W x H), and
+    // NAME_culling.png (the frame with occlusion-culled objects as red boxes and the frame's
+    // occluders as purple boxes, both drawn through everything).
+    void writeDebugViews(const Pipeline& pipeline, const CameraPose& pose, const std::string& dir,
+                         const std::string& name);
+
+private:
+    const DisplayOptions options_;
+    uint32_t width_, height_;
+    SceneRenderer renderer_;
+    FrameTarget frame_;
+    std::unique_ptr<FrameTarget> full_;
+    std::vector<uint8_t> picture_, full_picture_, in_pvs_, seen_;
+    bool picture_read_ = false;
+    std::vector<uint32_t> items_, candidates_;
+    k::KernelArray<float> full_hzm_;
+    k::KernelArray<uint8_t> occluded_;
+};
+
+}  // namespace occ::render
