@@ -67,13 +67,47 @@ struct HzmOcclusion {
         while (level + 1 < hzm.level_count && ((x1 >> level) - (x0 >> level) > 1 || (y1 >> level) - (y0 >> level) > 1))
             ++level;
 
-        // More than 2x2 texels remain only at the top of a pyramid cut short (a side over
-        // kHzmMaxSide); the loops read them all.
-        const float* texels = hzm.data + hzm.offset[level];
-        const uint32_t row = hzm.width[level];
+        // Every texel of the rectangle at `level` that does not prove the box hidden is opened
+        // into its (up to) 2x2 children inside the rectangle, down to level 0, where one such
+        // pixel proves the box visible. So the answer is the per-pixel test over the whole
+        // rectangle, and the pyramid only decides how little of it is read: a box whose coarse
+        // texels already prove it hidden reads at most 4 of them (the test of Peng & Cao 2013);
+        // beyond the paper, a box the coarse texels cannot prove hidden is not given up as
+        // visible but looked at more closely. Depth-first with an explicit stack: each step down
+        // pops one texel and pushes at most 4, so it never holds more than 4 + 3 per level.
+        // (More than 2x2 texels at `level` remain only at the top of a pyramid cut short, a side
+        // over kHzmMaxSide; they are all pushed, and the stack is sized for that too.)
+        struct Texel {
+            uint32_t level, x, y;
+        };
+        constexpr uint32_t kStack = 4 + 3 * kHzmMaxLevels + 64;
+        Texel stack[kStack];
+        uint32_t top = 0;
+        const auto hidden = [&](uint32_t l, uint32_t x, uint32_t y) {
+            return z_min > hzm.data[hzm.offset[l] + uint64_t(y) * hzm.width[l] + x] + kDepthEpsilon;
+        };
         for (uint32_t ty = y0 >> level; ty <= y1 >> level; ++ty)
             for (uint32_t tx = x0 >> level; tx <= x1 >> level; ++tx)
-                if (!(z_min > texels[uint64_t(ty) * row + tx] + kDepthEpsilon)) return 0;
+                if (!hidden(level, tx, ty)) {
+                    if (level == 0 || top == kStack) return 0;
+                    stack[top++] = {level, tx, ty};
+                }
+        while (top > 0) {
+            const Texel t = stack[--top];
+            const uint32_t l = t.level - 1;
+            // Children of t at level l, clipped to the rectangle's texels there (which also
+            // keeps them inside the level: the rectangle is inside the viewport).
+            const uint32_t cx0 = 2 * t.x > (x0 >> l) ? 2 * t.x : (x0 >> l);
+            const uint32_t cx1 = 2 * t.x + 1 < (x1 >> l) ? 2 * t.x + 1 : (x1 >> l);
+            const uint32_t cy0 = 2 * t.y > (y0 >> l) ? 2 * t.y : (y0 >> l);
+            const uint32_t cy1 = 2 * t.y + 1 < (y1 >> l) ? 2 * t.y + 1 : (y1 >> l);
+            for (uint32_t cy = cy0; cy <= cy1; ++cy)
+                for (uint32_t cx = cx0; cx <= cx1; ++cx)
+                    if (!hidden(l, cx, cy)) {
+                        if (l == 0 || top == kStack) return 0;
+                        stack[top++] = {l, cx, cy};
+                    }
+        }
         return 1;
     }
 };

@@ -20,21 +20,24 @@ namespace occ::k {
 //   entirely outside the viewport gives 0: culling what is off screen is frustumCull's job, and
 //   no texel can prove such a box occluded.
 // - The level-0 pixels the rectangle touches, [floor(xmin), floor(xmax)] x [floor(ymin),
-//   floor(ymax)] clipped to the viewport, are looked up at the finest level l at which they span
-//   at most 2x2 texels (pixel p lies under texel p >> l). That is ceil(log2(pixels across)) or one
-//   below it; if the pyramid stops before, its top level is read whole.
-// - occluded[j] = 1 iff z_min > texel + 1e-6 for every such texel: the box's nearest point is
-//   strictly farther than the farthest depth already drawn anywhere it could appear.
+//   floor(ymax)] clipped to the viewport, are first looked up at the finest level l at which
+//   they span at most 2x2 texels (pixel p lies under texel p >> l). That is ceil(log2(pixels
+//   across)) or one below it; if the pyramid stops before, its top level is read whole.
+// - occluded[j] = 1 iff z_min > depth + 1e-6 at every level-0 pixel of the rectangle. A texel
+//   that proves it (z_min > texel + 1e-6: the box's nearest point is strictly farther than the
+//   farthest depth drawn under the texel) settles its pixels; one that does not is opened into
+//   its children in the rectangle, down to level 0 if need be.
 //
-// So it never says 1 where the same test against every level-0 pixel of the rectangle would say
-// 0; it may say 0 where that would say 1. Depth is window depth in [0, 1], 0 = near plane,
+// So it says exactly what the test against every level-0 pixel of the rectangle says, reading
+// at most 4 texels for a box the coarse level proves hidden. Depth is window depth in [0, 1], 0 = near plane,
 // larger is farther (see Camera); level 0 of the pyramid is the occluders' depth buffer (cleared
 // to 1 = far) rendered with the same view_proj at W x H. view_proj must be a perspective
 // projection (clip.w = distance in front of the eye), as the near-plane rule relies on it.
 //
 // objects holds every object, ids has count indices into it (count may be 0), occluded room for
 // count bytes, hzm.data all levels; all in kernel memory. If hzm.level_count is 0 every box is
-// visible. Boxes in parallel; each reads at most 4 texels (unless the pyramid stops early).
+// visible. Boxes in parallel; a box reads at most 4 texels when the coarse level settles it,
+// and at most about 4/3 of its rectangle's pixels otherwise.
 void hzmTest(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, const Camera& camera,
              const HzmLevels& hzm, uint8_t* occluded);
 

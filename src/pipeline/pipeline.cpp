@@ -83,7 +83,8 @@ void Pipeline::chooseOccluders(const k::Camera& camera) {
     }
     if (options_.pvs_occluder_triangles == 0) return;
     // The two-pass idea of occlusion-switches and GPU-driven renderers: what was visible last
-    // frame, largest on screen first (extent over distance, squared), is likely to occlude now.
+    // frame is likely to occlude now. Most screen per rastered triangle first: (extent over
+    // distance)^2 x compactness (Eq. 2: how solid the object is) / triangles.
     std::vector<std::pair<float, uint32_t>> ranked;
     for (uint32_t id : previous_pvs_) {
         if (!in_frustum_[id]) continue;
@@ -91,7 +92,8 @@ void Pipeline::chooseOccluders(const k::Camera& camera) {
         const glm::vec3 nearest = glm::clamp(camera.eye, b.min, b.max);
         const float distance = std::max(glm::length(nearest - camera.eye), camera.near_plane);
         const float size = glm::length(b.max - b.min) / distance;
-        ranked.emplace_back(-size * size, id);
+        const float triangles = float(std::max(1u, scene_.objects[id].triangle_count));
+        ranked.emplace_back(-size * size * scene_.objects[id].compactness / triangles, id);
     }
     std::sort(ranked.begin(), ranked.end());
     std::vector<uint8_t> taken(scene_.object_count, 0);
