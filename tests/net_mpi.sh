@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# The MPI transport's fault guarantees across three real ranks (docs/protocol.md, "Faults").
+#   net_mpi.sh PROBE none     all ranks exit 0 and print "ok rank R"
+#   net_mpi.sh PROBE kill     rank 1 SIGKILLs itself at frame 20
+#   net_mpi.sh PROBE hang     rank 1 stops answering at frame 20
+#   net_mpi.sh PROBE garbage  rank 1 sends a corrupted delta at frame 20
+# After a fault, mpirun must end non-zero within 10 s and both other ranks must print
+# "error: rank 1: ..." (the culprit, whoever noticed it).
+set -u
+probe=$1
+mode=$2
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+out=$(mktemp)
+trap 'rm -f "$out"' EXIT
+
+start=$(date +%s%N)
+timeout 10 mpirun -np 3 --oversubscribe "$probe" --frames 60 --frame-ms 10 --timeout-ms 4000 \
+    --fault "$mode" --fault-rank 1 --fault-frame 20 >"$out" 2>&1
+status=$?
+elapsed_ms=$((($(date +%s%N) - start) / 1000000))
+echo "mode $mode: mpirun exit status $status after $elapsed_ms ms"
+grep -E '^(ok|error)' "$out"
+
+fail() {
+    echo "FAIL: $*"
+    cat "$out"
+    exit 1
+}
+
+[ "$status" -ne 124 ] || fail "mpirun still running after 10 s"
+if [ "$mode" = none ]; then
+    [ "$status" -eq 0 ] || fail "a normal run exited with status $status"
+    [ "$(grep -c '^ok rank' "$out")" -eq 3 ] || fail "not every rank reported ok"
+    ! grep -q '^error' "$out" || fail "a normal run printed an error"
+    exit 0
+fi
+[ "$status" -ne 0 ] || fail "mpirun exited 0 after a $mode fault"
+# The lines do not say which rank printed them; one per surviving rank is what is counted.
+culprit_lines=$(grep -c '^error: rank 1: ' "$out")
+[ "$culprit_lines" -ge 2 ] || fail "expected both surviving ranks to print 'error: rank 1: ...', got $culprit_lines"
+! grep -E '^error: rank [02]: ' "$out" || fail "a healthy rank was blamed"
+! grep -q '^ok rank' "$out" || fail "a rank finished although the run failed"
+exit 0
