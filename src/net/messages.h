@@ -1,0 +1,144 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+// The messages occlusion-switch ranks exchange every frame (Govindaraju et al. 2003,
+// "Interactive visibility culling in complex environments using occlusion-switches"): the
+// camera packet, the visible-set delta V_i = (V_{i-1} - removed) ∪ added and the end-of-frame
+// marker. The wire format is docs/protocol.md; this file is that format, byte by byte.
+
+#include "net/rank_error.h"
+#include "view/camera.h"
+
+#include <glm/glm.hpp>
+
+#include <bit>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <utility>
+#include <vector>
+
+namespace occ {
+
+static_assert(std::endian::native == std::endian::little,
+              "the visible-set hash reads ids and counts in host order; a big-endian port needs byte swapping");
+
+// The three kinds of frame message. The value is the `kind` byte of the header and the MPI tag.
+enum class MessageKind : uint8_t { Camera = 1, Delta = 2, EndOfFrame = 3 };
+inline constexpr int kMessageKindCount = 3;
+
+// "camera", "delta", "eof" (the counters' suffixes); "unknown" for any other value.
+const char* messageKindName(MessageKind kind);
+
+// Wire constants (docs/protocol.md). A receiver accepts exactly kProtocolVersion.
+inline constexpr uint32_t kMessageMagic = 0x4D53434Fu;  // "OCSM" read as little-endian u32
+inline constexpr uint16_t kProtocolVersion = 1;
+inline constexpr size_t kMessageHeaderSize = 32;
+inline constexpr size_t kCameraPayloadSize = 192;
+inline constexpr size_t kDeltaPayloadHeaderSize = 24;
+inline constexpr size_t kEndOfFramePayloadSize = 16;
+inline constexpr uint32_t kMaxViewportSide = 16384;  // a camera packet's width and height are in [1, this]
+
+// What the display rank (RVG) sends every frame. sent_ns is the sender's steady clock at send
+// time; only the sender compares it (round-trip latency), other ranks carry it back unchanged.
+struct CameraPacket {
+    uint64_t frame = 0;
+    CameraPose pose;
+    glm::mat4 view{1.0f};
+    glm::mat4 projection{1.0f};
+    uint32_t width = 0;
+    uint32_t height = 0;
+    int64_t sent_ns = 0;
+};
+
+// The change of the visible set (PVS with each object's LOD vertex count) from frame - 1 to
+// frame. All three lists are sorted by id, ascending, without duplicates; `changed` holds ids
+// kept from the previous set whose LOD vertex count is different now. When `full` is set the
+// message carries the whole set in `added` (removed and changed are empty) and the receiver
+// replaces its set: the first frame, and every frame under --no-deltas. hash = VisibleSet::hash()
+// of the set after the change.
+struct VisibleSetDelta {
+    uint64_t frame = 0;
+    bool full = false;
+    std::vector<std::pair<uint32_t, uint32_t>> added;  // (object id, LOD vertex count)
+    std::vector<uint32_t> removed;
+    std::vector<std::pair<uint32_t, uint32_t>> changed;  // (object id, new LOD vertex count)
+    uint64_t hash = 0;
+};
+
+// Sent by a rank when its part of `frame` is done. compute_ns is the sender's time spent on the
+// frame (steady clock); visible_count is the size of its visible set after the frame (0 for a
+// rank that keeps none), for the receiver to cross-check; last says the sender sends nothing
+// after this frame.
+struct EndOfFrame {
+    uint64_t frame = 0;
+    int64_t compute_ns = 0;
+    uint32_t visible_count = 0;
+    bool last = false;
+};
+
+// A visible set V_i: object ids with their LOD vertex counts, sorted by id, ids unique.
+class VisibleSet {
+public:
+    using Entry = std::pair<uint32_t, uint32_t>;  // (object id, LOD vertex count)
+
+    VisibleSet() = default;
+    // Throws std::invalid_argument unless entries are sorted by id with no id twice.
+    explicit VisibleSet(std::vector<Entry> entries);
+
+    const std::vector<Entry>& entries() const { return entries_; }
+    size_t size() const { return entries_.size(); }
+    bool empty() const { return entries_.empty(); }
+    bool operator==(const VisibleSet&) const = default;
+
+    // XXH3-64 (seed 0) of the entries as consecutive little-endian (u32 id, u32 count) pairs;
+    // the empty set hashes the empty input. Same value on every rank for the same set.
+    uint64_t hash() const;
+
+    // V_i = (V_{i-1} - removed) ∪ added with the changed counts, or V_i = added when
+    // delta.full. Checks that each list is ascending without duplicates, that removed and
+    // changed ids are in the set (changed ones not removed), added ids are not (unless full),
+    // and that the result hashes to delta.hash. On any failure throws RankError(sender,
+    // "delta of frame F: ...") and leaves the set unchanged. Linear in size() + the delta.
+    void apply(const VisibleSetDelta& delta, int sender);
+
+private:
+    std::vector<Entry> entries_;
+};
+
+// The delta that turns `previous` into `current` (full = false), hash = current.hash().
+VisibleSetDelta makeDelta(const VisibleSet& previous, const VisibleSet& current, uint64_t frame);
+
+// The message that carries all of `current` (full = true): the first frame and --no-deltas.
+VisibleSetDelta makeFullDelta(const VisibleSet& current, uint64_t frame);
+
+// Encoders: header + payload, little-endian, exactly encodedSize() bytes. `sender` is the rank
+// that will send the bytes (the header records it, the receiver checks it). object_count is
+// the number of objects of the scene both ranks mapped (the receiver checks it matches).
+std::vector<uint8_t> encodeCameraPacket(const CameraPacket& packet, int sender);
+std::vector<uint8_t> encodeVisibleSetDelta(const VisibleSetDelta& delta, uint32_t object_count, int sender);
+std::vector<uint8_t> encodeEndOfFrame(const EndOfFrame& eof, int sender);
+
+// Bytes encodeVisibleSetDelta() produces, without encoding.
+size_t encodedSize(const VisibleSetDelta& delta);
+// Bytes a full delta of a set of visible_count objects weighs: the counters' full_pvs_bytes.
+size_t fullVisibleSetEncodedSize(size_t visible_count);
+
+// What a receiver knows before decoding: who sent the bytes, the frame the message must carry
+// (messages of one kind from one rank come in frame order, so the receiver always knows it) and
+// the scene's object count (ids must be below it).
+struct DecodeContext {
+    int sender = 0;
+    uint64_t expected_frame = 0;
+    uint32_t object_count = 0;
+};
+
+// Decoders: validate everything (header magic, version, kind, sender, payload size against the
+// buffer, checksum, frame == expected_frame, every count against the bytes present, ids <
+// object_count, lists ascending, camera finite and renderable) and throw RankError(ctx.sender,
+// "<kind> of frame F: ...") on the first violation; never read outside `bytes`.
+CameraPacket decodeCameraPacket(std::span<const uint8_t> bytes, const DecodeContext& ctx);
+VisibleSetDelta decodeVisibleSetDelta(std::span<const uint8_t> bytes, const DecodeContext& ctx);
+EndOfFrame decodeEndOfFrame(std::span<const uint8_t> bytes, const DecodeContext& ctx);
+
+}  // namespace occ

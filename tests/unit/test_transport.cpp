@@ -1,0 +1,165 @@
+// SPDX-License-Identifier: MIT
+#include "net/transport.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace occ {
+namespace {
+
+using namespace std::chrono_literals;
+
+TEST(InProcessTransport, OneRankTalksToItselfAndCountsPerKind) {
+    InProcessHub hub(1);
+    std::unique_ptr<Transport> t = hub.connect(0);
+    EXPECT_EQ(t->rank(), 0);
+    EXPECT_EQ(t->size(), 1);
+    t->send(0, MessageKind::Delta, {1, 2, 3});
+    t->send(0, MessageKind::Delta, {4});
+    t->send(0, MessageKind::Camera, std::vector<uint8_t>(10, 7));
+    EXPECT_EQ(t->receive(0, MessageKind::Camera, 1s), std::vector<uint8_t>(10, 7));
+    EXPECT_EQ(t->receive(0, MessageKind::Delta, 1s), (std::vector<uint8_t>{1, 2, 3}));  // in order per kind
+    EXPECT_EQ(t->receive(0, MessageKind::Delta, 1s), (std::vector<uint8_t>{4}));
+    const TransportCounters c = t->counters();
+    EXPECT_EQ(c[MessageKind::Delta].bytes_sent, 4u);
+    EXPECT_EQ(c[MessageKind::Delta].messages_sent, 2u);
+    EXPECT_EQ(c[MessageKind::Camera].bytes_sent, 10u);
+    EXPECT_EQ(c[MessageKind::Camera].messages_received, 1u);
+    EXPECT_EQ(c[MessageKind::EndOfFrame].messages_sent, 0u);
+    t->finish(1s);
+}
+
+TEST(InProcessTransport, CounterDifferencesGiveOneFramesShare) {
+    InProcessHub hub(1);
+    auto t = hub.connect(0);
+    t->send(0, MessageKind::EndOfFrame, std::vector<uint8_t>(48));
+    const TransportCounters before = t->counters();
+    t->send(0, MessageKind::EndOfFrame, std::vector<uint8_t>(48));
+    t->send(0, MessageKind::Delta, std::vector<uint8_t>(100));
+    const TransportCounters frame = t->counters() - before;
+    EXPECT_EQ(frame[MessageKind::EndOfFrame].bytes_sent, 48u);
+    EXPECT_EQ(frame[MessageKind::EndOfFrame].messages_sent, 1u);
+    EXPECT_EQ(frame[MessageKind::Delta].bytes_sent, 100u);
+    t->receive(0, MessageKind::EndOfFrame, 1s);
+    t->receive(0, MessageKind::EndOfFrame, 1s);
+    t->receive(0, MessageKind::Delta, 1s);
+    t->finish(1s);
+}
+
+// Three threads pass visible-set deltas around a ring; each rebuilds its neighbour's set from
+// the deltas and checks it against the hash, as the switch ranks do.
+TEST(InProcessTransport, ThreeRanksRebuildEachOthersSetsFromDeltas) {
+    constexpr int ranks = 3;
+    constexpr uint32_t objects = 500;
+    InProcessHub hub(ranks);
+    std::vector<std::string> errors(ranks);
+    std::vector<std::thread> threads;
+    for (int r = 0; r < ranks; ++r) {
+        threads.emplace_back([&, r, t = hub.connect(r)] {
+            try {
+                VisibleSet mine, theirs;
+                const int next = (r + 1) % ranks, prev = (r + ranks - 1) % ranks;
+                for (uint64_t frame = 0; frame < 50; ++frame) {
+                    std::vector<VisibleSet::Entry> e;
+                    for (uint32_t id = uint32_t(r); id < objects; id += uint32_t(3 + (frame + id) % 7))
+                        e.push_back({id, uint32_t(1 + (frame * 13 + id) % 90)});
+                    const VisibleSet current(e);
+                    const VisibleSetDelta d = frame == 0 ? makeFullDelta(current, frame) : makeDelta(mine, current, frame);
+                    t->send(next, MessageKind::Delta, encodeVisibleSetDelta(d, objects, r));
+                    mine = current;
+                    theirs.apply(decodeVisibleSetDelta(t->receive(prev, MessageKind::Delta, 5s), {prev, frame, objects}),
+                                 prev);
+                }
+                t->finish(5s);
+            } catch (const std::exception& ex) {
+                errors[size_t(r)] = ex.what();
+            }
+        });
+    }
+    for (auto& th : threads) th.join();
+    for (int r = 0; r < ranks; ++r) EXPECT_EQ(errors[size_t(r)], "") << "rank " << r;
+}
+
+TEST(InProcessTransport, SilenceBecomesAnErrorNamingTheSilentRankOnEveryRank) {
+    InProcessHub hub(3);
+    auto t0 = hub.connect(0);
+    auto t1 = hub.connect(1);
+    auto t2 = hub.connect(2);
+    const auto start = std::chrono::steady_clock::now();
+    try {
+        t2->receive(1, MessageKind::Delta, 100ms);
+        FAIL() << "receive returned without a message";
+    } catch (const RankError& e) {
+        EXPECT_EQ(e.rank(), 1);
+        EXPECT_STREQ(e.what(), "rank 1: no delta message for 100 ms: the rank died or stopped answering");
+    }
+    EXPECT_LT(std::chrono::steady_clock::now() - start, 2s);
+    try {
+        t0->receive(2, MessageKind::Camera, 10s);  // rank 0 learns at once, not after 10 s
+        FAIL() << "receive returned without a message";
+    } catch (const RankError& e) {
+        EXPECT_EQ(e.rank(), 1);
+        EXPECT_STREQ(e.what(),
+                     "rank 1: no delta message for 100 ms: the rank died or stopped answering (reported by rank 2)");
+    }
+    EXPECT_LT(std::chrono::steady_clock::now() - start, 2s);
+    EXPECT_THROW(t0->send(1, MessageKind::Camera, {1}), RankError);  // the run has failed for good
+}
+
+TEST(InProcessTransport, AFailingRankStopsTheOthers) {
+    InProcessHub hub(2);
+    auto t0 = hub.connect(0);
+    std::thread failing([t1 = hub.connect(1)] {
+        std::this_thread::sleep_for(20ms);
+        t1->fail(1, "cannot open scene.oss");
+    });
+    try {
+        t0->receive(1, MessageKind::Delta, 10s);
+        ADD_FAILURE() << "receive returned without a message";
+    } catch (const RankError& e) {
+        EXPECT_STREQ(e.what(), "rank 1: cannot open scene.oss");
+    }
+    failing.join();
+}
+
+TEST(InProcessTransport, AnEndpointDroppedWithoutFinishingIsAFault) {
+    InProcessHub hub(2);
+    auto t0 = hub.connect(0);
+    hub.connect(1).reset();
+    try {
+        t0->finish(10s);
+        FAIL() << "finish returned although rank 1 is gone";
+    } catch (const RankError& e) {
+        EXPECT_STREQ(e.what(), "rank 1: stopped without finishing the run");
+    }
+}
+
+TEST(InProcessTransport, FinishWaitsForEveryRankAndNamesALateOne) {
+    InProcessHub hub(2);
+    auto t0 = hub.connect(0);
+    auto t1 = hub.connect(1);
+    try {
+        t0->finish(50ms);
+        FAIL() << "finish returned although rank 1 did not finish";
+    } catch (const RankError& e) {
+        EXPECT_STREQ(e.what(), "rank 1: did not finish the run within 50 ms");
+    }
+}
+
+TEST(InProcessTransport, BadPeersAndDoubleConnectsAreUsageErrors) {
+    InProcessHub hub(2);
+    auto t0 = hub.connect(0);
+    EXPECT_THROW(hub.connect(0), std::invalid_argument);
+    EXPECT_THROW(hub.connect(2), std::invalid_argument);
+    EXPECT_THROW(t0->send(2, MessageKind::Delta, {}), std::invalid_argument);
+    EXPECT_THROW(t0->receive(-1, MessageKind::Delta, 1ms), std::invalid_argument);
+    EXPECT_THROW(InProcessHub(0), std::invalid_argument);
+    t0->fail(0, "test over");
+}
+
+}  // namespace
+}  // namespace occ
