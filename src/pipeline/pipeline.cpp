@@ -39,6 +39,8 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     if (!(options.alpha > 1.0f)) throw UsageError("--alpha must be > 1");
     if (!(options.pet >= 0.0f)) throw UsageError("--pet must be >= 0");
     if (!(options.budget >= 0.0)) throw UsageError("--budget must be >= 0");
+    if (options.pvs_occluder_lag < 1 || options.pvs_occluder_lag > 2)
+        throw UsageError("--pvs-occluder-lag must be 1 or 2");
 
     scene_ = DeviceScene::upload(file);
     const uint32_t n = scene_.object_count;
@@ -72,7 +74,7 @@ k::HzmLevels Pipeline::hzmLevels() const {
     return levels;
 }
 
-void Pipeline::chooseOccluders(const k::Camera& camera) {
+void Pipeline::chooseOccluders(const k::Camera& camera, std::span<const uint32_t> occluder_source) {
     occluders_.clear();
     const uint32_t cos_count = uint32_t(scene_.cos.size());
     if (cos_count > 0 && options_.aos > 0) {
@@ -86,7 +88,7 @@ void Pipeline::chooseOccluders(const k::Camera& camera) {
     // frame is likely to occlude now. Most screen per rastered triangle first: (extent over
     // distance)^2 x compactness (Eq. 2: how solid the object is) / triangles.
     std::vector<std::pair<float, uint32_t>> ranked;
-    for (uint32_t id : previous_pvs_) {
+    for (uint32_t id : occluder_source) {
         if (!in_frustum_[id]) continue;
         const k::Aabb& b = scene_.objects[id].aabb;
         const glm::vec3 nearest = glm::clamp(camera.eye, b.min, b.max);
@@ -202,45 +204,76 @@ void Pipeline::buildLayout(uint64_t frame, FrameStats& stats) {
     layout_count_ = out;
 }
 
-FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
-    using Clock = std::chrono::steady_clock;
-    FrameStats stats;
-    stats.frame = frame;
-    stats.budget_vertices = uint64_t(budget_);
-    const Clock::time_point start = Clock::now();
-    Clock::time_point mark = start;
-    const auto lap = [&](Stage s) {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Adds the time since the last lap (or since construction) to a stage's column, after the
+// kernels finished.
+class StageClock {
+public:
+    explicit StageClock(FrameStats& stats) : stats_(stats), mark_(Clock::now()) {}
+    void lap(Stage s) {
         k::kernelSynchronize();
         const Clock::time_point now = Clock::now();
-        stats.ms[uint32_t(s)] += std::chrono::duration<double, std::milli>(now - mark).count();
-        mark = now;
-    };
+        stats_.ms[uint32_t(s)] += std::chrono::duration<double, std::milli>(now - mark_).count();
+        stats_.ms_total += std::chrono::duration<double, std::milli>(now - mark_).count();
+        mark_ = now;
+    }
 
+private:
+    FrameStats& stats_;
+    Clock::time_point mark_;
+};
+
+}  // namespace
+
+void Pipeline::frustumPass(const CameraPose& pose, FrameStats& stats) {
+    StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
     const uint32_t n = scene_.object_count;
-    const k::ObjectInfo* objects = scene_.objects.data();
-
     const k::Frustum frustum = k::frustumFromViewProj(camera.view_proj);
-    stats.objects_in_frustum = k::frustumCull(objects, n, frustum, in_frustum_.data());
+    k::frustumCull(scene_.objects.data(), n, frustum, in_frustum_.data());
     uint32_t in_count = 0;
     for (uint32_t i = 0; i < n; ++i)
         if (in_frustum_[i]) frustum_ids_[in_count++] = i;
     frustum_count_ = in_count;
-    lap(Stage::FrustumCull);
+    frustum_pose_ = pose;
+    has_frustum_pose_ = true;
+    clock.lap(Stage::FrustumCull);
+}
 
+bool Pipeline::frustumIsFor(const CameraPose& pose) const {
+    return has_frustum_pose_ && std::memcmp(&frustum_pose_, &pose, sizeof pose) == 0;
+}
+
+void Pipeline::occluderPass(const CameraPose& pose, std::span<const uint32_t> occluder_source, FrameStats& stats) {
+    if (options_.mode != CullMode::OcLod) return;
+    if (!frustumIsFor(pose)) frustumPass(pose, stats);
+    StageClock clock(stats);
+    const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
+    chooseOccluders(camera, occluder_source);
+    clock.lap(Stage::OccluderSelect);
+    rasterOccluders(camera, stats);
+    clock.lap(Stage::DepthRaster);
+    k::hzmBuild(hzm_.data(), options_.width, options_.height);
+    clock.lap(Stage::HzmBuild);
+}
+
+void Pipeline::cullPass(const CameraPose& pose, FrameStats& stats) {
+    if (!frustumIsFor(pose)) frustumPass(pose, stats);
+    StageClock clock(stats);
+    const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
+    const k::ObjectInfo* objects = scene_.objects.data();
+    const uint32_t in_count = frustum_count_;
+    stats.objects_in_frustum = in_count;
     pvs_.clear();
     if (options_.mode == CullMode::OcLod) {
-        chooseOccluders(camera);
-        lap(Stage::OccluderSelect);
-        rasterOccluders(camera, stats);
-        lap(Stage::DepthRaster);
-        k::hzmBuild(hzm_.data(), options_.width, options_.height);
-        lap(Stage::HzmBuild);
         const k::HzmLevels levels = hzmLevels();
         k::hzmTest(objects, frustum_ids_.data(), in_count, camera, levels, occluded_.data());
         for (uint32_t j = 0; j < in_count; ++j)
             if (!occluded_[j]) pvs_.push_back(frustum_ids_[j]);
-        lap(Stage::HzmTest);
+        clock.lap(Stage::HzmTest);
     } else {
         pvs_.assign(frustum_ids_.data(), frustum_ids_.data() + in_count);
     }
@@ -258,7 +291,29 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
         k::lodSelect(objects, pvs_.data(), count, camera, params, scene_.map_first.data(), scene_.maps.data(),
                      pvs_vc_.data(), pvs_tc_.data());
     }
-    lap(Stage::LodSelect);
+    clock.lap(Stage::LodSelect);
+}
+
+void Pipeline::setVisible(std::span<const uint32_t> ids, std::span<const uint32_t> vertex_counts) {
+    if (ids.size() != vertex_counts.size() || ids.size() > scene_.object_count)
+        throw std::invalid_argument("Pipeline::setVisible: ids and vertex counts differ in size");
+    pvs_.assign(ids.begin(), ids.end());
+    for (size_t j = 0; j < ids.size(); ++j) {
+        const k::ObjectInfo& o = scene_.objects[ids[j]];
+        if ((j > 0 && ids[j] <= ids[j - 1]) || ids[j] >= scene_.object_count || vertex_counts[j] > o.vertex_count ||
+            (vertex_counts[j] != 0 && vertex_counts[j] < o.q))
+            throw std::invalid_argument("Pipeline::setVisible: entry " + std::to_string(j) + " is not a valid LOD");
+        pvs_vc_[j] = vertex_counts[j];
+        pvs_tc_[j] = vertex_counts[j] ? scene_.maps[scene_.map_first[o.mesh] + vertex_counts[j]] : 0;
+    }
+}
+
+void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
+    StageClock clock(stats);
+    stats.frame = frame;
+    stats.budget_vertices = uint64_t(budget_);
+    stats.objects_visible = pvs_.size();
+    const k::ObjectInfo* objects = scene_.objects.data();
     buildLayout(frame, stats);
     LayoutArrays& l = layouts_[cur_index_];
     const uint32_t blocks = layout_count_;
@@ -267,21 +322,20 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
     cur_ = {l.ids.data(), l.vc.data(), l.tc.data(), l.voff.data(), l.toff.data(), blocks, vertex_total, triangle_total};
     stats.resident_vertices = vertex_total;
     stats.resident_triangles = triangle_total;
-    lap(Stage::Scan);
-
+    clock.lap(Stage::Scan);
     k::StreamCounts sent;
     k::DefragmentCounts moved;
     if (options_.stream == StreamMode::None) {
         sent = k::streamObjectByObject(cur_, host_, active_);
-        lap(Stage::StreamCollect);
-        lap(Stage::Defragment);
+        clock.lap(Stage::StreamCollect);
+        clock.lap(Stage::Defragment);
     } else {
         // Without coherence nothing of the last frame is reused: the previous layout is empty.
         const k::ActiveLayout previous = options_.stream == StreamMode::Coherent ? prev_ : k::ActiveLayout{};
         sent = k::streamCollect(previous, cur_, host_, staging_);
-        lap(Stage::StreamCollect);
+        clock.lap(Stage::StreamCollect);
         moved = k::defragment(previous, cur_, staging_, active_);
-        lap(Stage::Defragment);
+        clock.lap(Stage::Defragment);
     }
     stats.streamed_vertices = sent.vertices;
     stats.streamed_triangles = sent.triangles;
@@ -305,13 +359,23 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
         k::reform(cur_, objects, scene_.vertex_first.data(), scene_.ecol.data(), active_.triangles.data(),
                   indices_.data(), l.draw_vc.data());
     }
-    lap(Stage::Reform);
+    clock.lap(Stage::Reform);
 
     prev_ = cur_;
     cur_index_ ^= 1;
-    previous_pvs_ = pvs_;
-    stats.ms_total = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
+    FrameStats stats;
+    stats.frame = frame;
+    // The PVS `pvs_occluder_lag` frames back supplies this frame's extra occluders.
+    occluderPass(pose, pvs_history_[options_.pvs_occluder_lag - 1], stats);
+    cullPass(pose, stats);
+    pvs_history_[1].swap(pvs_history_[0]);
+    pvs_history_[0] = pvs_;
+    streamPass(frame, stats);
     return stats;
 }
+
 
 }  // namespace occ

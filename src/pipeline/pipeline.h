@@ -37,6 +37,10 @@ struct PipelineOptions {
     // occluded share of the frustum's objects from 30 % to 67 % for about 2 ms of rastering
     // (docs/results.md), hence on by default.
     uint64_t pvs_occluder_triangles = 30000;
+    // Which frame's PVS supplies those: 1 = the last frame's (one rank); 2 = the one before,
+    // as the 3-rank occlusion switch has it (its occluder rank works on frame i+1 while the
+    // other culls frame i). runFrame with 2 gives the 3-rank answer in one process.
+    uint32_t pvs_occluder_lag = 1;
     double budget = 0;                   // N, vertices per frame; 0 = 10 % of the scene's vertices
     // Beyond the paper: with coherent streaming, vertices a frame no longer draws stay resident
     // in the active arrays (an object that shrinks keeps its finer prefix, one that leaves the
@@ -56,8 +60,27 @@ public:
     Pipeline(const OssFile& file, const PipelineOptions& options);
 
     // Runs every stage for one camera (drawing is the display's job) and returns the counts and
-    // the time of each stage.
+    // the time of each stage: occluderPass, cullPass and streamPass in a row.
     FrameStats runFrame(const CameraPose& pose, uint64_t frame);
+
+    // The stages in three groups, the occlusion-switch roles (roles/), each adding its counts
+    // and stage times to `stats`:
+    // OR: frustum culling for `pose`, the occluders (Eq. 3's AOS and the largest objects of
+    // occluder_source, a PVS of an earlier frame, ascending ids), their depth raster and the
+    // HZM. Nothing in modes full and lod.
+    void occluderPass(const CameraPose& pose, std::span<const uint32_t> occluder_source, FrameStats& stats);
+    // HC: frustum culling (reused when the last occluderPass had this pose), the HZM test
+    // against the HZM of the last occluderPass (oc+lod) and LOD selection: visibleObjects()
+    // and visibleLodVertices().
+    void cullPass(const CameraPose& pose, FrameStats& stats);
+    // RVG: the visible set a cullPass elsewhere chose (ascending ids with their Eq. 1 vertex
+    // counts, 0 = not drawn); throws std::invalid_argument for an entry that is not a valid
+    // LOD (ids unsorted or >= object count, count above the object's vertices or below its q).
+    void setVisible(std::span<const uint32_t> ids, std::span<const uint32_t> vertex_counts);
+    // RVG: frustum culling only, for the display's measurements (frustumObjects()).
+    void frustumPass(const CameraPose& pose, FrameStats& stats);
+    // RVG: layout, streaming, defragmentation and reformation of the visible set.
+    void streamPass(uint64_t frame, FrameStats& stats);
 
     // Changes what the next frames remove and simplify (the window's 1/2/3 keys).
     void setMode(CullMode mode) { options_.mode = mode; }
@@ -90,7 +113,8 @@ private:
         k::KernelArray<uint32_t> ids, vc, tc, draw_vc, draw_tc;
         k::KernelArray<uint64_t> voff, toff;
     };
-    void chooseOccluders(const k::Camera& camera);
+    void chooseOccluders(const k::Camera& camera, std::span<const uint32_t> occluder_source);
+    bool frustumIsFor(const CameraPose& pose) const;
     void rasterOccluders(const k::Camera& camera, FrameStats& stats);
     void buildLayout(uint64_t frame, FrameStats& stats);
 
@@ -105,7 +129,10 @@ private:
     uint32_t frustum_count_ = 0;
     k::KernelArray<float> weights_;
     k::KernelArray<uint32_t> aos_;
-    std::vector<uint32_t> occluders_, pvs_, previous_pvs_;
+    std::vector<uint32_t> occluders_, pvs_;
+    std::vector<uint32_t> pvs_history_[2];  // the PVS of the last frame and of the one before
+    CameraPose frustum_pose_{};
+    bool has_frustum_pose_ = false;
     k::KernelArray<glm::vec3> raster_positions_;
     k::KernelArray<uint32_t> raster_triangles_;
     k::KernelArray<uint8_t> raster_edge_flags_;  // per triangle of raster_triangles_
