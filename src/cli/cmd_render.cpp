@@ -3,10 +3,15 @@
 #include "cli/progress.h"
 
 #include "kernel_memory.h"
+#include "net/transport.h"
 #include "pipeline/pipeline.h"
+#include "roles/occlusion_switch.h"
 #include "scene/errors.h"
 #include "view/camera_path.h"
 
+#ifdef OCC_HAVE_MPI
+#include "net/mpi_transport.h"
+#endif
 #ifdef OCC_HAVE_GL
 #include "render/frame_display.h"
 #include "render/headless_context.h"
@@ -15,6 +20,7 @@
 #endif
 
 #include <atomic>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -28,7 +34,8 @@ namespace {
 
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc";
-    bool no_display = false, headless = false, exact = false, reference = false;
+    bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
+    double rank_timeout = 5.0;
     std::string out, debug_views;
     std::vector<uint64_t> debug_frames;
     PipelineOptions pipeline;
@@ -62,8 +69,8 @@ public:
     ~StatsFile() {
         if (!tmp_.empty()) std::remove(tmp_.c_str());
     }
-    void row(const std::string& line) {
-        if (csv_.is_open()) csv_ << line << '\n';
+    void write(const std::string& rows) {
+        if (csv_.is_open()) csv_ << rows;
     }
     void commit() {
         if (!csv_.is_open()) return;
@@ -82,6 +89,7 @@ int runRender(RenderOptions o) {
     parseViewportSize("--size", o.size, o.pipeline.width, o.pipeline.height);
     o.pipeline.mode = parseCullMode(o.mode);
     o.pipeline.stream = parseStreamMode(o.stream);
+    if (o.pipeline.pvs_occluder_lag > 2) throw UsageError("render: --pvs-occluder-lag must be 1 or 2");
     if (o.no_display && o.headless) throw UsageError("render: --no-display and --headless exclude each other");
     const bool draws = !o.no_display;
     if (!draws && (o.exact || o.reference || !o.out.empty() || !o.debug_views.empty()))
@@ -100,6 +108,7 @@ int runRender(RenderOptions o) {
     const OssFile file = OssFile::open(o.scene);
 #ifdef OCC_HAVE_GL
     if (draws && !o.headless) {
+        if (o.pipeline.pvs_occluder_lag == 0) o.pipeline.pvs_occluder_lag = 1;
         render::WindowOptions w;
         w.width = o.pipeline.width;
         w.height = o.pipeline.height;
@@ -110,8 +119,21 @@ int runRender(RenderOptions o) {
     }
 #endif
     const std::vector<CameraPose> cameras = readCameraPath(o.path);
-    if (!o.out.empty()) makeOutputFolder("--out", o.out);
-    if (!o.debug_views.empty()) makeOutputFolder("--debug-views", o.debug_views);
+    // Under mpirun every rank runs this command; rank 0 displays, writes and prints.
+    std::unique_ptr<InProcessHub> hub;
+    std::unique_ptr<Transport> transport;
+#ifdef OCC_HAVE_MPI
+    if (std::getenv("OMPI_COMM_WORLD_SIZE") || std::getenv("PMI_SIZE"))
+        transport = std::make_unique<MpiTransport>(nullptr, nullptr);
+#endif
+    if (!transport) {
+        hub = std::make_unique<InProcessHub>(1);
+        transport = hub->connect(0);
+    }
+    const bool rank0 = transport->rank() == 0;
+    const roles::RankLayout layout(transport->size());
+    if (rank0 && !o.out.empty()) makeOutputFolder("--out", o.out);
+    if (rank0 && !o.debug_views.empty()) makeOutputFolder("--debug-views", o.debug_views);
     std::set<uint64_t> debug_frames(o.debug_frames.begin(), o.debug_frames.end());
     if (!o.debug_views.empty() && debug_frames.empty())
         debug_frames = {0, cameras.size() / 2, cameras.size() - 1};
@@ -120,37 +142,27 @@ int runRender(RenderOptions o) {
             throw UsageError("render: --debug-frames " + std::to_string(f) + " is past the path's last frame " +
                              std::to_string(cameras.size() - 1));
 
-    Pipeline pipeline(file, o.pipeline);
+    roles::RunOptions run;
+    run.cameras = cameras;
+    run.deltas = !o.no_deltas;
+    if (!(o.rank_timeout > 0 && o.rank_timeout <= 3600))
+        throw UsageError("render: --rank-timeout must be in (0, 3600] seconds");
+    run.timeout = std::chrono::milliseconds(int64_t(o.rank_timeout * 1000));
+    double false_culls = 0, accuracy = 0, exact_occluded = 0, psnr = 0, min_psnr = 1e9, changed = 0, draw_ms = 0;
 #ifdef OCC_HAVE_GL
     std::unique_ptr<render::HeadlessContext> context;
     std::unique_ptr<render::FrameDisplay> display;
     render::DisplayOptions display_options;
     display_options.exact = o.exact;
     display_options.reference = o.reference;
-    if (draws) {
+    if (draws && rank0) {
         context = std::make_unique<render::HeadlessContext>();
-        display = std::make_unique<render::FrameDisplay>(pipeline, o.pipeline.width, o.pipeline.height, display_options);
-    }
-    const std::string display_header = draws ? render::displayStatsHeader(display_options) : std::string();
-#else
-    const std::string display_header;
-#endif
-    StatsFile stats(o.stats, frameStatsHeader() + display_header);
-
-    std::atomic<uint64_t> frames_done{0};
-    ProgressBar progress("render", "frames", "frames", [&] {
-        const double done = double(frames_done.load());
-        return ProgressBar::Sample{done, double(cameras.size()), done};
-    });
-    double total_ms = 0, visible = 0, in_frustum = 0, occluded = 0, streamed = 0, active = 0;
-    double draw_ms = 0, false_culls = 0, accuracy = 0, exact_occluded = 0, psnr = 0, min_psnr = 1e9, changed = 0;
-    for (size_t f = 0; f < cameras.size(); ++f) {
-        const FrameStats s = pipeline.runFrame(cameras[f], f);
-        std::string row = frameStatsRow(s);
-#ifdef OCC_HAVE_GL
-        if (display) {
-            const render::DisplayStats d = display->display(pipeline, cameras[f]);
-            row += render::displayStatsRow(d, display_options);
+        run.draw_header = render::displayStatsHeader(display_options);
+        run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t f) {
+            if (!display)
+                display = std::make_unique<render::FrameDisplay>(pipeline, o.pipeline.width, o.pipeline.height,
+                                                                 display_options);
+            const render::DisplayStats d = display->display(pipeline, pose);
             draw_ms += d.ms_draw;
             false_culls += double(d.false_culls);
             exact_occluded += double(d.exact_occluded);
@@ -158,32 +170,52 @@ int runRender(RenderOptions o) {
             psnr += d.psnr_db;
             min_psnr = std::min(min_psnr, d.psnr_db);
             changed += d.changed_pixel_share;
-            if (!o.out.empty()) {
-                const std::vector<uint8_t>& rgb = display->picture();
+            if (!o.out.empty())
                 render::writePng(o.out + "/" + frameName(f) + ".png", o.pipeline.width, o.pipeline.height, 3,
-                                 rgb.data());
-            }
-            if (debug_frames.count(f)) display->writeDebugViews(pipeline, cameras[f], o.debug_views, frameName(f));
-        }
-#endif
-        stats.row(row);
-        total_ms += s.ms_total;
-        visible += double(s.objects_visible);
-        in_frustum += double(s.objects_in_frustum);
-        occluded += double(s.objects_occluded);
-        streamed += double(s.streamed_triangles);
-        active += double(s.active_triangles);
-        frames_done = f + 1;
+                                 display->picture().data());
+            if (debug_frames.count(f)) display->writeDebugViews(pipeline, pose, o.debug_views, frameName(f));
+            return render::displayStatsRow(d, display_options);
+        };
+    } else if (draws) {
+        // The other ranks' rows leave the display's columns empty; the header must match.
+        run.draw_header = render::displayStatsHeader(display_options);
     }
+#endif
+    StatsFile stats(rank0 ? o.stats : std::string(), roles::rankStatsHeader(run));
+    std::atomic<uint64_t> frames_done{0};
+    run.on_frame = [&](uint64_t done) { frames_done = done; };
+    std::unique_ptr<ProgressBar> progress;
+    if (rank0)
+        progress = std::make_unique<ProgressBar>("render", "frames", "frames", [&] {
+            const double done = double(frames_done.load());
+            return ProgressBar::Sample{done, double(cameras.size()), done};
+        });
+    roles::RunSummary sum;
+    const std::string rows = roles::runRanks(*transport, file, o.pipeline, run, sum);
+    progress.reset();
+    if (!rank0) return 0;
+    stats.write(rows);
     stats.commit();
     const double frames = double(cameras.size());
-    std::printf("render: %s, %zu frames at %ux%u, mode %s, stream %s, backend %s: mean %.2f ms/frame (%.1f fps); "
-                "%.1f of %u objects in the frustum, %.1f%% of those occluded, %.1f visible; "
+    std::printf("render: %s, %zu frames at %ux%u, mode %s, stream %s, backend %s, %d rank%s: mean %.2f ms/frame "
+                "(%.1f fps); %.1f of %u objects in the frustum, %.1f%% of those occluded, %.1f visible; "
                 "%.0f active triangles, %.4f%% of them streamed per frame\n",
                 o.scene.c_str(), cameras.size(), o.pipeline.width, o.pipeline.height, o.mode.c_str(),
-                o.stream.c_str(), k::kernelBackend(), total_ms / frames, 1000.0 * frames / total_ms,
-                in_frustum / frames, file.objectCount(), in_frustum > 0 ? 100.0 * occluded / in_frustum : 0.0,
-                visible / frames, active / frames, active > 0 ? 100.0 * streamed / active : 0.0);
+                o.stream.c_str(), k::kernelBackend(), layout.size(), layout.size() > 1 ? "s" : "", sum.ms_frame / frames,
+                1000.0 * frames / sum.ms_frame, sum.objects_in_frustum / frames, file.objectCount(),
+                sum.objects_in_frustum > 0 ? 100.0 * (sum.objects_in_frustum - sum.objects_visible) / sum.objects_in_frustum
+                                           : 0.0,
+                sum.objects_visible / frames, sum.active_triangles / frames,
+                sum.active_triangles > 0 ? 100.0 * sum.streamed_triangles / sum.active_triangles : 0.0);
+    std::printf("messages: %s; visible-set messages %.0f bytes/frame, full sets would be %.0f (%.1f%% less); "
+                "cameras %.0f, end-of-frames %.0f bytes/frame; camera-to-display latency %u frame%s, %.2f ms; "
+                "display waited %.2f ms/frame\n",
+                run.deltas ? "deltas" : "full sets (--no-deltas)", double(sum.bytes_delta) / frames,
+                double(sum.full_pvs_bytes) / frames,
+                sum.full_pvs_bytes ? 100.0 * (1.0 - double(sum.bytes_delta) / double(sum.full_pvs_bytes)) : 0.0,
+                double(sum.bytes_camera) / frames, double(sum.bytes_eof) / frames, sum.latency_frames,
+                sum.latency_frames == 1 ? "" : "s", frames > 1 ? sum.latency_ms / (frames - 1) : 0.0,
+                sum.ms_wait / frames);
 #ifdef OCC_HAVE_GL
     if (draws) std::printf("display: %s, mean %.2f ms/frame to draw\n", context->description().c_str(), draw_ms / frames);
     if (o.exact)
@@ -195,6 +227,8 @@ int runRender(RenderOptions o) {
                     min_psnr, changed / frames);
     if (!o.out.empty()) std::printf("frames: %s/frame_*.png\n", o.out.c_str());
     if (!o.debug_views.empty()) std::printf("debug views: %s/\n", o.debug_views.c_str());
+#else
+    (void)false_culls, (void)accuracy, (void)exact_occluded, (void)psnr, (void)min_psnr, (void)changed, (void)draw_ms;
 #endif
     return 0;
 }
@@ -213,13 +247,17 @@ void parseViewportSize(const std::string& option, const std::string& text, uint3
 
 Command addRenderCommand(CLI::App& app) {
     auto o = std::make_shared<RenderOptions>();
+    o->pipeline.pvs_occluder_lag = 0;  // 0 = what the rank layout has
     CLI::App* sub = app.add_subcommand(
         "render", "Render a scene through the frame pipeline: frustum culling, active occluders (Eq. 3),\n"
                   "HZM occlusion culling, LOD selection under a vertex budget (Eq. 1), streaming,\n"
                   "triangle reformation and OpenGL drawing.\n"
                   "  occswitch render S.oss                          a window: fly with the mouse and WASD/QE\n"
                   "  occswitch render S.oss --path P.cam --headless --out frames/   PNG frames, no X server\n"
-                  "  occswitch render S.oss --path P.cam --no-display --stats s.csv every stage but drawing");
+                  "  occswitch render S.oss --path P.cam --no-display --stats s.csv every stage but drawing\n"
+                  "  mpirun -np 3 occswitch render S.oss --path P.cam --headless    the occlusion switch:\n"
+                  "      rank 0 displays, ranks 1 and 2 swap occluder raster and culling every frame\n"
+                  "      (launch/mpi-render adds the flags mpirun needs)");
     sub->add_option("scene", o->scene, "preprocessed scene (.oss)")->required();
     sub->add_option("--path", o->path, "camera path file (see `occswitch path`); in a window, played then flown");
     sub->add_flag("--headless", o->headless, "draw offscreen with EGL (no window, no X server)");
@@ -234,7 +272,12 @@ Command addRenderCommand(CLI::App& app) {
                     "write the occluders' depth, the HZM levels and the culling view of chosen frames into DIR");
     sub->add_option("--debug-frames", o->debug_frames, "frames for --debug-views (default: first, middle, last)")
         ->delimiter(',');
-    sub->add_option("--stats", o->stats, "write per-frame statistics to this CSV file");
+    sub->add_option("--stats", o->stats,
+                    "write per-frame statistics to this CSV file (under mpirun: every rank's rows, with a rank column)");
+    sub->add_flag("--no-deltas", o->no_deltas, "send the full visible set every frame instead of what changed");
+    sub->add_option("--rank-timeout", o->rank_timeout,
+                    "seconds a rank waits for a message before it declares the sender dead")
+        ->capture_default_str();
     sub->add_option("--size", o->size, "viewport and occlusion buffer size WxH")->capture_default_str();
     sub->add_option("--mode", o->mode, "full (no LOD, no occlusion), lod ([PC12]) or oc+lod")->capture_default_str();
     sub->add_option("--stream", o->stream, "sc (coherent), snc (no coherence) or ns (object by object)")
@@ -243,6 +286,9 @@ Command addRenderCommand(CLI::App& app) {
     sub->add_option("--pvs-occluders", o->pipeline.pvs_occluder_triangles,
                     "also raster last frame's largest visible objects up to this many triangles (0 = off)")
         ->capture_default_str();
+    sub->add_option("--pvs-occluder-lag", o->pipeline.pvs_occluder_lag,
+                    "take those from the PVS this many frames back: 1 or 2 (default: 1, and 2 with 3 ranks,\n"
+                    "whose occluder rank works a frame ahead; 2 with 1 rank gives the 3-rank answer)");
     sub->add_option("--budget", o->pipeline.budget, "vertex budget N per frame (0 = 10% of the scene's vertices)")
         ->capture_default_str();
     sub->add_option("--pet", o->pipeline.pet, "pixel error threshold: smaller objects are not drawn")

@@ -215,6 +215,7 @@ const char* messageKindName(MessageKind kind) {
     case MessageKind::Camera: return "camera";
     case MessageKind::Delta: return "delta";
     case MessageKind::EndOfFrame: return "eof";
+    case MessageKind::Report: return "report";
     }
     return "unknown";
 }
@@ -387,6 +388,26 @@ std::vector<uint8_t> encodeEndOfFrame(const EndOfFrame& eof, int sender) {
     w.u32(eof.visible_count);
     w.u32(0);
     return finishMessage(w);
+}
+
+std::vector<uint8_t> encodeReport(const std::string& text, uint64_t frames, int sender) {
+    if (text.size() > kMaxReportBytes) throw std::invalid_argument("encodeReport: text over kMaxReportBytes");
+    ByteWriter w = startMessage(MessageKind::Report, 0, sender, frames, text.size());
+    for (char c : text) w.u8(uint8_t(c));
+    return finishMessage(w);
+}
+
+std::string decodeReport(std::span<const uint8_t> bytes, const DecodeContext& ctx) {
+    const auto [flags, payload] = checkHeader(bytes, MessageKind::Report, ctx);
+    const std::string what = frameWhat(MessageKind::Report, ctx.expected_frame);
+    checkFlags(ctx, MessageKind::Report, ctx.expected_frame, flags, 0);
+    if (payload.size() > kMaxReportBytes) fail(ctx, what + ": " + std::to_string(payload.size()) + " bytes of text");
+    std::string text(payload.begin(), payload.end());
+    for (size_t i = 0; i < text.size(); ++i)
+        if (!(text[i] == '\n' || (text[i] >= 0x20 && text[i] < 0x7f)))
+            fail(ctx, what + ": byte " + std::to_string(i) + " of the text is not printable ASCII");
+    if (!text.empty() && text.back() != '\n') fail(ctx, what + ": the text does not end with a newline");
+    return text;
 }
 
 CameraPacket decodeCameraPacket(std::span<const uint8_t> bytes, const DecodeContext& ctx) {

@@ -23,11 +23,12 @@ namespace occ {
 static_assert(std::endian::native == std::endian::little,
               "the visible-set hash reads ids and counts in host order; a big-endian port needs byte swapping");
 
-// The three kinds of frame message. The value is the `kind` byte of the header and the MPI tag.
-enum class MessageKind : uint8_t { Camera = 1, Delta = 2, EndOfFrame = 3 };
-inline constexpr int kMessageKindCount = 3;
+// The three kinds of frame message, and the end-of-run report (each rank's stats rows, sent to
+// rank 0 to be merged into one CSV). The value is the `kind` byte of the header and the MPI tag.
+enum class MessageKind : uint8_t { Camera = 1, Delta = 2, EndOfFrame = 3, Report = 4 };
+inline constexpr int kMessageKindCount = 4;
 
-// "camera", "delta", "eof" (the counters' suffixes); "unknown" for any other value.
+// "camera", "delta", "eof", "report" (the counters' suffixes); "unknown" for any other value.
 const char* messageKindName(MessageKind kind);
 
 // Wire constants (docs/protocol.md). A receiver accepts exactly kProtocolVersion.
@@ -38,6 +39,7 @@ inline constexpr size_t kCameraPayloadSize = 192;
 inline constexpr size_t kDeltaPayloadHeaderSize = 24;
 inline constexpr size_t kEndOfFramePayloadSize = 16;
 inline constexpr uint32_t kMaxViewportSide = 16384;  // a camera packet's width and height are in [1, this]
+inline constexpr size_t kMaxReportBytes = size_t(256) << 20;  // a report's text
 
 // What the display rank (RVG) sends every frame. sent_ns is the sender's steady clock at send
 // time; only the sender compares it (round-trip latency), other ranks carry it back unchanged.
@@ -118,6 +120,9 @@ VisibleSetDelta makeFullDelta(const VisibleSet& current, uint64_t frame);
 std::vector<uint8_t> encodeCameraPacket(const CameraPacket& packet, int sender);
 std::vector<uint8_t> encodeVisibleSetDelta(const VisibleSetDelta& delta, uint32_t object_count, int sender);
 std::vector<uint8_t> encodeEndOfFrame(const EndOfFrame& eof, int sender);
+// The report's frame field is the number of frames its text covers; text is CSV rows ending in
+// newlines: printable ASCII and '\n' only, at most kMaxReportBytes.
+std::vector<uint8_t> encodeReport(const std::string& text, uint64_t frames, int sender);
 
 // Bytes encodeVisibleSetDelta() produces, without encoding.
 size_t encodedSize(const VisibleSetDelta& delta);
@@ -140,5 +145,7 @@ struct DecodeContext {
 CameraPacket decodeCameraPacket(std::span<const uint8_t> bytes, const DecodeContext& ctx);
 VisibleSetDelta decodeVisibleSetDelta(std::span<const uint8_t> bytes, const DecodeContext& ctx);
 EndOfFrame decodeEndOfFrame(std::span<const uint8_t> bytes, const DecodeContext& ctx);
+// ctx.expected_frame is the number of frames the report must cover.
+std::string decodeReport(std::span<const uint8_t> bytes, const DecodeContext& ctx);
 
 }  // namespace occ

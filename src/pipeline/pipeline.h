@@ -79,9 +79,12 @@ public:
     void setVisible(std::span<const uint32_t> ids, std::span<const uint32_t> vertex_counts);
     // RVG: frustum culling only, for the display's measurements (frustumObjects()).
     void frustumPass(const CameraPose& pose, FrameStats& stats);
+    // Whether frustumObjects() are the last frustumPass's for exactly this pose.
+    bool frustumIsFor(const CameraPose& pose) const;
     // RVG: layout, streaming, defragmentation and reformation of the visible set.
     void streamPass(uint64_t frame, FrameStats& stats);
 
+    const PipelineOptions& options() const { return options_; }
     // Changes what the next frames remove and simplify (the window's 1/2/3 keys).
     void setMode(CullMode mode) { options_.mode = mode; }
     CullMode mode() const { return options_.mode; }
@@ -114,7 +117,6 @@ private:
         k::KernelArray<uint64_t> voff, toff;
     };
     void chooseOccluders(const k::Camera& camera, std::span<const uint32_t> occluder_source);
-    bool frustumIsFor(const CameraPose& pose) const;
     void rasterOccluders(const k::Camera& camera, FrameStats& stats);
     void buildLayout(uint64_t frame, FrameStats& stats);
 

@@ -1,0 +1,425 @@
+// SPDX-License-Identifier: MIT
+#include "roles/occlusion_switch.h"
+
+#include "net/messages.h"
+#include "net/rank_error.h"
+#include "scene/errors.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <map>
+#include <sstream>
+
+namespace occ::roles {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+int64_t nowNs() {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
+}
+
+constexpr MessageKind kFrameKinds[] = {MessageKind::Camera, MessageKind::Delta, MessageKind::EndOfFrame};
+
+// The message columns of one row: what the rank sent since its last row.
+struct NetColumns {
+    uint64_t bytes[3] = {}, messages[3] = {};
+    uint64_t full_pvs_bytes = 0;
+    double latency_ms = -1;   // rows of the display only
+    int64_t latency_frames = -1;
+    double ms_wait = 0;
+    uint64_t visible_hash = 0;
+};
+
+// Per-row differences of the transport's cumulative counters.
+class CounterWindow {
+public:
+    explicit CounterWindow(const Transport& t) : transport_(t), last_(t.counters()) {}
+    NetColumns take() {
+        const TransportCounters now = transport_.counters();
+        const TransportCounters d = now - last_;
+        last_ = now;
+        NetColumns c;
+        for (int i = 0; i < 3; ++i) {
+            c.bytes[i] = d[kFrameKinds[i]].bytes_sent;
+            c.messages[i] = d[kFrameKinds[i]].messages_sent;
+        }
+        for (const KindCounters& k : d.kinds) c.ms_wait += double(k.receive_wait_ns) / 1e6;
+        return c;
+    }
+
+private:
+    const Transport& transport_;
+    TransportCounters last_;
+};
+
+std::string fixed3(double v) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%.3f", v);
+    return b;
+}
+
+std::string netRow(const NetColumns& c) {
+    char b[512];
+    std::snprintf(b, sizeof b, ",%llu,%llu,%llu,%llu,%llu,%llu,%llu,%s,%s,%.3f,%016llx",
+                  static_cast<unsigned long long>(c.bytes[0]), static_cast<unsigned long long>(c.bytes[1]),
+                  static_cast<unsigned long long>(c.bytes[2]), static_cast<unsigned long long>(c.messages[0]),
+                  static_cast<unsigned long long>(c.messages[1]), static_cast<unsigned long long>(c.messages[2]),
+                  static_cast<unsigned long long>(c.full_pvs_bytes),
+                  c.latency_ms < 0 ? "" : fixed3(c.latency_ms).c_str(),
+                  c.latency_frames < 0 ? "" : std::to_string(c.latency_frames).c_str(), c.ms_wait,
+                  static_cast<unsigned long long>(c.visible_hash));
+    return b;
+}
+
+VisibleSet visibleSetOf(const Pipeline& p) {
+    const auto ids = p.visibleObjects();
+    const auto counts = p.visibleLodVertices();
+    std::vector<VisibleSet::Entry> entries(ids.size());
+    for (size_t j = 0; j < ids.size(); ++j) entries[j] = {ids[j], counts[j]};
+    return VisibleSet(std::move(entries));
+}
+
+// OR + HC on one rank: rasters a frame's occluders when its camera arrives, then culls it and
+// sends the visible-set delta to the display (and to the other switch rank).
+class Culler {
+public:
+    Culler(Transport& t, Pipeline& pipeline, const OssFile& file, const RankLayout& layout, const RunOptions& run)
+        : t_(t), pipeline_(pipeline), objects_(file.objectCount()), layout_(layout), run_(run) {}
+
+    // OR of frame f: its camera from the display, then the occluders (Eq. 3's AOS plus the
+    // largest objects of the last PVS this rank computed) rastered into this rank's HZM.
+    void occluders(uint64_t f) {
+        const CameraPacket packet =
+            decodeCameraPacket(t_.receive(0, MessageKind::Camera, run_.timeout), {0, f, objects_});
+        pose_ = packet.pose;
+        pose_frame_ = f;
+        or_stats_ = FrameStats{};
+        // The PVS `lag` frames back, if this rank culled that frame (else none yet: the start).
+        const uint64_t lag = pipeline_.options().pvs_occluder_lag;
+        static const std::vector<uint32_t> none;
+        const std::vector<uint32_t>* source = &none;
+        for (const auto& [frame, pvs] : history_)
+            if (f >= lag && frame == f - lag) source = &pvs;
+        pipeline_.occluderPass(pose_, *source, or_stats_);
+    }
+
+    // HC of frame f (after occluders(f)): returns the frame's OR + HC stats; the delta is sent.
+    FrameStats cull(uint64_t f, NetColumns& net) {
+        if (pose_frame_ != f) throw std::logic_error("Culler::cull before occluders of the frame");
+        // The display may lag at most two frames behind the culling.
+        while (f >= 2 && eof_seen_ + 2 < f + 1) receiveEndOfFrame();
+        FrameStats stats = or_stats_;
+        stats.frame = f;
+        pipeline_.cullPass(pose_, stats);
+        history_[1] = std::move(history_[0]);
+        history_[0] = {f, pipeline_.visibleObjects()};
+        VisibleSet current = visibleSetOf(pipeline_);
+
+        // V_{f-1}: this rank's own, or in the switch the other rank's, from its delta.
+        const int other = layout_.size() == 3 ? 3 - t_.rank() : -1;
+        if (other > 0 && f > 0) {
+            const VisibleSetDelta d = decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, run_.timeout),
+                                                            {other, f - 1, objects_});
+            known_.apply(d, other);
+        }
+        const VisibleSetDelta delta =
+            run_.deltas && f > 0 ? makeDelta(known_, current, f) : makeFullDelta(current, f);
+        const std::vector<uint8_t> bytes = encodeVisibleSetDelta(delta, objects_, t_.rank());
+        const size_t full = fullVisibleSetEncodedSize(current.size());
+        t_.send(0, MessageKind::Delta, bytes);
+        net.full_pvs_bytes += full;
+        if (other > 0 && f + 1 < run_.cameras.size()) {
+            t_.send(other, MessageKind::Delta, bytes);
+            net.full_pvs_bytes += full;
+        }
+        net.visible_hash = current.hash();
+        known_ = std::move(current);
+        return stats;
+    }
+
+    // The display's end-of-frame messages still due, at the end of the run.
+    void drainEndOfFrames() {
+        while (eof_seen_ < run_.cameras.size()) receiveEndOfFrame();
+    }
+
+private:
+    void receiveEndOfFrame() {
+        const EndOfFrame e =
+            decodeEndOfFrame(t_.receive(0, MessageKind::EndOfFrame, run_.timeout), {0, eof_seen_, objects_});
+        if (e.last != (eof_seen_ + 1 == run_.cameras.size()))
+            throw RankError(0, "end-of-frame of frame " + std::to_string(eof_seen_) + ": wrong 'last' flag");
+        ++eof_seen_;
+    }
+
+    Transport& t_;
+    Pipeline& pipeline_;
+    uint32_t objects_;
+    const RankLayout& layout_;
+    const RunOptions& run_;
+    CameraPose pose_;
+    uint64_t pose_frame_ = UINT64_MAX;
+    FrameStats or_stats_;
+    std::pair<uint64_t, std::vector<uint32_t>> history_[2];  // the last two PVS this rank computed
+    VisibleSet known_;       // V of the last frame this rank knows
+    uint64_t eof_seen_ = 0;  // end-of-frames received: frames 0 .. eof_seen_ - 1
+};
+
+// RVG on rank 0: sends cameras, receives each frame's delta, rebuilds V_f, streams, reforms
+// and draws it, and tells the culling ranks the frame is done.
+class Display {
+public:
+    Display(Transport& t, Pipeline& pipeline, const OssFile& file, const PipelineOptions& options,
+            const RankLayout& layout, const RunOptions& run)
+        : t_(t), pipeline_(pipeline), objects_(file.objectCount()), options_(options), layout_(layout), run_(run),
+          sent_ns_(run.cameras.size(), 0), sent_step_(run.cameras.size(), 0) {}
+
+    void sendCamera(uint64_t f, uint64_t step) {
+        CameraPacket p;
+        p.frame = f;
+        p.pose = run_.cameras[f];
+        p.view = viewMatrix(p.pose);
+        p.projection = projectionMatrix(p.pose, options_.width, options_.height);
+        p.width = options_.width;
+        p.height = options_.height;
+        p.sent_ns = nowNs();
+        sent_ns_[f] = p.sent_ns;
+        sent_step_[f] = step;
+        t_.send(layout_.culler(f), MessageKind::Camera, encodeCameraPacket(p, t_.rank()));
+    }
+
+    // Displays frame f at display step `step`, adding to `stats` (which holds the culling's
+    // stages on one rank). Returns the draw callback's columns.
+    std::string display(uint64_t f, uint64_t step, FrameStats& stats, NetColumns& net) {
+        const int from = layout_.culler(f);
+        const VisibleSetDelta d =
+            decodeVisibleSetDelta(t_.receive(from, MessageKind::Delta, run_.timeout), {from, f, objects_});
+        shown_.apply(d, from);
+        std::vector<uint32_t> ids(shown_.size()), counts(shown_.size());
+        for (size_t j = 0; j < shown_.size(); ++j) ids[j] = shown_.entries()[j].first, counts[j] = shown_.entries()[j].second;
+        try {
+            pipeline_.setVisible(ids, counts);
+        } catch (const std::invalid_argument& e) {
+            throw RankError(from, "delta of frame " + std::to_string(f) + ": " + e.what());
+        }
+        const CameraPose& pose = run_.cameras[f];
+        if (!pipeline_.frustumIsFor(pose)) pipeline_.frustumPass(pose, stats);
+        stats.objects_in_frustum = pipeline_.frustumObjects().size();
+        stats.objects_occluded = stats.objects_in_frustum - std::min<uint64_t>(stats.objects_in_frustum, ids.size());
+        pipeline_.streamPass(f, stats);
+        const std::string drawn = run_.draw ? run_.draw(pipeline_, pose, f) : std::string();
+        net.latency_ms = double(nowNs() - sent_ns_[f]) / 1e6;
+        net.latency_frames = int64_t(step - sent_step_[f]);
+        net.visible_hash = shown_.hash();
+        EndOfFrame e;
+        e.frame = f;
+        e.visible_count = uint32_t(shown_.size());
+        e.last = f + 1 == run_.cameras.size();
+        e.compute_ns = int64_t(stats.ms_total * 1e6);
+        const std::vector<uint8_t> bytes = encodeEndOfFrame(e, t_.rank());
+        for (int r = layout_.size() == 1 ? 0 : 1; r < layout_.size(); ++r) t_.send(r, MessageKind::EndOfFrame, bytes);
+        return drawn;
+    }
+
+private:
+    Transport& t_;
+    Pipeline& pipeline_;
+    uint32_t objects_;
+    const PipelineOptions& options_;
+    const RankLayout& layout_;
+    const RunOptions& run_;
+    VisibleSet shown_;
+    std::vector<int64_t> sent_ns_;
+    std::vector<uint64_t> sent_step_;
+};
+
+std::string emptyColumns(const std::string& header) {
+    return std::string(size_t(std::count(header.begin(), header.end(), ',')), ',');
+}
+
+std::string row(int rank, const char* role, const FrameStats& s, const NetColumns& net, const std::string& drawn) {
+    return std::to_string(rank) + "," + role + "," + frameStatsRow(s) + netRow(net) + drawn + "\n";
+}
+
+uint64_t frameOfRow(const std::string& line) {
+    // rank,role,frame,...
+    const size_t a = line.find(','), b = line.find(',', a + 1);
+    return std::stoull(line.substr(b + 1, line.find(',', b + 1) - b - 1));
+}
+
+void addToSummary(RunSummary& sum, const FrameStats& s, const NetColumns& net, double ms_frame) {
+    sum.frames += 1;
+    sum.ms_frame += ms_frame;
+    sum.objects_in_frustum += double(s.objects_in_frustum);
+    sum.objects_visible += double(s.objects_visible);
+    sum.active_triangles += double(s.active_triangles);
+    sum.streamed_triangles += double(s.streamed_triangles);
+    sum.ms_wait += net.ms_wait;
+    if (s.frame > 0) {
+        sum.latency_ms += net.latency_ms;
+        sum.latency_frames = uint32_t(net.latency_frames);
+    }
+}
+
+// Sums every rank's message columns of the merged rows into the summary.
+void addTraffic(RunSummary& sum, const std::string& rows, const std::string& header) {
+    const auto split = [](const std::string& line) {
+        std::vector<std::string> fields;
+        std::stringstream ss(line);
+        for (std::string field; std::getline(ss, field, ',');) fields.push_back(field);
+        return fields;
+    };
+    const std::vector<std::string> names = split(header);
+    const auto column = [&](const char* name) {
+        return size_t(std::find(names.begin(), names.end(), name) - names.begin());
+    };
+    const size_t camera = column("bytes_camera"), delta = column("bytes_delta"), eof = column("bytes_eof"),
+                 full = column("full_pvs_bytes");
+    std::istringstream lines(rows);
+    for (std::string line; std::getline(lines, line);) {
+        const std::vector<std::string> f = split(line);
+        if (f.size() <= full) continue;
+        sum.bytes_camera += std::stoull(f[camera]);
+        sum.bytes_delta += std::stoull(f[delta]);
+        sum.bytes_eof += std::stoull(f[eof]);
+        sum.full_pvs_bytes += std::stoull(f[full]);
+    }
+}
+
+}  // namespace
+
+RankLayout::RankLayout(int size) : size_(size) {
+    if (size < 1 || size > 3)
+        throw UsageError("render: " + std::to_string(size) +
+                         " ranks: occswitch runs 1 (all roles), 2 (display + culling) or 3 (display + occlusion "
+                         "switch) ranks; layouts for more ranks are not designed yet");
+}
+
+const char* RankLayout::roleOf(int rank) const {
+    if (size_ == 1) return "or+hc+rvg";
+    return rank == 0 ? "rvg" : "or+hc";
+}
+
+std::string rankStatsHeader(const RunOptions& run) {
+    return "rank,role," + frameStatsHeader() +
+           ",bytes_camera,bytes_delta,bytes_eof,msgs_camera,msgs_delta,msgs_eof,full_pvs_bytes,latency_ms,"
+           "latency_frames,ms_wait,visible_hash" +
+           run.draw_header;
+}
+
+std::string runRanks(Transport& transport, const OssFile& file, const PipelineOptions& options, const RunOptions& run,
+                     RunSummary& summary) {
+    try {
+        const RankLayout layout(transport.size());
+        const int rank = transport.rank();
+        const uint64_t frames = run.cameras.size();
+        if (frames == 0) throw UsageError("render: the camera path has no frames");
+        PipelineOptions o = options;
+        if (o.pvs_occluder_lag == 0) o.pvs_occluder_lag = layout.occluderLag();
+        if (o.pvs_occluder_lag < layout.occluderLag())
+            throw UsageError("render: --pvs-occluder-lag " + std::to_string(o.pvs_occluder_lag) + " with " +
+                             std::to_string(layout.size()) + " ranks: the switch's occluder rank has the PVS of " +
+                             std::to_string(layout.occluderLag()) + " frames back at the newest");
+        Pipeline pipeline(file, o);
+        CounterWindow window(transport);
+        const std::string no_draw = emptyColumns(run.draw_header);
+        std::vector<std::string> rows;
+        summary = RunSummary{};
+
+        if (layout.size() == 1) {
+            Culler culler(transport, pipeline, file, layout, run);
+            Display display(transport, pipeline, file, o, layout, run);
+            for (uint64_t f = 0; f < frames; ++f) {
+                const auto start = Clock::now();
+                display.sendCamera(f, f);
+                culler.occluders(f);
+                NetColumns net;
+                FrameStats s = culler.cull(f, net);
+                NetColumns shown;
+                const std::string drawn = display.display(f, f, s, shown);
+                net.latency_ms = shown.latency_ms;
+                net.latency_frames = shown.latency_frames;
+                const NetColumns counted = window.take();
+                std::copy(std::begin(counted.bytes), std::end(counted.bytes), net.bytes);
+                std::copy(std::begin(counted.messages), std::end(counted.messages), net.messages);
+                net.ms_wait = counted.ms_wait;
+                rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
+                addToSummary(summary, s, net, std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+                if (run.on_frame) run.on_frame(f + 1);
+            }
+            culler.drainEndOfFrames();
+        } else if (rank == 0) {
+            Display display(transport, pipeline, file, o, layout, run);
+            display.sendCamera(0, 0);
+            for (uint64_t f = 0; f < frames; ++f) {
+                const auto start = Clock::now();
+                if (f + 1 < frames) display.sendCamera(f + 1, f);
+                FrameStats s;
+                NetColumns shown;
+                const std::string drawn = display.display(f, f, s, shown);
+                NetColumns net = window.take();
+                net.latency_ms = shown.latency_ms;
+                net.latency_frames = shown.latency_frames;
+                net.visible_hash = shown.visible_hash;
+                rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
+                addToSummary(summary, s, net, std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+                if (run.on_frame) run.on_frame(f + 1);
+            }
+        } else {
+            Culler culler(transport, pipeline, file, layout, run);
+            const uint64_t first = layout.size() == 3 ? uint64_t(rank - 1) : 0;
+            const uint64_t step = layout.size() == 3 ? 2 : 1;
+            if (first < frames) culler.occluders(first);
+            for (uint64_t f = first; f < frames; f += step) {
+                NetColumns sent;
+                const FrameStats s = culler.cull(f, sent);
+                NetColumns net = window.take();
+                net.full_pvs_bytes = sent.full_pvs_bytes;
+                net.visible_hash = sent.visible_hash;
+                rows.push_back(row(rank, layout.roleOf(rank), s, net, no_draw));
+                if (f + step < frames) culler.occluders(f + step);
+            }
+            culler.drainEndOfFrames();
+        }
+
+        std::string text;
+        for (const std::string& r : rows) text += r;
+        if (rank != 0) {
+            transport.send(0, MessageKind::Report, encodeReport(text, rows.size(), rank));
+        } else if (layout.size() > 1) {
+            // Every rank's rows, ordered by frame, then rank.
+            std::vector<std::pair<uint64_t, std::string>> merged;
+            for (const std::string& r : rows) merged.emplace_back(frameOfRow(r), r);
+            for (int r = 1; r < layout.size(); ++r) {
+                const uint64_t expected = layout.size() == 3 ? (frames + (r == 1 ? 1 : 0)) / 2 : frames;
+                const std::string report =
+                    decodeReport(transport.receive(r, MessageKind::Report, run.timeout), {r, expected, file.objectCount()});
+                std::istringstream lines(report);
+                for (std::string line; std::getline(lines, line);) {
+                    try {
+                        merged.emplace_back(frameOfRow(line), line + "\n");
+                    } catch (const std::exception&) {
+                        throw RankError(r, "report: a row without a frame number");
+                    }
+                }
+            }
+            std::stable_sort(merged.begin(), merged.end(),
+                             [](const auto& a, const auto& b) { return a.first < b.first; });
+            text.clear();
+            for (const auto& entry : merged) text += entry.second;
+        }
+        if (rank == 0) addTraffic(summary, text, rankStatsHeader(run));
+        transport.finish(run.timeout);
+        return text;
+    } catch (const RankError& e) {
+        transport.fail(e.rank(), e.detail());
+        throw;
+    } catch (const std::exception& e) {
+        transport.fail(transport.rank(), e.what());
+        throw;
+    }
+}
+
+}  // namespace occ::roles

@@ -1,0 +1,80 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "net/transport.h"
+#include "pipeline/pipeline.h"
+#include "view/camera.h"
+
+#include <chrono>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace occ::roles {
+
+// Who does what, from the number of ranks (DESIGN.md, "Roles and ranks"):
+//   1 rank:  rank 0 does OR, HC and RVG of every frame, in that order;
+//   2 ranks: rank 0 is RVG; rank 1 does OR then HC of every frame;
+//   3 ranks: rank 0 is RVG; ranks 1 and 2 form the occlusion switch (Govindaraju et al. 2003):
+//            rank 1 + f % 2 culls frame f (HC) with the HZM it built in the step before, while
+//            the other rank rasters the occluders of frame f + 1 (OR): they swap every frame.
+class RankLayout {
+public:
+    // Throws UsageError for a size other than 1, 2 or 3.
+    explicit RankLayout(int size);
+    int size() const { return size_; }
+    // The rank that rasters frame f's occluders and then culls frame f.
+    int culler(uint64_t frame) const { return size_ == 1 ? 0 : size_ == 2 ? 1 : 1 + int(frame % 2); }
+    // How many frames back the PVS lies whose largest objects the OR rasters as extra
+    // occluders: the switch's OR works on frame f + 1 while frame f is being culled, so its
+    // newest PVS is frame f - 1's.
+    uint32_t occluderLag() const { return size_ == 3 ? 2 : 1; }
+    // Frames between the display sending a camera and drawing it: 0 with one rank; with more,
+    // the display sends frame f + 1's camera before it draws frame f, so that the other ranks
+    // work on f + 1 meanwhile.
+    uint32_t cameraLead() const { return size_ == 1 ? 0 : 1; }
+    // "or+hc+rvg", "rvg" or "or+hc": what `rank` does.
+    const char* roleOf(int rank) const;
+
+private:
+    int size_;
+};
+
+struct RunOptions {
+    std::vector<CameraPose> cameras;
+    bool deltas = true;  // false: every visible-set message carries the full set (--no-deltas)
+    // How long a rank waits for a message before it declares the sender dead.
+    std::chrono::milliseconds timeout{5000};
+    // The display's drawing (RVG, rank 0), called after each frame's streaming with the
+    // pipeline whose visible set and active arrays are that frame's; returns the extra CSV
+    // columns, each with a leading comma (may be empty), and draw_header names them.
+    std::function<std::string(Pipeline& pipeline, const CameraPose& pose, uint64_t frame)> draw;
+    std::string draw_header;
+    // Called on rank 0 after every displayed frame (progress).
+    std::function<void(uint64_t frames_done)> on_frame;
+};
+
+// What rank 0 prints after a run.
+struct RunSummary {
+    uint64_t frames = 0;
+    double ms_frame = 0;                  // rank 0: mean wall time per displayed frame
+    double objects_in_frustum = 0, objects_visible = 0, active_triangles = 0, streamed_triangles = 0;  // sums
+    uint64_t bytes_delta = 0, full_pvs_bytes = 0, bytes_camera = 0, bytes_eof = 0;  // all ranks
+    double latency_ms = 0;                // mean camera send -> frame drawn, frames after the first
+    uint32_t latency_frames = 0;          // for frames after the first
+    double ms_wait = 0;                   // rank 0: mean per frame
+};
+
+// The --stats header of a multi-role run: "rank,role," + frameStatsHeader() + the message
+// columns + draw_header.
+std::string rankStatsHeader(const RunOptions& run);
+
+// Runs the camera path as rank transport.rank() of transport.size() ranks (all ranks call it
+// with the same file, options and cameras). Returns this rank's CSV rows; rank 0's are every
+// rank's rows merged (one row per rank and frame, ordered by frame, then rank) and it fills
+// `summary`. Throws RankError when a rank fails (after telling the others), UsageError for a
+// layout that does not exist.
+std::string runRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
+                     const RunOptions& run, RunSummary& summary);
+
+}  // namespace occ::roles
