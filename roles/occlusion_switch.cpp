@@ -162,7 +162,8 @@ private:
     CameraPose pose_;
     uint64_t pose_frame_ = UINT64_MAX;
     FrameStats or_stats_;
-    std::pair<uint64_t, std::vector<uint32_t>> history_[2];  // the last two PVS this rank computed
+    // The last two PVS this rank computed, with their frames (none yet: UINT64_MAX).
+    std::pair<uint64_t, std::vector<uint32_t>> history_[2] = {{UINT64_MAX, {}}, {UINT64_MAX, {}}};
     VisibleSet known_;       // V of the last frame this rank knows
     uint64_t eof_seen_ = 0;  // end-of-frames received: frames 0 .. eof_seen_ - 1
 };

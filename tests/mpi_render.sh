@@ -1,0 +1,133 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# The occlusion switch over real MPI ranks (mpirun -np 1, 2, 3): the 3-rank run displays, frame
+# by frame, the visible sets and LOD counts the 1-rank run computes with the same occluders
+# (--pvs-occluder-lag 2); 2 ranks equal 1 rank; --no-deltas changes the bytes, not the answer;
+# latency is exactly one frame with 2 and 3 ranks; 4 ranks are refused; a rank killed mid-run
+# makes the others exit non-zero within 10 s naming it.
+set -u
+exe=$1
+dir=$(mktemp -d)
+trap 'rm -rf "$dir"; [ -n "${job:-}" ] && kill -9 $job 2>/dev/null' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+# The fault guarantees need the 3 s grace between mpirun's SIGTERM and SIGKILL (docs/protocol.md).
+mpirun=(mpirun --oversubscribe --mca odls_base_sigkill_timeout 3)
+
+"$exe" gen plant --objects 500 -o "$dir/p.glb" 2>/dev/null || fail "gen"
+"$exe" prep "$dir/p.glb" -o "$dir/p.oss" 2>/dev/null || fail "prep"
+# Two walks back to back: at frame 30 the camera jumps (a teleport) to another part of the plant.
+"$exe" path walk "$dir/p.oss" --frames 30 -o "$dir/a.cam" 2>/dev/null || fail "path walk"
+"$exe" path walk "$dir/p.oss" --frames 30 --seed 7 -o "$dir/b.cam" 2>/dev/null || fail "path walk --seed 7"
+{ cat "$dir/a.cam"; grep -v '^#' "$dir/b.cam"; } >"$dir/walk.cam"
+render=(render "$dir/p.oss" --path "$dir/walk.cam" --no-display --size 256x192)
+
+timeout 120 "${mpirun[@]}" -np 3 "$exe" "${render[@]}" --stats "$dir/r3.csv" >"$dir/out3" 2>"$dir/err3" \
+  || fail "mpirun -np 3: $(tail -5 "$dir/err3")"
+grep -q "3 ranks" "$dir/out3" || fail "3-rank summary: $(cat "$dir/out3")"
+grep -q "camera-to-display latency 1 frame," "$dir/out3" || fail "3-rank latency: $(cat "$dir/out3")"
+timeout 120 "${mpirun[@]}" -np 2 "$exe" "${render[@]}" --stats "$dir/r2.csv" >"$dir/out2" 2>"$dir/err2" \
+  || fail "mpirun -np 2: $(tail -5 "$dir/err2")"
+timeout 120 "${mpirun[@]}" -np 1 "$exe" "${render[@]}" --stats "$dir/r1mpi.csv" >/dev/null 2>"$dir/err1" \
+  || fail "mpirun -np 1: $(tail -5 "$dir/err1")"
+"$exe" "${render[@]}" --stats "$dir/r1.csv" >/dev/null || fail "1 rank"
+"$exe" "${render[@]}" --stats "$dir/r1lag2.csv" --pvs-occluder-lag 2 >/dev/null || fail "1 rank, lag 2"
+timeout 120 "${mpirun[@]}" -np 3 "$exe" "${render[@]}" --stats "$dir/r3full.csv" --no-deltas >/dev/null 2>"$dir/err" \
+  || fail "mpirun -np 3 --no-deltas: $(tail -5 "$dir/err")"
+
+python3 - "$dir" <<'PY' || fail "frame-by-frame comparison"
+import csv, sys
+d = sys.argv[1]
+def rows(name, rank='0'):
+    return [r for r in csv.DictReader(open(f'{d}/{name}')) if r['rank'] == rank]
+def same(a, b, what):
+    assert len(a) == len(b) == 60, f'{what}: {len(a)} and {len(b)} rows'
+    for x, y in zip(a, b):
+        for c in ('frame', 'visible_hash', 'objects_visible', 'active_vertices', 'active_triangles'):
+            assert x[c] == y[c], f'{what}: frame {x["frame"]}: {c} {x[c]} != {y[c]}'
+r3, r3full = rows('r3.csv'), rows('r3full.csv')
+same(rows('r1lag2.csv'), r3, '1 rank (lag 2) vs 3 ranks')
+same(rows('r1.csv'), rows('r2.csv'), '1 rank vs 2 ranks')
+same(rows('r1.csv'), rows('r1mpi.csv'), '1 rank vs mpirun -np 1')
+same(r3, r3full, 'deltas vs --no-deltas')
+# Every frame has the display's row and its culler's row; ranks 1 and 2 alternate.
+all3 = list(csv.DictReader(open(f'{d}/r3.csv')))
+assert len(all3) == 120, f'{len(all3)} rows in the merged 3-rank CSV'
+for f in range(60):
+    cullers = [r for r in all3 if int(r['frame']) == f and r['rank'] != '0']
+    assert [r['rank'] for r in cullers] == [str(1 + f % 2)], f'frame {f}: cullers {cullers}'
+    assert cullers[0]['visible_hash'] == r3[f]['visible_hash'], f'frame {f}: culler and display disagree'
+assert all(r['latency_frames'] == ('0' if r['frame'] == '0' else '1') for r in r3), 'latency is not one frame'
+assert all(r['latency_frames'] == '0' for r in rows('r1.csv')), 'one rank adds latency'
+delta = sum(int(r['bytes_delta']) for r in all3)
+full = sum(int(r['full_pvs_bytes']) for r in all3)
+full_sent = sum(int(r['bytes_delta']) for r in csv.DictReader(open(f'{d}/r3full.csv')))
+assert 0 < delta < full, f'deltas {delta} bytes, full sets {full}'
+assert full_sent == full, f'--no-deltas sent {full_sent} bytes, full_pvs_bytes says {full}'
+# The jump: the visible set changes more there than on the frames around it.
+jump = int(r3[30]['visible_hash'] != r3[29]['visible_hash'])
+sent = {int(r['frame']): int(r['bytes_delta']) for r in all3 if r['rank'] != '0'}
+around = sorted(sent[f] for f in range(5, 60) if f != 30)
+assert jump and sent[30] > around[len(around) // 2], f'the jump frame sent {sent[30]} bytes, median {around[len(around) // 2]}'
+for c in ('bytes_camera', 'bytes_eof', 'msgs_camera', 'msgs_delta', 'msgs_eof', 'latency_ms', 'ms_wait'):
+    assert c in all3[0], f'no column {c}'
+PY
+
+# More ranks than a layout exists for: a clear refusal, no hang.
+timeout 60 "${mpirun[@]}" -np 4 "$exe" "${render[@]}" >/dev/null 2>"$dir/err4"; status=$?
+[ $status -ne 0 ] && [ $status -ne 124 ] || fail "4 ranks: exit $status"
+grep -q "4 ranks" "$dir/err4" || fail "4 ranks: $(head -5 "$dir/err4")"
+
+# A rank killed mid-run: the others name it and everything ends within 10 s.
+"$exe" path walk "$dir/p.oss" --frames 20000 -o "$dir/long.cam" 2>/dev/null || fail "long path"
+"${mpirun[@]}" -np 3 "$exe" render "$dir/p.oss" --path "$dir/long.cam" --no-display >/dev/null 2>"$dir/errk" &
+job=$!
+victim=
+for _ in $(seq 100); do
+  sleep 0.1
+  for pid in $(pgrep -f "occswitch render $dir/p.oss"); do
+    if tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=1"; then victim=$pid; fi
+  done
+  [ -n "$victim" ] && break
+done
+[ -n "$victim" ] || fail "rank 1 never started"
+sleep 2
+kill -0 $job 2>/dev/null || fail "the run ended before the kill: $(tail -3 "$dir/errk")"
+kill -9 "$victim"
+killed=$(date +%s.%N)
+for _ in $(seq 150); do kill -0 $job 2>/dev/null || break; sleep 0.1; done
+if kill -0 $job 2>/dev/null; then fail "ranks still running 15 s after rank 1 was killed"; fi
+wait $job; status=$?
+ended=$(date +%s.%N)
+[ $status -ne 0 ] || fail "mpirun exit 0 after a killed rank"
+awk -v a="$killed" -v b="$ended" 'BEGIN { exit !(b - a < 10) }' || fail "took $(awk -v a="$killed" -v b="$ended" 'BEGIN{print b-a}') s"
+n=$(grep -c "^error: rank 1: " "$dir/errk")
+[ "$n" -ge 2 ] || fail "expected ranks 0 and 2 to name rank 1, got: $(grep error "$dir/errk")"
+job=
+
+# A rank that stops answering (SIGSTOP): the others time out (--rank-timeout 3), name it, and
+# mpirun ends the job, the stopped rank included, within 10 s.
+"${mpirun[@]}" -np 3 "$exe" render "$dir/p.oss" --path "$dir/long.cam" --no-display --rank-timeout 3 >/dev/null 2>"$dir/errs" &
+job=$!
+victim=
+for _ in $(seq 100); do
+  sleep 0.1
+  for pid in $(pgrep -f "occswitch render $dir/p.oss"); do
+    if tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=2"; then victim=$pid; fi
+  done
+  [ -n "$victim" ] && break
+done
+[ -n "$victim" ] || fail "rank 2 never started"
+sleep 2
+kill -STOP "$victim"
+stopped=$(date +%s.%N)
+for _ in $(seq 150); do kill -0 $job 2>/dev/null || break; sleep 0.1; done
+if kill -0 $job 2>/dev/null; then kill -9 "$victim"; fail "ranks still running 15 s after rank 2 stopped"; fi
+wait $job; status=$?
+ended=$(date +%s.%N)
+[ $status -ne 0 ] || fail "mpirun exit 0 after a stopped rank"
+awk -v a="$stopped" -v b="$ended" 'BEGIN { exit !(b - a < 10) }' || fail "stop: took $(awk -v a="$stopped" -v b="$ended" 'BEGIN{print b-a}') s"
+n=$(grep -c "^error: rank 2: " "$dir/errs")
+[ "$n" -ge 2 ] || fail "expected ranks 0 and 1 to name rank 2, got: $(grep error "$dir/errs")"
+job=
+echo ok
