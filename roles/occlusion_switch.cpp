@@ -31,6 +31,7 @@ struct NetColumns {
     int64_t latency_frames = -1;
     double ms_wait = 0;
     uint64_t visible_hash = 0;
+    uint64_t added = 0, removed = 0, changed = 0;  // entries of the frame's visible-set message
 };
 
 // Per-row differences of the transport's cumulative counters.
@@ -63,11 +64,12 @@ std::string fixed3(double v) {
 
 std::string netRow(const NetColumns& c) {
     char b[512];
-    std::snprintf(b, sizeof b, ",%llu,%llu,%llu,%llu,%llu,%llu,%llu,%s,%s,%.3f,%016llx",
+    std::snprintf(b, sizeof b, ",%llu,%llu,%llu,%llu,%llu,%llu,%llu,%llu,%llu,%llu,%s,%s,%.3f,%016llx",
                   static_cast<unsigned long long>(c.bytes[0]), static_cast<unsigned long long>(c.bytes[1]),
                   static_cast<unsigned long long>(c.bytes[2]), static_cast<unsigned long long>(c.messages[0]),
                   static_cast<unsigned long long>(c.messages[1]), static_cast<unsigned long long>(c.messages[2]),
-                  static_cast<unsigned long long>(c.full_pvs_bytes),
+                  static_cast<unsigned long long>(c.full_pvs_bytes), static_cast<unsigned long long>(c.added),
+                  static_cast<unsigned long long>(c.removed), static_cast<unsigned long long>(c.changed),
                   c.latency_ms < 0 ? "" : fixed3(c.latency_ms).c_str(),
                   c.latency_frames < 0 ? "" : std::to_string(c.latency_frames).c_str(), c.ms_wait,
                   static_cast<unsigned long long>(c.visible_hash));
@@ -136,6 +138,9 @@ public:
             net.full_pvs_bytes += full;
         }
         net.visible_hash = current.hash();
+        net.added = delta.added.size();
+        net.removed = delta.removed.size();
+        net.changed = delta.changed.size();
         known_ = std::move(current);
         return stats;
     }
@@ -198,6 +203,9 @@ public:
         const VisibleSetDelta d =
             decodeVisibleSetDelta(t_.receive(from, MessageKind::Delta, run_.timeout), {from, f, objects_});
         shown_.apply(d, from);
+        net.added = d.added.size();
+        net.removed = d.removed.size();
+        net.changed = d.changed.size();
         std::vector<uint32_t> ids(shown_.size()), counts(shown_.size());
         for (size_t j = 0; j < shown_.size(); ++j) ids[j] = shown_.entries()[j].first, counts[j] = shown_.entries()[j].second;
         try {
@@ -305,7 +313,8 @@ const char* RankLayout::roleOf(int rank) const {
 
 std::string rankStatsHeader(const RunOptions& run) {
     return "rank,role," + frameStatsHeader() +
-           ",bytes_camera,bytes_delta,bytes_eof,msgs_camera,msgs_delta,msgs_eof,full_pvs_bytes,latency_ms,"
+           ",bytes_camera,bytes_delta,bytes_eof,msgs_camera,msgs_delta,msgs_eof,full_pvs_bytes,delta_added,"
+           "delta_removed,delta_changed,latency_ms,"
            "latency_frames,ms_wait,visible_hash" +
            run.draw_header;
 }
@@ -364,6 +373,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 net.latency_ms = shown.latency_ms;
                 net.latency_frames = shown.latency_frames;
                 net.visible_hash = shown.visible_hash;
+                net.added = shown.added, net.removed = shown.removed, net.changed = shown.changed;
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
                 addToSummary(summary, s, net, std::chrono::duration<double, std::milli>(Clock::now() - start).count());
                 if (run.on_frame) run.on_frame(f + 1);
@@ -379,6 +389,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 NetColumns net = window.take();
                 net.full_pvs_bytes = sent.full_pvs_bytes;
                 net.visible_hash = sent.visible_hash;
+                net.added = sent.added, net.removed = sent.removed, net.changed = sent.changed;
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, no_draw));
                 if (f + step < frames) culler.occluders(f + step);
             }
