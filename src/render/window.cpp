@@ -76,18 +76,24 @@ int runWindow(const OssFile& file, const PipelineOptions& options, const WindowO
         throw SystemError(std::string("window: GLFW cannot start (") + (why ? why : "no reason given") +
                           "); without an X display use --headless, or run under xvfb-run");
     }
-    struct Terminate {
-        ~Terminate() { glfwTerminate(); }
-    } terminate;
+    // Destroyed after the display below: its destructor still needs the window's context.
+    struct Glfw {
+        GLFWwindow* window = nullptr;
+        ~Glfw() {
+            if (window) glfwDestroyWindow(window);
+            glfwTerminate();
+        }
+    } glfw;
     glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 4);
     glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 5);
     glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
     glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
-    GLFWwindow* window = glfwCreateWindow(int(wo.width), int(wo.height), "occswitch", nullptr, nullptr);
+    GLFWwindow* window = glfw.window = glfwCreateWindow(int(wo.width), int(wo.height), "occswitch", nullptr, nullptr);
     if (!window) {
         const char* why = nullptr;
         glfwGetError(&why);
-        throw SystemError(std::string("window: no OpenGL 4.5 core window (") + (why ? why : "no reason given") + ")");
+        throw SystemError(std::string("window: no OpenGL 4.5 core window (") + (why ? why : "no reason given") +
+                          "); the X server needs GLX and a 24-bit screen, or use --headless");
     }
     glfwMakeContextCurrent(window);
     glfwSwapInterval(0);
@@ -155,8 +161,12 @@ int runWindow(const OssFile& file, const PipelineOptions& options, const WindowO
                 if (recording) std::printf("window: recording\n");
                 break;
             case GLFW_KEY_P: {
+                // The target holds the last frame drawn, live or frozen; display.picture() would keep
+                // the first frozen one.
                 const std::string name = nextFreeName(wo.out, "screenshot", ".png");
-                writePng(name, wo.width, wo.height, 3, display.picture().data());
+                std::vector<uint8_t> rgb;
+                display.target().readColour(rgb);
+                writePng(name, wo.width, wo.height, 3, rgb.data());
                 std::printf("window: screenshot %s\n", name.c_str());
                 break;
             }
@@ -244,7 +254,6 @@ int runWindow(const OssFile& file, const PipelineOptions& options, const WindowO
         writeCameraPath(name, recorded);
         std::printf("window: recorded %zu poses to %s\n", recorded.size(), name.c_str());
     }
-    glfwDestroyWindow(window);
     return 0;
 }
 
