@@ -113,20 +113,20 @@ public:
         if (pose_frame_ != f) throw std::logic_error("Culler::cull before occluders of the frame");
         // The display may lag at most two frames behind the culling.
         while (f >= 2 && eof_seen_ + 2 < f + 1) receiveEndOfFrame();
-        FrameStats stats = or_stats_;
-        stats.frame = f;
-        pipeline_.cullPass(pose_, stats);
-        history_[1] = std::move(history_[0]);
-        history_[0] = {f, pipeline_.visibleObjects()};
-        VisibleSet current = visibleSetOf(pipeline_);
-
-        // V_{f-1}: this rank's own, or in the switch the other rank's, from its delta.
+        // V_{f-1}: this rank's own, or in the switch the other rank's, from its delta. The LOD
+        // hysteresis starts from it, and the delta of f is taken against it.
         const int other = layout_.size() == 3 ? 3 - t_.rank() : -1;
         if (other > 0 && f > 0) {
             const VisibleSetDelta d = decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, run_.timeout),
                                                             {other, f - 1, objects_});
             known_.apply(d, other);
         }
+        FrameStats stats = or_stats_;
+        stats.frame = f;
+        pipeline_.cullPass(pose_, stats, known_.entries());
+        history_[1] = std::move(history_[0]);
+        history_[0] = {f, pipeline_.visibleObjects()};
+        VisibleSet current = visibleSetOf(pipeline_);
         const VisibleSetDelta delta =
             run_.deltas && f > 0 ? makeDelta(known_, current, f) : makeFullDelta(current, f);
         const std::vector<uint8_t> bytes = encodeVisibleSetDelta(delta, objects_, t_.rank());

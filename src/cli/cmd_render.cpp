@@ -132,6 +132,9 @@ int runRender(RenderOptions o) {
     }
     const bool rank0 = transport->rank() == 0;
     const roles::RankLayout layout(transport->size());
+    if (layout.size() > 1 && !o.debug_views.empty())
+        throw UsageError("render: --debug-views draws the occluders' depth, which only the culling ranks have: "
+                         "run it with one rank");
     if (rank0 && !o.out.empty()) makeOutputFolder("--out", o.out);
     if (rank0 && !o.debug_views.empty()) makeOutputFolder("--debug-views", o.debug_views);
     std::set<uint64_t> debug_frames(o.debug_frames.begin(), o.debug_frames.end());
@@ -292,6 +295,9 @@ Command addRenderCommand(CLI::App& app) {
     sub->add_option("--budget", o->pipeline.budget, "vertex budget N per frame (0 = 10% of the scene's vertices)")
         ->capture_default_str();
     sub->add_option("--pet", o->pipeline.pet, "pixel error threshold: smaller objects are not drawn")
+        ->capture_default_str();
+    sub->add_option("--lod-hysteresis", o->pipeline.lod_hysteresis,
+                    "keep an object's last vertex count while Eq. 1's is within this fraction of it (0 = off)")
         ->capture_default_str();
     sub->add_option("--alpha", o->pipeline.alpha, "exponent of the LOD metric (Eq. 1)")->capture_default_str();
     return {sub, [o] { return runRender(*o); }};

@@ -39,6 +39,8 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     if (!(options.alpha > 1.0f)) throw UsageError("--alpha must be > 1");
     if (!(options.pet >= 0.0f)) throw UsageError("--pet must be >= 0");
     if (!(options.budget >= 0.0)) throw UsageError("--budget must be >= 0");
+    if (!(options.lod_hysteresis >= 0.0f && options.lod_hysteresis < 1.0f))
+        throw UsageError("--lod-hysteresis must be in [0, 1)");
     if (options.pvs_occluder_lag < 1 || options.pvs_occluder_lag > 2)
         throw UsageError("--pvs-occluder-lag must be 1 or 2");
 
@@ -260,7 +262,8 @@ void Pipeline::occluderPass(const CameraPose& pose, std::span<const uint32_t> oc
     clock.lap(Stage::HzmBuild);
 }
 
-void Pipeline::cullPass(const CameraPose& pose, FrameStats& stats) {
+void Pipeline::cullPass(const CameraPose& pose, FrameStats& stats,
+                        std::span<const std::pair<uint32_t, uint32_t>> previous_lod) {
     if (!frustumIsFor(pose)) frustumPass(pose, stats);
     StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
@@ -290,8 +293,47 @@ void Pipeline::cullPass(const CameraPose& pose, FrameStats& stats) {
         const k::LodParams params{float(budget_), options_.alpha, options_.pet};
         k::lodSelect(objects, pvs_.data(), count, camera, params, scene_.map_first.data(), scene_.maps.data(),
                      pvs_vc_.data(), pvs_tc_.data());
+        if (options_.lod_hysteresis > 0) keepSimilarLods(previous_lod);
     }
     clock.lap(Stage::LodSelect);
+}
+
+// For each PVS object that was visible last frame with a vertex count p, keeps p where Eq. 1's
+// new count v is within lod_hysteresis * p of it (both are valid LODs: p >= q). Kept counts
+// that raise the total above max(N, what Eq. 1 chose) are given back, largest raise first.
+void Pipeline::keepSimilarLods(std::span<const std::pair<uint32_t, uint32_t>> previous) {
+    const uint32_t count = uint32_t(pvs_.size());
+    double total = 0, chosen = 0;
+    std::vector<std::pair<uint32_t, uint32_t>> raised;  // (p - v, j) where p > v was kept
+    std::vector<uint32_t> eq1(count);
+    size_t i = 0;
+    for (uint32_t j = 0; j < count; ++j) {
+        const uint32_t v = pvs_vc_[j];
+        eq1[j] = v;
+        chosen += v;
+        while (i < previous.size() && previous[i].first < pvs_[j]) ++i;
+        if (v > 0 && i < previous.size() && previous[i].first == pvs_[j]) {
+            const uint32_t p = previous[i].second;
+            if (p > 0 && p != v && std::abs(double(v) - double(p)) <= options_.lod_hysteresis * double(p)) {
+                pvs_vc_[j] = p;
+                if (p > v) raised.emplace_back(p - v, j);
+            }
+        }
+        total += pvs_vc_[j];
+    }
+    const double limit = std::max(budget_, chosen);
+    if (total > limit) {
+        std::sort(raised.begin(), raised.end(), std::greater<>());
+        for (const auto& [extra, j] : raised) {
+            if (total <= limit) break;
+            pvs_vc_[j] = eq1[j];
+            total -= extra;
+        }
+    }
+    for (uint32_t j = 0; j < count; ++j) {
+        const k::ObjectInfo& o = scene_.objects[pvs_[j]];
+        if (pvs_vc_[j] != eq1[j]) pvs_tc_[j] = scene_.maps[scene_.map_first[o.mesh] + pvs_vc_[j]];
+    }
 }
 
 void Pipeline::setVisible(std::span<const uint32_t> ids, std::span<const uint32_t> vertex_counts) {
@@ -370,7 +412,9 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
     stats.frame = frame;
     // The PVS `pvs_occluder_lag` frames back supplies this frame's extra occluders.
     occluderPass(pose, pvs_history_[options_.pvs_occluder_lag - 1], stats);
-    cullPass(pose, stats);
+    cullPass(pose, stats, last_lod_);
+    last_lod_.resize(pvs_.size());
+    for (size_t j = 0; j < pvs_.size(); ++j) last_lod_[j] = {pvs_[j], pvs_vc_[j]};
     pvs_history_[1].swap(pvs_history_[0]);
     pvs_history_[0] = pvs_;
     streamPass(frame, stats);

@@ -48,6 +48,11 @@ struct PipelineOptions {
     // cost no streaming; resident vertices are capped at resident_factor x the budget.
     uint32_t retain_frames = 60;
     double resident_factor = 2.0;
+    // Beyond the papers: an object that stays in the PVS keeps last frame's vertex count when
+    // Eq. 1's new count is within this fraction of it (and the budget allows), so LODs do not
+    // flicker by a few vertices every frame: fewer visible-set changes to send, stream and
+    // reform. 0 = Eq. 1's count every frame.
+    float lod_hysteresis = 0.1f;
     float alpha = 3.0f;                  // Eq. 1 exponent
     float pet = 1.0f;                    // pixel error threshold
 };
@@ -71,8 +76,10 @@ public:
     void occluderPass(const CameraPose& pose, std::span<const uint32_t> occluder_source, FrameStats& stats);
     // HC: frustum culling (reused when the last occluderPass had this pose), the HZM test
     // against the HZM of the last occluderPass (oc+lod) and LOD selection: visibleObjects()
-    // and visibleLodVertices().
-    void cullPass(const CameraPose& pose, FrameStats& stats);
+    // and visibleLodVertices(). previous_lod: the last frame's visible set as (id, vertex
+    // count) pairs, ascending ids, for the LOD hysteresis (empty: none).
+    void cullPass(const CameraPose& pose, FrameStats& stats,
+                  std::span<const std::pair<uint32_t, uint32_t>> previous_lod = {});
     // RVG: the visible set a cullPass elsewhere chose (ascending ids with their Eq. 1 vertex
     // counts, 0 = not drawn); throws std::invalid_argument for an entry that is not a valid
     // LOD (ids unsorted or >= object count, count above the object's vertices or below its q).
@@ -116,6 +123,7 @@ private:
         k::KernelArray<uint32_t> ids, vc, tc, draw_vc, draw_tc;
         k::KernelArray<uint64_t> voff, toff;
     };
+    void keepSimilarLods(std::span<const std::pair<uint32_t, uint32_t>> previous);
     void chooseOccluders(const k::Camera& camera, std::span<const uint32_t> occluder_source);
     void rasterOccluders(const k::Camera& camera, FrameStats& stats);
     void buildLayout(uint64_t frame, FrameStats& stats);
@@ -133,6 +141,7 @@ private:
     k::KernelArray<uint32_t> aos_;
     std::vector<uint32_t> occluders_, pvs_;
     std::vector<uint32_t> pvs_history_[2];  // the PVS of the last frame and of the one before
+    std::vector<std::pair<uint32_t, uint32_t>> last_lod_;  // runFrame's last visible set with counts
     CameraPose frustum_pose_{};
     bool has_frustum_pose_ = false;
     k::KernelArray<glm::vec3> raster_positions_;

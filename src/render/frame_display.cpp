@@ -179,6 +179,23 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
     return s;
 }
 
+void FrameDisplay::drawCullingView(const Pipeline& pipeline, const k::Camera& camera) {
+    frame_.begin(false);
+    renderer_.drawFrame(pipeline, camera);
+    std::vector<SceneRenderer::Box> boxes;
+    in_pvs_.assign(pipeline.scene().object_count, 0);
+    for (uint32_t id : pipeline.visibleObjects()) in_pvs_[id] = 1;
+    const auto box = [&](uint32_t id, glm::vec3 colour) {
+        const k::Aabb& b = pipeline.scene().objects[id].aabb;
+        boxes.push_back({glm::vec4(b.min, 0), glm::vec4(b.max, 0), glm::vec4(colour, 1)});
+    };
+    for (uint32_t id : pipeline.frustumObjects())
+        if (!in_pvs_[id]) box(id, {0.95f, 0.15f, 0.1f});
+    for (uint32_t id : pipeline.occluders()) box(id, {0.7f, 0.2f, 0.95f});
+    renderer_.drawBoxes(boxes, camera, false);
+    picture_read_ = false;
+}
+
 void FrameDisplay::writeDebugViews(const Pipeline& pipeline, const CameraPose& pose, const std::string& dir,
                                    const std::string& name) {
     const std::string base = dir + "/" + name;
@@ -195,22 +212,7 @@ void FrameDisplay::writeDebugViews(const Pipeline& pipeline, const CameraPose& p
         writePng(base + "_hzm_" + std::to_string(l) + ".png", width_, height_, 1,
                  depthToGrey(scaled.data(), pixels).data());
     }
-    // The culling view: the frame as drawn, the occlusion-culled boxes red, the occluders purple
-    // (Peng 2014, Figure 5).
-    const k::Camera camera = toKernelCamera(pose, width_, height_);
-    frame_.begin(false);
-    renderer_.drawFrame(pipeline, camera);
-    std::vector<SceneRenderer::Box> boxes;
-    in_pvs_.assign(pipeline.scene().object_count, 0);
-    for (uint32_t id : pipeline.visibleObjects()) in_pvs_[id] = 1;
-    const auto box = [&](uint32_t id, glm::vec3 colour) {
-        const k::Aabb& b = pipeline.scene().objects[id].aabb;
-        boxes.push_back({glm::vec4(b.min, 0), glm::vec4(b.max, 0), glm::vec4(colour, 1)});
-    };
-    for (uint32_t id : pipeline.frustumObjects())
-        if (!in_pvs_[id]) box(id, {0.95f, 0.15f, 0.1f});
-    for (uint32_t id : pipeline.occluders()) box(id, {0.7f, 0.2f, 0.95f});
-    renderer_.drawBoxes(boxes, camera, false);
+    drawCullingView(pipeline, toKernelCamera(pose, width_, height_));
     std::vector<uint8_t> rgb;
     frame_.readColour(rgb);
     writePng(base + "_culling.png", width_, height_, 3, rgb.data());

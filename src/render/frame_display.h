@@ -64,6 +64,11 @@ public:
     FrameTarget& target() { return frame_; }
     SceneRenderer& renderer() { return renderer_; }
 
+    // Draws the last frame from `camera` (its own or another, to inspect it from elsewhere)
+    // with the frustum objects it culled by occlusion as red boxes and its occluders as purple
+    // boxes, both drawn through everything (Peng 2014, Figure 5), into target().
+    void drawCullingView(const Pipeline& pipeline, const k::Camera& camera);
+
     // Writes the debug pictures of the last frame into dir: NAME_aos_depth.png (the occluders'
     // depth, level 0 of the HZM), NAME_hzm_L.png for every level (scaled up to W x H), and
     // NAME_culling.png (the frame with occlusion-culled objects as red boxes and the frame's

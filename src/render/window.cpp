@@ -212,21 +212,7 @@ int runWindow(const OssFile& file, const PipelineOptions& options, const WindowO
             display.display(pipeline, pose);
         } else {
             // The frozen frame from where the camera is now, with what it culled.
-            display.target().begin(false);
-            display.renderer().drawFrame(pipeline, camera);
-            std::vector<SceneRenderer::Box> boxes;
-            std::vector<uint8_t> visible(pipeline.scene().object_count, 0);
-            for (uint32_t id : pipeline.visibleObjects()) visible[id] = 1;
-            for (uint32_t id : pipeline.frustumObjects())
-                if (!visible[id]) {
-                    const k::Aabb& b = pipeline.scene().objects[id].aabb;
-                    boxes.push_back({glm::vec4(b.min, 0), glm::vec4(b.max, 0), glm::vec4(0.95f, 0.15f, 0.1f, 1)});
-                }
-            for (uint32_t id : pipeline.occluders()) {
-                const k::Aabb& b = pipeline.scene().objects[id].aabb;
-                boxes.push_back({glm::vec4(b.min, 0), glm::vec4(b.max, 0), glm::vec4(0.7f, 0.2f, 0.95f, 1)});
-            }
-            display.renderer().drawBoxes(boxes, camera, true);
+            display.drawCullingView(pipeline, camera);
         }
         int fw = 0, fh = 0;
         glfwGetFramebufferSize(window, &fw, &fh);
