@@ -21,6 +21,10 @@ int64_t nowNs() {
     return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
 }
 
+// Waits of the first two frames may cover a rank's start (mapping the scene, building its
+// pipeline, a first frame that streams everything), which a large scene stretches to seconds.
+constexpr std::chrono::milliseconds kStartupAllowance{60000};
+
 constexpr MessageKind kFrameKinds[] = {MessageKind::Camera, MessageKind::Delta, MessageKind::EndOfFrame};
 
 // The message columns of one row: what the rank sent since its last row.
@@ -95,7 +99,7 @@ public:
     // largest objects of the last PVS this rank computed) rastered into this rank's HZM.
     void occluders(uint64_t f) {
         const CameraPacket packet =
-            decodeCameraPacket(t_.receive(0, MessageKind::Camera, run_.timeout), {0, f, objects_});
+            decodeCameraPacket(t_.receive(0, MessageKind::Camera, waitLimit()), {0, f, objects_});
         pose_ = packet.pose;
         pose_frame_ = f;
         or_stats_ = FrameStats{};
@@ -117,7 +121,7 @@ public:
         // hysteresis starts from it, and the delta of f is taken against it.
         const int other = layout_.size() == 3 ? 3 - t_.rank() : -1;
         if (other > 0 && f > 0) {
-            const VisibleSetDelta d = decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, run_.timeout),
+            const VisibleSetDelta d = decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, waitLimit()),
                                                             {other, f - 1, objects_});
             known_.apply(d, other);
         }
@@ -145,6 +149,8 @@ public:
         return stats;
     }
 
+    std::chrono::milliseconds finishLimit() const { return waitLimit(); }
+
     // The display's end-of-frame messages still due, at the end of the run.
     void drainEndOfFrames() {
         while (eof_seen_ < run_.cameras.size()) receiveEndOfFrame();
@@ -153,10 +159,20 @@ public:
 private:
     void receiveEndOfFrame() {
         const EndOfFrame e =
-            decodeEndOfFrame(t_.receive(0, MessageKind::EndOfFrame, run_.timeout), {0, eof_seen_, objects_});
+            decodeEndOfFrame(t_.receive(0, MessageKind::EndOfFrame, waitLimit()), {0, eof_seen_, objects_});
+        slowest_display_ns_ = std::max(slowest_display_ns_, e.compute_ns);
         if (e.last != (eof_seen_ + 1 == run_.cameras.size()))
             throw RankError(0, "end-of-frame of frame " + std::to_string(eof_seen_) + ": wrong 'last' flag");
         ++eof_seen_;
+    }
+
+    // How long to wait for the display (or the other switch rank, which waits for it): the
+    // start-up allowance until the display has finished two frames, then --rank-timeout or 3x
+    // the display's slowest frame so far, whichever is longer (a display drawing 10^7
+    // triangles on a CPU takes seconds per frame and is not dead).
+    std::chrono::milliseconds waitLimit() const {
+        if (eof_seen_ < 2) return std::max(run_.timeout, kStartupAllowance);
+        return std::max(run_.timeout, std::chrono::milliseconds(3 * slowest_display_ns_ / 1000000));
     }
 
     Transport& t_;
@@ -164,6 +180,7 @@ private:
     uint32_t objects_;
     const RankLayout& layout_;
     const RunOptions& run_;
+    int64_t slowest_display_ns_ = 0;
     CameraPose pose_;
     uint64_t pose_frame_ = UINT64_MAX;
     FrameStats or_stats_;
@@ -199,9 +216,12 @@ public:
     // Displays frame f at display step `step`, adding to `stats` (which holds the culling's
     // stages on one rank). Returns the draw callback's columns.
     std::string display(uint64_t f, uint64_t step, FrameStats& stats, NetColumns& net) {
+        const int64_t start_ns = nowNs();
         const int from = layout_.culler(f);
         const VisibleSetDelta d =
-            decodeVisibleSetDelta(t_.receive(from, MessageKind::Delta, run_.timeout), {from, f, objects_});
+            decodeVisibleSetDelta(t_.receive(from, MessageKind::Delta, f < 2 ? std::max(run_.timeout, kStartupAllowance)
+                                                                              : run_.timeout),
+                                  {from, f, objects_});
         shown_.apply(d, from);
         net.added = d.added.size();
         net.removed = d.removed.size();
@@ -226,7 +246,7 @@ public:
         e.frame = f;
         e.visible_count = uint32_t(shown_.size());
         e.last = f + 1 == run_.cameras.size();
-        e.compute_ns = int64_t(stats.ms_total * 1e6);
+        e.compute_ns = nowNs() - start_ns;
         const std::vector<uint8_t> bytes = encodeEndOfFrame(e, t_.rank());
         for (int r = layout_.size() == 1 ? 0 : 1; r < layout_.size(); ++r) t_.send(r, MessageKind::EndOfFrame, bytes);
         return drawn;
@@ -337,6 +357,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
         const std::string no_draw = emptyColumns(run.draw_header);
         std::vector<std::string> rows;
         summary = RunSummary{};
+        std::chrono::milliseconds finish_limit = run.timeout;
 
         if (layout.size() == 1) {
             Culler culler(transport, pipeline, file, layout, run);
@@ -394,6 +415,8 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 if (f + step < frames) culler.occluders(f + step);
             }
             culler.drainEndOfFrames();
+            // The display may still be drawing its last frame when this rank is done.
+            finish_limit = culler.finishLimit();
         }
 
         std::string text;
@@ -423,7 +446,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             for (const auto& entry : merged) text += entry.second;
         }
         if (rank == 0) addTraffic(summary, text, rankStatsHeader(run));
-        transport.finish(run.timeout);
+        transport.finish(finish_limit);
         return text;
     } catch (const RankError& e) {
         transport.fail(e.rank(), e.detail());
