@@ -166,6 +166,8 @@ struct SetupTriangles {
     const DepthRasterVertex* vertices;
     const uint32_t* triangles;
     const uint8_t* edge_flags;  // may be null
+    const uint32_t* neighbours;  // may be null: 3 per triangle, the triangle across each edge
+    uint32_t tri_count;
     DepthRasterTriangle* setup;
     int64_t last_x, last_y;  // viewport size - 1
 
@@ -175,7 +177,28 @@ struct SetupTriangles {
         const DepthRasterVertex c0 = vertices[triangles[3 * t]], v1 = vertices[triangles[3 * t + 1]],
                                 v2 = vertices[triangles[3 * t + 2]];
         if (!(c0.drawn & v1.drawn & v2.drawn)) return;
-        const uint32_t flags = edge_flags ? edge_flags[t] & 7u : 0u;
+        int64_t area2 = int64_t(v1.x - c0.x) * (v2.y - c0.y) - int64_t(v1.y - c0.y) * (v2.x - c0.x);
+        if (area2 == 0) return;
+        uint32_t flags = edge_flags ? edge_flags[t] & 7u : 0u;
+        // A shared edge is inside the occluder's image only when the neighbour across it is
+        // drawn too and faces the same way on screen: then the two lie on either side of it.
+        // Where the surface folds over (a silhouette: one faces the viewer, one away, both on
+        // the same side) or the neighbour is skipped, the edge is a boundary and keeps the margin.
+        if (flags && neighbours) {
+            for (uint32_t e = 0; e < 3; ++e) {
+                if (!(flags >> e & 1u)) continue;
+                const uint32_t n = neighbours[3 * t + e];
+                bool inside = n < tri_count;
+                if (inside) {
+                    const DepthRasterVertex n0 = vertices[triangles[3 * n]], n1 = vertices[triangles[3 * n + 1]],
+                                            n2 = vertices[triangles[3 * n + 2]];
+                    const int64_t n_area2 =
+                        int64_t(n1.x - n0.x) * (n2.y - n0.y) - int64_t(n1.y - n0.y) * (n2.x - n0.x);
+                    inside = (n0.drawn & n1.drawn & n2.drawn) && (n_area2 > 0) == (area2 > 0) && n_area2 != 0;
+                }
+                if (!inside) flags &= ~(1u << e);
+            }
+        }
 
         // A covered centre is at least the margin inside every edge, so inside the snapped
         // box shrunk by the margin: 256*x + 128 in [min + margin, max - margin]. (The box side
@@ -190,8 +213,6 @@ struct SetupTriangles {
         const int64_t y_hi = min64(last_y, floorDiv(y_max - margin - kHalfPixel, kUnits));
         if (x_lo > x_hi || y_lo > y_hi) return;
 
-        int64_t area2 = int64_t(v1.x - c0.x) * (v2.y - c0.y) - int64_t(v1.y - c0.y) * (v2.x - c0.x);
-        if (area2 == 0) return;
         // Both windings are drawn: store it counter-clockwise.
         const bool reversed = area2 < 0;
         const DepthRasterVertex& c1 = reversed ? v2 : v1;
@@ -407,7 +428,7 @@ struct RasterTiles {
 
 }  // namespace
 
-void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* flags) {
+void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* flags, uint32_t* neighbours) {
     // One slot per undirected edge (smaller index, larger index) in an open-addressing hash
     // table, whatever the indices, holding its first two uses and how many there are (up to 3).
     // More than 1.5 slots per use keeps it under 2/3 full even when no edge is shared.
@@ -424,6 +445,7 @@ void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* fla
     std::vector<Slot> slots(mask + 1);
     for (uint32_t t = 0; t < tri_count; ++t) {
         flags[t] = 0;
+        if (neighbours) neighbours[3 * size_t(t)] = neighbours[3 * size_t(t) + 1] = neighbours[3 * size_t(t) + 2] = UINT32_MAX;
         for (uint8_t e = 0; e < 3; ++e) {
             const uint32_t a = triangles[3 * size_t(t) + e], b = triangles[3 * size_t(t) + (e + 1) % 3];
             if (a == b) continue;  // a degenerate edge borders nothing
@@ -446,11 +468,16 @@ void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* fla
         if (slot.count == 2 && slot.forward[0] != slot.forward[1] && slot.triangle[0] != slot.triangle[1]) {
             flags[slot.triangle[0]] |= uint8_t(1u << slot.edge[0]);
             flags[slot.triangle[1]] |= uint8_t(1u << slot.edge[1]);
+            if (neighbours) {
+                neighbours[3 * size_t(slot.triangle[0]) + slot.edge[0]] = slot.triangle[1];
+                neighbours[3 * size_t(slot.triangle[1]) + slot.edge[1]] = slot.triangle[0];
+            }
         }
 }
 
 void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
-                 const uint8_t* edge_flags, const Camera& camera, float* depth, DepthRasterScratch& scratch) {
+                 const uint8_t* edge_flags, const uint32_t* edge_neighbours, const Camera& camera, float* depth,
+                 DepthRasterScratch& scratch) {
     const uint32_t width = camera.width, height = camera.height;
     // The HZM's limit, which also keeps pixel boxes within 16 bits.
     if (width > kHzmMaxSide || height > kHzmMaxSide)
@@ -479,8 +506,8 @@ void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t
         for (int i = 0; i < 16; ++i) project.m[i] = camera.view_proj[i / 4][i % 4];
         thrust::for_each_n(thrust::device, first, vertex_count, project);
         thrust::for_each_n(thrust::device, first, tri_count,
-                           SetupTriangles{scratch.vertices.data(), triangles, edge_flags, scratch.setup.data(),
-                                          int64_t(width) - 1, int64_t(height) - 1});
+                           SetupTriangles{scratch.vertices.data(), triangles, edge_flags, edge_neighbours, tri_count,
+                                          scratch.setup.data(), int64_t(width) - 1, int64_t(height) - 1});
         thrust::for_each_n(thrust::device, first, chunk_count, CountPerChunk{scratch.setup.data(), cells, grid});
         // One more cell than there are, counting 0, so that the scan leaves the total there.
         thrust::exclusive_scan(thrust::device, cells, cells + cell_count + 1, cells);

@@ -23,12 +23,13 @@ namespace occ::k {
 // with y up, the edge runs down or runs left horizontally, so by exactly one of the two, and a
 // tessellated surface covers every centre inside its boundary margin, corners where shared
 // edges meet included.
-// (Where a mesh folds over on screen, its two triangles on the same side of the shared edge,
-// as at every silhouette of a closed mesh, that edge is a boundary drawn exactly, as a GPU's
-// top-left rule draws it from the same snapped corners: only there can a GPU's different
-// rounding of a corner, below 1/256 pixel, uncover a centre that this raster covers. On
-// plant20k's walk with 30 K PVS occluder triangles, 10 % of the shared edges drawn are such
-// folds, and keeping the margin on them would uncover 0.06 % of the covered pixels.)
+// Where a mesh folds over on screen (its two triangles on the same side of the shared edge, as
+// at every silhouette of a closed mesh), or the triangle across the edge is skipped, the edge is
+// a boundary of the image: given the triangle across each edge (edge_neighbours), the raster
+// sees that and keeps the margin there, since a GPU's different rounding of a corner (below
+// 1/256 pixel) could otherwise leave uncovered a centre this raster covers. (Measured before
+// this rule: on plant20k's walk, 10 % of the shared edges drawn were such folds, and 4 of 1200
+// frames had an object culled that the GPU showed in about 10 pixels along one such edge.)
 inline constexpr int32_t kDepthRasterSubpixelUnits = 256;
 inline constexpr int32_t kDepthRasterMarginUnits = 4;
 // A covered pixel gets the triangle's window depth at its centre pushed away, the MIN over every
@@ -70,7 +71,9 @@ struct DepthRasterScratch {
 // Host code, one thread. Cost: a hash table of the edges, O(tri_count) expected time and 24
 // bytes per slot, 4.5 to 9 slots per triangle, of temporary memory (108 to 216 bytes per
 // triangle); the 3.7 M triangles of the 20 000 meshes of plant20k.oss take 0.17 s on one core.
-void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* flags);
+// neighbours: null, or 3 * tri_count entries: for a shared edge e of triangle t,
+// neighbours[3t+e] is the other triangle using it; UINT32_MAX for edges not shared.
+void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* flags, uint32_t* neighbours = nullptr);
 
 // Conservative software depth rasterisation of occluder triangles into a W x H depth buffer,
 // W = camera.width, H = camera.height (each in [0, 32768], else std::invalid_argument; 0 draws
@@ -80,7 +83,10 @@ void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* fla
 // not the whole scene's). triangles: 3 * tri_count corner indices (may be empty). edge_flags:
 // tri_count bytes as sharedEdgeFlags makes them (for the triangles of each mesh, so that only
 // edges shared within one mesh are flagged: two meshes that touch are still two boundaries), or
-// null, which gives every edge the margin. Projection and depth follow kernels.md:
+// null, which gives every edge the margin. edge_neighbours: null (then every flagged edge takes
+// the tie rule), or 3 * tri_count triangle indices into this list as sharedEdgeFlags gives
+// them per mesh (offset by the mesh's first triangle here), so that folds and edges whose
+// neighbour is skipped keep the margin (see above). Projection and depth follow kernels.md:
 // window x = (ndc.x*0.5+0.5)*W, y up, depth = ndc.z*0.5+0.5.
 // depth: W*H floats, row-major (index y*W+x); this function CLEARS it to 1.0 (far) and then,
 // for every pixel whose centre a triangle covers (see the rules above), writes the minimum over
@@ -94,6 +100,7 @@ void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* fla
 // Memory: scratch grows to 16 bytes per vertex, 64 per triangle, 4 per (32x32 tile, triangle)
 // pair of overlapping screen boxes, and 8 per (tile, 4096 triangles), at most 32 MB.
 void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
-                 const uint8_t* edge_flags, const Camera& camera, float* depth, DepthRasterScratch& scratch);
+                 const uint8_t* edge_flags, const uint32_t* edge_neighbours, const Camera& camera, float* depth,
+                 DepthRasterScratch& scratch);
 
 }  // namespace occ::k

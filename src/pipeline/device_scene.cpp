@@ -43,11 +43,13 @@ DeviceScene DeviceScene::upload(const OssFile& file) {
     // Meshes are independent and most are small: one task each.
     const std::span<const uint32_t> triangles = file.allTriangles();
     d.edge_flags.resize(triangles.size() / 3);
+    d.edge_neighbours.resize(triangles.size());
     std::vector<uint32_t> mesh_ids(d.mesh_count);
     std::iota(mesh_ids.begin(), mesh_ids.end(), 0u);
     std::for_each(std::execution::par, mesh_ids.begin(), mesh_ids.end(), [&](uint32_t m) {
         k::sharedEdgeFlags(triangles.data() + 3 * meshes[m].triangle_first, meshes[m].triangle_count,
-                           d.edge_flags.data() + meshes[m].triangle_first);
+                           d.edge_flags.data() + meshes[m].triangle_first,
+                           d.edge_neighbours.data() + 3 * meshes[m].triangle_first);
     });
 
     const std::span<const oss::ObjectDisk> objects = file.objects();

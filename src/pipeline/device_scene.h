@@ -24,6 +24,9 @@ struct DeviceScene {
     // Per triangle, the edges it shares within its mesh (k::sharedEdgeFlags), all meshes back to
     // back like the file's triangles: mesh m's triangle t is at triangle_first[m] + t.
     k::KernelArray<uint8_t> edge_flags;
+    // Per triangle, 3 entries: the triangle of the same mesh across each shared edge (mesh-local
+    // index), UINT32_MAX across the others (k::sharedEdgeFlags' neighbours).
+    k::KernelArray<uint32_t> edge_neighbours;
 
     // file must outlive the DeviceScene.
     static DeviceScene upload(const OssFile& file);

@@ -123,6 +123,7 @@ void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
     raster_positions_.resize(vertex_base.back());
     raster_triangles_.resize(3 * triangle_base.back());
     raster_edge_flags_.resize(triangle_base.back());
+    raster_neighbours_.resize(3 * triangle_base.back());
     std::vector<uint32_t> slots(occluders_.size());
     std::iota(slots.begin(), slots.end(), 0u);
     std::for_each(std::execution::par, slots.begin(), slots.end(), [&](uint32_t j) {
@@ -138,9 +139,14 @@ void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
         for (uint64_t c = 0; c < 3ull * o.triangle_count; ++c) out[c] = tri[c] + base;
         std::copy_n(scene_.edge_flags.data() + scene_.triangle_first[o.mesh], o.triangle_count,
                     raster_edge_flags_.data() + triangle_base[j]);
+        const uint32_t* across = scene_.edge_neighbours.data() + 3 * scene_.triangle_first[o.mesh];
+        uint32_t* across_out = raster_neighbours_.data() + 3 * triangle_base[j];
+        const uint32_t first = uint32_t(triangle_base[j]);
+        for (uint64_t e = 0; e < 3ull * o.triangle_count; ++e)
+            across_out[e] = across[e] == UINT32_MAX ? UINT32_MAX : across[e] + first;
     });
     k::depthRaster(raster_positions_.data(), raster_triangles_.data(), uint32_t(triangle_base.back()),
-                   raster_edge_flags_.data(), camera, hzm_.data(), raster_scratch_);
+                   raster_edge_flags_.data(), raster_neighbours_.data(), camera, hzm_.data(), raster_scratch_);
     stats.aos_size = occluders_.size();
     stats.occluder_triangles = triangle_base.back();
 }

@@ -147,6 +147,7 @@ private:
     k::KernelArray<glm::vec3> raster_positions_;
     k::KernelArray<uint32_t> raster_triangles_;
     k::KernelArray<uint8_t> raster_edge_flags_;  // per triangle of raster_triangles_
+    k::KernelArray<uint32_t> raster_neighbours_;  // 3 per triangle of raster_triangles_
     k::DepthRasterScratch raster_scratch_;
     k::KernelArray<float> hzm_;
     k::KernelArray<uint32_t> pvs_vc_, pvs_tc_;  // Eq. 1's choice for each PVS object

@@ -83,7 +83,7 @@ std::vector<float> rasterize(const Mesh& mesh, const Camera& camera, DepthRaster
     KernelArray<float> depth(uint64_t(camera.width) * camera.height);
     std::fill(depth.begin(), depth.end(), -3.0f);  // the raster must clear it
     depthRaster(positions.data(), triangles.data(), mesh.triangleCount(), flags.empty() ? nullptr : edge_flags.data(),
-                camera, depth.data(), scratch);
+                nullptr, camera, depth.data(), scratch);
     return std::vector<float>(depth.begin(), depth.end());
 }
 
@@ -417,6 +417,58 @@ TEST(DepthRaster, CentresOnSharedEdgeStayFarOnlyWithoutFlags) {
     EXPECT_TRUE(std::all_of(counts.begin(), counts.end(), [](int n) { return n == 1; }));
 }
 
+// The triangles across each edge let the raster tell a shared edge inside the image from a fold
+// (both triangles on the same side of it on screen, as at a silhouette), which keeps the margin.
+std::vector<float> rasterizeWithNeighbours(const Mesh& mesh, const Camera& camera) {
+    std::vector<uint8_t> flags(mesh.triangleCount());
+    std::vector<uint32_t> across(3 * flags.size());
+    sharedEdgeFlags(mesh.triangles.data(), mesh.triangleCount(), flags.data(), across.data());
+    KernelArray<glm::vec3> positions(mesh.positions.size());
+    std::copy(mesh.positions.begin(), mesh.positions.end(), positions.begin());
+    KernelArray<uint32_t> triangles(mesh.triangles.size());
+    std::copy(mesh.triangles.begin(), mesh.triangles.end(), triangles.begin());
+    KernelArray<uint8_t> edge_flags(flags.size());
+    std::copy(flags.begin(), flags.end(), edge_flags.begin());
+    KernelArray<uint32_t> neighbours(across.size());
+    std::copy(across.begin(), across.end(), neighbours.begin());
+    KernelArray<float> depth(uint64_t(camera.width) * camera.height);
+    DepthRasterScratch scratch;
+    depthRaster(positions.data(), triangles.data(), mesh.triangleCount(), edge_flags.data(), neighbours.data(), camera,
+                depth.data(), scratch);
+    return std::vector<float>(depth.begin(), depth.end());
+}
+
+TEST(DepthRaster, FoldedSharedEdgeKeepsTheMarginInteriorOneDoesNot) {
+    const Camera c = identityCamera(16, 12);
+    // Edge A-B lies exactly on the centres of row 4 (y = 4.5). Both triangles below it: a fold,
+    // whose top-left tie would cover those centres; one below and one above: an interior edge.
+    const glm::vec3 a = atWindow(c, 2, 4.5f, 0.5f), b = atWindow(c, 14, 4.5f, 0.5f);
+    for (const bool folded : {true, false}) {
+        Mesh mesh;
+        mesh.positions = {a, b, atWindow(c, 8, 0.2f, 0.5f), atWindow(c, 8, folded ? 1.2f : 9.5f, 0.5f)};
+        mesh.triangles = {0, 1, 2, 1, 0, 3};  // the edge used in opposite directions: shared
+        ASSERT_EQ(sharedFlags(mesh), (std::vector<uint8_t>{1, 1}));
+        const std::vector<float> tie = rasterize(mesh, c, sharedFlags(mesh));
+        const std::vector<float> told = rasterizeWithNeighbours(mesh, c);
+        for (uint32_t px = 3; px <= 13; ++px) {
+            EXPECT_LT(tie[4 * 16 + px], 1.0f) << "flags alone: the tie rule covers " << px << ",4";
+            if (folded) {
+                EXPECT_EQ(told[4 * 16 + px], 1.0f) << "fold: centre " << px << ",4 on the silhouette covered";
+            } else {
+                EXPECT_EQ(told[4 * 16 + px], tie[4 * 16 + px]) << "interior edge: " << px << ",4";
+            }
+        }
+    }
+}
+
+TEST(SharedEdgeFlags, NeighboursNameTheTriangleAcrossEachSharedEdge) {
+    const std::vector<uint32_t> quad = {0, 1, 2, 0, 2, 3};
+    std::vector<uint8_t> flags(2);
+    std::vector<uint32_t> across(6, 7);
+    sharedEdgeFlags(quad.data(), 2, flags.data(), across.data());
+    EXPECT_EQ(across, (std::vector<uint32_t>{UINT32_MAX, UINT32_MAX, 1, 0, UINT32_MAX, UINT32_MAX}));
+}
+
 // Which of the two triangles gets the centres exactly on their shared edge: the one for which
 // it is a left or top edge, counter-clockwise, whatever the winding of the input.
 TEST(DepthRaster, CentresOnSharedEdgeGoToTheTriangleWhoseLeftOrTopEdgeItIs) {
@@ -635,7 +687,7 @@ TEST(DepthRaster, EveryTriangleOfALargeSceneLands) {
 
 TEST(DepthRaster, ViewportBeyondLimitIsRejected) {
     DepthRasterScratch scratch;
-    EXPECT_THROW(depthRaster(nullptr, nullptr, 0, nullptr, identityCamera(32769, 1), nullptr, scratch),
+    EXPECT_THROW(depthRaster(nullptr, nullptr, 0, nullptr, nullptr, identityCamera(32769, 1), nullptr, scratch),
                  std::invalid_argument);
 }
 
