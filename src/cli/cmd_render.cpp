@@ -110,8 +110,6 @@ int runRender(RenderOptions o) {
     }
 #endif
     const std::vector<CameraPose> cameras = readCameraPath(o.path);
-    if (!o.out.empty()) makeOutputFolder("--out", o.out);
-    if (!o.debug_views.empty()) makeOutputFolder("--debug-views", o.debug_views);
     std::set<uint64_t> debug_frames(o.debug_frames.begin(), o.debug_frames.end());
     if (!o.debug_views.empty() && debug_frames.empty())
         debug_frames = {0, cameras.size() / 2, cameras.size() - 1};
@@ -119,6 +117,9 @@ int runRender(RenderOptions o) {
         if (f >= cameras.size())
             throw UsageError("render: --debug-frames " + std::to_string(f) + " is past the path's last frame " +
                              std::to_string(cameras.size() - 1));
+    // Folders only once every option is known to be good: a refused run creates nothing.
+    if (!o.out.empty()) makeOutputFolder("--out", o.out);
+    if (!o.debug_views.empty()) makeOutputFolder("--debug-views", o.debug_views);
 
     Pipeline pipeline(file, o.pipeline);
 #ifdef OCC_HAVE_GL
