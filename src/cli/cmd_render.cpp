@@ -135,8 +135,6 @@ int runRender(RenderOptions o) {
     if (layout.size() > 1 && !o.debug_views.empty())
         throw UsageError("render: --debug-views draws the occluders' depth, which only the culling ranks have: "
                          "run it with one rank");
-    if (rank0 && !o.out.empty()) makeOutputFolder("--out", o.out);
-    if (rank0 && !o.debug_views.empty()) makeOutputFolder("--debug-views", o.debug_views);
     std::set<uint64_t> debug_frames(o.debug_frames.begin(), o.debug_frames.end());
     if (!o.debug_views.empty() && debug_frames.empty())
         debug_frames = {0, cameras.size() / 2, cameras.size() - 1};
@@ -144,6 +142,9 @@ int runRender(RenderOptions o) {
         if (f >= cameras.size())
             throw UsageError("render: --debug-frames " + std::to_string(f) + " is past the path's last frame " +
                              std::to_string(cameras.size() - 1));
+    // Folders only once every option is known to be good: a refused run creates nothing.
+    if (rank0 && !o.out.empty()) makeOutputFolder("--out", o.out);
+    if (rank0 && !o.debug_views.empty()) makeOutputFolder("--debug-views", o.debug_views);
 
     roles::RunOptions run;
     run.cameras = cameras;
