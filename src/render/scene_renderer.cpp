@@ -12,7 +12,7 @@ namespace occ::render {
 namespace {
 
 constexpr float kBackground[4] = {0.08f, 0.09f, 0.11f, 1.0f};
-constexpr GLuint kWorldBinding = 0, kColourBinding = 1, kBoxBinding = 2;
+constexpr GLuint kWorldBinding = 0, kColourBinding = 1, kBoxBinding = 2, kDepthFloorBinding = 3;
 constexpr GLint kViewProjLocation = 0, kEyeLocation = 1;
 constexpr uint32_t kCommandWords = 5;  // count, instanceCount, firstIndex, baseVertex, baseInstance
 
@@ -136,6 +136,10 @@ SceneRenderer::SceneRenderer(const DeviceScene& scene) : scene_(scene) {
     OCC_GL_CHECK(glNamedBufferStorage(colour_buffer_, GLsizeiptr(std::max<size_t>(1, n) * sizeof(glm::vec4)),
                                       n ? colours.data() : nullptr, n ? 0 : GL_DYNAMIC_STORAGE_BIT));
     glCreateVertexArrays(1, &empty_vao_);
+    floor_buffer_ = makeBuffer();
+    depth_floors_.assign(std::max<uint32_t>(1, n), 0.0f);
+    OCC_GL_CHECK(glNamedBufferStorage(floor_buffer_, GLsizeiptr(depth_floors_.size() * sizeof(float)),
+                                      depth_floors_.data(), GL_DYNAMIC_STORAGE_BIT));
 
     lod_vertices_ = makeBuffer();
     lod_indices_ = makeBuffer();
@@ -153,7 +157,7 @@ SceneRenderer::SceneRenderer(const DeviceScene& scene) : scene_(scene) {
 }
 
 SceneRenderer::~SceneRenderer() {
-    const GLuint buffers[] = {world_buffer_,  colour_buffer_, box_buffer_,   lod_vertices_,  lod_indices_,
+    const GLuint buffers[] = {floor_buffer_, world_buffer_,  colour_buffer_, box_buffer_,   lod_vertices_,  lod_indices_,
                               lod_ids_,       lod_commands_,  full_vertices_, full_indices_, full_ids_,
                               full_commands_};
     glDeleteBuffers(GLsizei(std::size(buffers)), buffers);
@@ -163,9 +167,37 @@ SceneRenderer::~SceneRenderer() {
     glDeleteProgram(box_program_);
 }
 
+void SceneRenderer::updateDepthFloors(const k::Camera& camera) {
+    if (camera.view_proj == floors_view_proj_) return;
+    floors_view_proj_ = camera.view_proj;
+    const glm::mat4& m = camera.view_proj;
+    for (uint32_t i = 0; i < scene_.object_count; ++i) {
+        const k::Aabb& b = scene_.objects[i].aabb;
+        float nearest = 1.0f;
+        for (int c = 0; c < 8; ++c) {
+            const glm::vec4 clip = m * glm::vec4(c & 1 ? b.max.x : b.min.x, c & 2 ? b.max.y : b.min.y,
+                                                 c & 4 ? b.max.z : b.min.z, 1.0f);
+            // A box reaching the near plane (or NaN) gets no floor.
+            if (!(clip.w > camera.near_plane) || !(clip.z >= -clip.w)) {
+                nearest = 0.0f;
+                break;
+            }
+            nearest = std::min(nearest, clip.z / clip.w * 0.5f + 0.5f);
+        }
+        // A hair nearer than the box, for the rounding of this float projection.
+        depth_floors_[i] = std::max(0.0f, nearest - 1e-6f);
+    }
+    if (scene_.object_count > 0)
+        glNamedBufferSubData(floor_buffer_, 0, GLsizeiptr(scene_.object_count * sizeof(float)), depth_floors_.data());
+}
+
 void SceneRenderer::setCamera(GLuint program, const k::Camera& camera) {
     glProgramUniformMatrix4fv(program, kViewProjLocation, 1, GL_FALSE, &camera.view_proj[0][0]);
-    if (program == shaded_program_) glProgramUniform3fv(program, kEyeLocation, 1, &camera.eye[0]);
+    if (program == shaded_program_) {
+        glProgramUniform3fv(program, kEyeLocation, 1, &camera.eye[0]);
+        updateDepthFloors(camera);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kDepthFloorBinding, floor_buffer_);
+    }
 }
 
 DrawCounts SceneRenderer::drawFrame(const Pipeline& pipeline, const k::Camera& camera) {

@@ -81,11 +81,14 @@ private:
         uint32_t vc = 0, tc = 0, draw_vc = 0;
     };
     void uploadFullDetail();
+    void updateDepthFloors(const k::Camera& camera);
     void setCamera(GLuint program, const k::Camera& camera);
 
     const DeviceScene& scene_;
     GLuint shaded_program_ = 0, box_program_ = 0;
-    GLuint world_buffer_ = 0, colour_buffer_ = 0, box_buffer_ = 0, empty_vao_ = 0;
+    GLuint world_buffer_ = 0, colour_buffer_ = 0, box_buffer_ = 0, empty_vao_ = 0, floor_buffer_ = 0;
+    std::vector<float> depth_floors_;  // per object, for the camera below
+    glm::mat4 floors_view_proj_{0.0f};
     // The active arrays' mirror.
     GLuint lod_vao_ = 0, lod_vertices_ = 0, lod_indices_ = 0, lod_ids_ = 0, lod_commands_ = 0;
     uint64_t lod_vertex_capacity_ = 0, lod_index_capacity_ = 0, lod_draw_capacity_ = 0;
