@@ -5,6 +5,7 @@
 # W x H PNG per frame, debug views of the chosen frames; --mode full draws exactly the reference.
 # Impossible options exit 2 with one error line; a run that fails leaves no stats file.
 set -u
+export TESTS_DIR; TESTS_DIR=$(cd "$(dirname "$0")" && pwd)
 exe=$1
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$(cd "$(dirname "$0")" && pwd)/lsan.supp:print_suppressions=0}
 # Mesa's llvmpipe driver (swrast_dri.so) leaks 240 bytes in 3 blocks and is unloaded by
@@ -46,34 +47,12 @@ grep -q "^exact: 0 false culls" "$dir/out" || fail "summary: $(cat "$dir/out")"
 # Frames: 40 PNGs of 256 x 192 RGB; a frame is more than the background.
 [ "$(ls "$dir/F" | wc -l)" -eq 40 ] || fail "$(ls "$dir/F" | wc -l) files in --out, not 40"
 python3 - "$dir/F" <<'EOF' || fail "PNG frames"
-import struct, sys, zlib
+import os, sys
+sys.path.insert(0, os.environ['TESTS_DIR'])
+from png_rgb import read_png_rgb
 def read(path):
-    data = open(path, 'rb').read()
-    assert data[:8] == b'\x89PNG\r\n\x1a\n', path + ': not a PNG'
-    pos, idat = 8, b''
-    while pos < len(data):
-        length, kind = struct.unpack('>I4s', data[pos:pos + 8])
-        body = data[pos + 8:pos + 8 + length]
-        if kind == b'IHDR': w, h, depth, colour = struct.unpack('>IIBB', body[:10])
-        if kind == b'IDAT': idat += body
-        pos += 12 + length
-    assert (w, h, depth, colour) == (256, 192, 8, 2), '%s: %dx%d depth %d colour type %d' % (path, w, h, depth, colour)
-    raw, bpp, stride = zlib.decompress(idat), 3, 3 * w
-    rows, prev = [], bytearray(stride)
-    for y in range(h):
-        f, line = raw[y * (stride + 1)], bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
-        for i in range(stride):
-            a = line[i - bpp] if i >= bpp else 0
-            b, c = prev[i], prev[i - bpp] if i >= bpp else 0
-            if f == 1: line[i] = (line[i] + a) & 255
-            elif f == 2: line[i] = (line[i] + b) & 255
-            elif f == 3: line[i] = (line[i] + (a + b) // 2) & 255
-            elif f == 4:
-                p = a + b - c
-                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
-                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
-        rows.append(bytes(line))
-        prev = line
+    w, h, rows = read_png_rgb(path)
+    assert (w, h) == (256, 192), '%s: %dx%d' % (path, w, h)
     return rows
 for f in range(40):
     read('%s/frame_%06d.png' % (sys.argv[1], f))

@@ -5,6 +5,7 @@
 # Escape; the screenshots are real pictures and the recorded path plays back. Without an X
 # display the window fails with one error line and exit status 1.
 set -u
+export TESTS_DIR; TESTS_DIR=$(cd "$(dirname "$0")" && pwd)
 exe=$1
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
@@ -96,35 +97,11 @@ grep -q "^render: .* $poses frames at " "$dir/play" || fail "playing $cam: $(cat
 # Prints: width height distinct_colours background_share box_pixels.
 png_stats() {
   python3 - "$1" <<'EOF'
-import struct, sys, zlib
-data = open(sys.argv[1], "rb").read()
-assert data[:8] == b"\x89PNG\r\n\x1a\n", "not a PNG"
-pos, idat = 8, b""
-while pos < len(data):
-    n, kind = struct.unpack(">I4s", data[pos:pos + 8])
-    body = data[pos + 8:pos + 8 + n]
-    if kind == b"IHDR":
-        w, h, depth, colour = struct.unpack(">IIBB", body[:10])
-        assert (depth, colour) == (8, 2), "not 8-bit RGB"
-    elif kind == b"IDAT":
-        idat += body
-    pos += 12 + n
-raw, stride, bpp = zlib.decompress(idat), 3 * w, 3
-rows, prev = [], bytearray(stride)
-for y in range(h):
-    f, line = raw[y * (stride + 1)], bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
-    for x in range(stride):
-        a = line[x - bpp] if x >= bpp else 0
-        b, c = prev[x], prev[x - bpp] if x >= bpp else 0
-        if f == 1: line[x] = (line[x] + a) & 255
-        elif f == 2: line[x] = (line[x] + b) & 255
-        elif f == 3: line[x] = (line[x] + (a + b) // 2) & 255
-        elif f == 4:
-            p = a + b - c
-            pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
-            line[x] = (line[x] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
-    rows.append(bytes(line))
-    prev = line
+import os, sys
+sys.path.insert(0, os.environ["TESTS_DIR"])
+from png_rgb import read_png_rgb
+w, h, rows = read_png_rgb(sys.argv[1])
+stride = 3 * w
 pixels = [row[i:i + 3] for row in rows for i in range(0, stride, 3)]
 near = lambda p, q: all(abs(u - v) <= 2 for u, v in zip(p, q))
 background = sum(near(p, (20, 23, 28)) for p in pixels)

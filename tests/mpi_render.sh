@@ -78,19 +78,22 @@ timeout 60 "${mpirun[@]}" -np 4 "$exe" "${render[@]}" >/dev/null 2>"$dir/err4"; 
 [ $status -ne 0 ] && [ $status -ne 124 ] || fail "4 ranks: exit $status"
 grep -q "4 ranks" "$dir/err4" || fail "4 ranks: $(head -5 "$dir/err4")"
 
+# The pid of rank R of the run on p.oss, once it has started (10 s at most).
+rankPid() {
+  for _ in $(seq 100); do
+    sleep 0.1
+    for pid in $(pgrep -f "occswitch render $dir/p.oss"); do
+      if tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=$1"; then echo "$pid"; return 0; fi
+    done
+  done
+  return 1
+}
+
 # A rank killed mid-run: the others name it and everything ends within 10 s.
 "$exe" path walk "$dir/p.oss" --frames 20000 -o "$dir/long.cam" 2>/dev/null || fail "long path"
 "${mpirun[@]}" -np 3 "$exe" render "$dir/p.oss" --path "$dir/long.cam" --no-display >/dev/null 2>"$dir/errk" &
 job=$!
-victim=
-for _ in $(seq 100); do
-  sleep 0.1
-  for pid in $(pgrep -f "occswitch render $dir/p.oss"); do
-    if tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=1"; then victim=$pid; fi
-  done
-  [ -n "$victim" ] && break
-done
-[ -n "$victim" ] || fail "rank 1 never started"
+victim=$(rankPid 1) || fail "rank 1 never started"
 sleep 2
 kill -0 $job 2>/dev/null || fail "the run ended before the kill: $(tail -3 "$dir/errk")"
 kill -9 "$victim"
@@ -109,15 +112,7 @@ job=
 # mpirun ends the job, the stopped rank included, within 10 s.
 "${mpirun[@]}" -np 3 "$exe" render "$dir/p.oss" --path "$dir/long.cam" --no-display --rank-timeout 3 >/dev/null 2>"$dir/errs" &
 job=$!
-victim=
-for _ in $(seq 100); do
-  sleep 0.1
-  for pid in $(pgrep -f "occswitch render $dir/p.oss"); do
-    if tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=2"; then victim=$pid; fi
-  done
-  [ -n "$victim" ] && break
-done
-[ -n "$victim" ] || fail "rank 2 never started"
+victim=$(rankPid 2) || fail "rank 2 never started"
 sleep 2
 kill -STOP "$victim"
 stopped=$(date +%s.%N)

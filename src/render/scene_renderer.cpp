@@ -251,7 +251,7 @@ DrawCounts SceneRenderer::drawFrame(const Pipeline& pipeline, const k::Camera& c
         // was holds them already up to the old count.
         const bool was_here = !vertices_lost && r.frame + 1 == frame && r.voff == voff;
         dirtyVertices(voff + (was_here ? std::min(vc, r.vc) : 0), voff + vc);
-        const bool same_indices = !indices_lost && was_here && r.frame + 1 == frame && r.toff == toff &&
+        const bool same_indices = !indices_lost && was_here && r.toff == toff &&
                                   r.vc == vc && r.tc == tc && r.draw_vc == draw_vc[j];
         if (!same_indices) dirtyIndices(3 * toff, 3 * (toff + tc));
         r = {frame, voff, toff, vc, tc, draw_vc[j]};
@@ -264,21 +264,25 @@ DrawCounts SceneRenderer::drawFrame(const Pipeline& pipeline, const k::Camera& c
     counts.blocks = draw_ids_.size();
 
     if (!draw_ids_.empty()) {
-        reserve(lod_ids_, lod_draw_capacity_, draw_ids_.size() * sizeof(uint32_t) * kCommandWords);
-        glNamedBufferSubData(lod_ids_, 0, GLsizeiptr(draw_ids_.size() * sizeof(uint32_t)), draw_ids_.data());
-        glNamedBufferData(lod_commands_, GLsizeiptr(commands_.size() * sizeof(uint32_t)), commands_.data(),
-                          GL_STREAM_DRAW);
-        glUseProgram(shaded_program_);
-        setCamera(shaded_program_, camera);
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kWorldBinding, world_buffer_);
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kColourBinding, colour_buffer_);
-        glBindVertexArray(lod_vao_);
-        glBindBuffer(GL_DRAW_INDIRECT_BUFFER, lod_commands_);
-        glMultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr, GLsizei(draw_ids_.size()), 0);
+        multiDraw(lod_vao_, lod_ids_, lod_draw_capacity_, lod_commands_, camera);
         counts.multi_draws = 1;
     }
     checkGlError("drawing the frame", __FILE__, __LINE__);
     return counts;
+}
+
+void SceneRenderer::multiDraw(GLuint vao, GLuint ids, uint64_t& ids_capacity, GLuint commands,
+                              const k::Camera& camera) {
+    reserve(ids, ids_capacity, draw_ids_.size() * sizeof(uint32_t));
+    glNamedBufferSubData(ids, 0, GLsizeiptr(draw_ids_.size() * sizeof(uint32_t)), draw_ids_.data());
+    glNamedBufferData(commands, GLsizeiptr(commands_.size() * sizeof(uint32_t)), commands_.data(), GL_STREAM_DRAW);
+    glUseProgram(shaded_program_);
+    setCamera(shaded_program_, camera);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kWorldBinding, world_buffer_);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kColourBinding, colour_buffer_);
+    glBindVertexArray(vao);
+    glBindBuffer(GL_DRAW_INDIRECT_BUFFER, commands);
+    glMultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr, GLsizei(draw_ids_.size()), 0);
 }
 
 void SceneRenderer::uploadFullDetail() {
@@ -306,18 +310,7 @@ void SceneRenderer::drawFullDetail(const uint32_t* ids, size_t count, const k::C
                                            uint32_t(m.vertex_first), uint32_t(draw_ids_.size())});
         draw_ids_.push_back(ids[j]);
     }
-    if (draw_ids_.empty()) return;
-    reserve(full_ids_, full_draw_capacity_, draw_ids_.size() * sizeof(uint32_t));
-    glNamedBufferSubData(full_ids_, 0, GLsizeiptr(draw_ids_.size() * sizeof(uint32_t)), draw_ids_.data());
-    glNamedBufferData(full_commands_, GLsizeiptr(commands_.size() * sizeof(uint32_t)), commands_.data(),
-                      GL_STREAM_DRAW);
-    glUseProgram(shaded_program_);
-    setCamera(shaded_program_, camera);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kWorldBinding, world_buffer_);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kColourBinding, colour_buffer_);
-    glBindVertexArray(full_vao_);
-    glBindBuffer(GL_DRAW_INDIRECT_BUFFER, full_commands_);
-    glMultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr, GLsizei(draw_ids_.size()), 0);
+    if (!draw_ids_.empty()) multiDraw(full_vao_, full_ids_, full_draw_capacity_, full_commands_, camera);
     checkGlError("drawing at full detail", __FILE__, __LINE__);
 }
 

@@ -81,6 +81,9 @@ private:
         uint32_t vc = 0, tc = 0, draw_vc = 0;
     };
     void uploadFullDetail();
+    // One glMultiDrawElementsIndirect of commands_ (5 words each) for the objects draw_ids_
+    // (the per-draw attribute buffer `ids`) with the shaded program.
+    void multiDraw(GLuint vao, GLuint ids, uint64_t& ids_capacity, GLuint commands, const k::Camera& camera);
     void updateDepthFloors(const k::Camera& camera);
     void setCamera(GLuint program, const k::Camera& camera);
 

@@ -71,19 +71,21 @@ std::vector<uint8_t> sharedFlags(const std::vector<uint32_t>& triangles) {
 }
 std::vector<uint8_t> sharedFlags(const Mesh& mesh) { return sharedFlags(mesh.triangles); }
 
-// flags: one per triangle, or empty for none (null).
+// flags: one per triangle, or empty for none (null); neighbours: 3 per triangle, or empty.
 std::vector<float> rasterize(const Mesh& mesh, const Camera& camera, DepthRasterScratch& scratch,
-                             const std::vector<uint8_t>& flags = {}) {
+                             const std::vector<uint8_t>& flags = {}, const std::vector<uint32_t>& neighbours = {}) {
     KernelArray<glm::vec3> positions(mesh.positions.size());
     std::copy(mesh.positions.begin(), mesh.positions.end(), positions.begin());
     KernelArray<uint32_t> triangles(mesh.triangles.size());
     std::copy(mesh.triangles.begin(), mesh.triangles.end(), triangles.begin());
     KernelArray<uint8_t> edge_flags(flags.size());
     std::copy(flags.begin(), flags.end(), edge_flags.begin());
+    KernelArray<uint32_t> across(neighbours.size());
+    std::copy(neighbours.begin(), neighbours.end(), across.begin());
     KernelArray<float> depth(uint64_t(camera.width) * camera.height);
     std::fill(depth.begin(), depth.end(), -3.0f);  // the raster must clear it
     depthRaster(positions.data(), triangles.data(), mesh.triangleCount(), flags.empty() ? nullptr : edge_flags.data(),
-                nullptr, camera, depth.data(), scratch);
+                neighbours.empty() ? nullptr : across.data(), camera, depth.data(), scratch);
     return std::vector<float>(depth.begin(), depth.end());
 }
 
@@ -423,19 +425,8 @@ std::vector<float> rasterizeWithNeighbours(const Mesh& mesh, const Camera& camer
     std::vector<uint8_t> flags(mesh.triangleCount());
     std::vector<uint32_t> across(3 * flags.size());
     sharedEdgeFlags(mesh.triangles.data(), mesh.triangleCount(), flags.data(), across.data());
-    KernelArray<glm::vec3> positions(mesh.positions.size());
-    std::copy(mesh.positions.begin(), mesh.positions.end(), positions.begin());
-    KernelArray<uint32_t> triangles(mesh.triangles.size());
-    std::copy(mesh.triangles.begin(), mesh.triangles.end(), triangles.begin());
-    KernelArray<uint8_t> edge_flags(flags.size());
-    std::copy(flags.begin(), flags.end(), edge_flags.begin());
-    KernelArray<uint32_t> neighbours(across.size());
-    std::copy(across.begin(), across.end(), neighbours.begin());
-    KernelArray<float> depth(uint64_t(camera.width) * camera.height);
     DepthRasterScratch scratch;
-    depthRaster(positions.data(), triangles.data(), mesh.triangleCount(), edge_flags.data(), neighbours.data(), camera,
-                depth.data(), scratch);
-    return std::vector<float>(depth.begin(), depth.end());
+    return rasterize(mesh, camera, scratch, flags, across);
 }
 
 TEST(DepthRaster, FoldedSharedEdgeKeepsTheMarginInteriorOneDoesNot) {
