@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "cli/commands.h"
+#include "cli/bench_all.h"
 #include "cli/bench_pipeline.h"
 
 #include "cli/progress.h"
@@ -577,8 +578,28 @@ Command addBenchCommand(CLI::App& app) {
     pipeline->add_option("--pvs-occluders", po->pvs_occluder_triangles,
                          "also raster last frame's largest visible objects up to this many triangles")
         ->capture_default_str();
-    return {bench, [o, prep, po, size] {
+
+    auto ao = std::make_shared<BenchAllOptions>();
+    ao->model = kDefaultModel;
+    CLI::App* all = bench->add_subcommand(
+        "all", "Every experiment in one run: prepares the scenes (engine grid, plant) unless the scenes folder\n"
+               "has them, then frame time per stage (Peng 2014 Table 3), culling accuracy against exact culling\n"
+               "(Table 4), SC/SnC/NS streaming (Peng & Cao 2012 Table 1), visible-set bytes with and without\n"
+               "deltas (Govindaraju et al. 2003 Figure 3), latency and waiting on 1, 2 and 3 ranks, fps over\n"
+               "the walk (Peng 2014 Figure 6) and scaling from 10^5 triangles up. Writes CSVs, summary.md and\n"
+               "gnuplot PNGs into --out. Sizes: tiny (seconds, for tests), small (a few minutes: 7 M-triangle\n"
+               "grid, 5 000-object plant, up to 26 M triangles), full (121 M-triangle grid, 20 000-object plant,\n"
+               "up to 10^8 triangles; see docs/results.md for its duration).");
+    all->add_option("--out", ao->out, "results folder (created if missing)")->required();
+    all->add_option("--size", ao->size, "tiny, small or full")
+        ->check(CLI::IsMember({"tiny", "small", "full"}))
+        ->capture_default_str();
+    all->add_option("--scenes", ao->scenes, "folder of prepared scenes, reused by later runs (default: OUT/scenes)");
+    all->add_option("--model", ao->model, "the model the engine grids tile")->capture_default_str();
+    all->add_flag("--no-mpi", ao->no_mpi, "measure the layouts on 1 rank only, without mpirun");
+    return {bench, [o, prep, po, size, ao, all] {
                 if (prep->parsed()) return runBenchPrep(*o);
+                if (all->parsed()) return runBenchAll(*ao);
                 parseViewportSize("--size", *size, po->width, po->height);
                 return runPipelineBench(*po);
             }};
