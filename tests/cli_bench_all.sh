@@ -1,0 +1,88 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# occswitch bench all --size tiny end to end: prepares its scenes, runs every experiment (with
+# 3 MPI ranks when mpirun is there), writes the CSVs, summary.md and seven PNG plots whose
+# numbers hold the invariants (0 false culls, 1 frame of switch latency, deltas smaller than
+# full sets); a second run reuses the scenes and prepares a corrupted one again; impossible
+# options exit 2; a failing run exits 1, names its log and leaves the earlier results intact.
+set -u
+exe=$1
+dir=$(mktemp -d)
+trap 'rm -rf "$dir"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+out=$dir/out
+csv_field() {  # csv_field FILE ROW COLUMN: the value in data row ROW (1 = first) of COLUMN
+  awk -F, -v row="$2" -v name="$3" 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == name) c = i; next }
+    NR == row + 1 { if (!c) exit 3; print $c }' "$1"
+}
+
+"$exe" bench all --size tiny --out "$out" >"$dir/stdout" 2>"$dir/stderr" || { cat "$dir/stderr"; fail "bench all"; }
+[ "$(cat "$dir/stdout")" = "$out/summary.md" ] || fail "stdout is not the summary's path: $(cat "$dir/stdout")"
+for k in 1 2 3 4 5 6 7; do
+  grep -q "^bench all \[$k/7\] " "$dir/stderr" || fail "no progress line for experiment $k"
+done
+for f in breakdown accuracy accuracy_frames streaming bytes bytes_frames latency fps_frames scaling; do
+  [ "$(wc -l <"$out/$f.csv")" -ge 2 ] || fail "$f.csv has no rows"
+done
+for p in breakdown accuracy streaming bytes latency fps scaling; do
+  [ -s "$out/plots/$p.gp" ] || fail "no plots/$p.gp"
+  [ "$(head -c 8 "$out/plots/$p.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] || fail "plots/$p.png is not a PNG"
+  [ "$(stat -c %s "$out/plots/$p.png")" -gt 10000 ] || fail "plots/$p.png is nearly empty"
+done
+for heading in "## 1. Frame time per stage" "## 2. Culling accuracy" "## 3. Streaming" "## 4. Visible-set bytes" \
+               "## 5. Camera-to-display latency" "## 6. Frames per second" "## 7. Scaling"; do
+  grep -q "^$heading" "$out/summary.md" || fail "summary.md lacks '$heading'"
+done
+
+# The numbers: 3 modes x 2 scenes; conservative culling; deltas smaller; the switch's one frame.
+[ "$(tail -n +2 "$out/breakdown.csv" | wc -l)" -eq 6 ] || fail "breakdown.csv: not 6 rows"
+for row in 1 2; do
+  [ "$(csv_field "$out/accuracy.csv" $row false_culls)" = 0 ] || fail "false culls in accuracy.csv row $row"
+  awk -v a="$(csv_field "$out/accuracy.csv" $row accuracy_ratio_of_sums)" 'BEGIN { exit !(a > 50 && a <= 100) }' ||
+    fail "accuracy row $row out of (50, 100]"
+done
+awk -v d="$(csv_field "$out/bytes.csv" 1 delta_bytes_per_frame)" -v f="$(csv_field "$out/bytes.csv" 1 full_set_bytes_per_frame_sent)" \
+  'BEGIN { exit !(d > 0 && d < f) }' || fail "deltas not smaller than full sets: $(cat "$out/bytes.csv")"
+[ "$(csv_field "$out/latency.csv" 1 latency_frames)" = 0 ] || fail "1 rank: latency not 0 frames"
+if command -v mpirun >/dev/null; then
+  [ "$(tail -n +2 "$out/latency.csv" | wc -l)" -eq 3 ] || fail "latency.csv: not 3 layouts"
+  for row in 2 3; do
+    [ "$(csv_field "$out/latency.csv" $row latency_frames)" = 1 ] || fail "layout row $row: latency not 1 frame"
+  done
+fi
+[ "$(tail -n +2 "$out/scaling.csv" | wc -l)" -eq 3 ] || fail "scaling.csv: not 3 scenes"
+awk -F, 'NR > 2 && $3 <= prev { exit 1 } { prev = $3 }' "$out/scaling.csv" || fail "scaling: triangles do not grow"
+[ "$(tail -n +2 "$out/streaming.csv" | wc -l)" -eq 6 ] || fail "streaming.csv: not SC/SnC/NS x 2 scenes"
+sc=$(csv_field "$out/streaming.csv" 1 streamed_triangles_per_frame)
+snc=$(csv_field "$out/streaming.csv" 2 streamed_triangles_per_frame)
+awk -v a="$sc" -v b="$snc" 'BEGIN { exit !(a < b) }' || fail "SC streams no less than SnC ($sc vs $snc)"
+
+# A second run reuses the scenes; one truncated scene is prepared again.
+truncate -s 1000 "$out/scenes/plant_400.oss"
+"$exe" bench all --size tiny --out "$out" >/dev/null 2>"$dir/stderr2" || { cat "$dir/stderr2"; fail "second run"; }
+grep -q "scene engine grid 2x1x2: .*(reused" "$dir/stderr2" || fail "second run did not reuse the grid"
+grep -q "plant_400.oss does not verify; preparing it again" "$dir/stderr2" || fail "corrupt scene not prepared again"
+"$exe" verify "$out/scenes/plant_400.oss" >/dev/null || fail "the scene prepared again does not verify"
+
+# Impossible options: exit 2, one error line, nothing run.
+for bad in "--size huge --out $dir/x" "--size tiny" "--size tiny --out $dir/x --model $dir/none.glb"; do
+  "$exe" bench all $bad >/dev/null 2>"$dir/err"; status=$?
+  [ $status -eq 2 ] || fail "bench all $bad: exit $status, expected 2"
+  [ "$(wc -l <"$dir/err")" -eq 1 ] && grep -q "^error: " "$dir/err" || fail "bench all $bad: $(cat "$dir/err")"
+done
+grep -q "none.glb" "$dir/err" || fail "missing model not named: $(cat "$dir/err")"
+
+# A run that fails (a malformed model to tile) exits 1, names the failed step's log, and leaves
+# the earlier summary and CSVs as they were.
+cp "$out/summary.md" "$dir/summary.before"
+cp "$out/breakdown.csv" "$dir/breakdown.before"
+bad_model=$(dirname "$0")/bad/glb_truncated_bin.glb
+"$exe" bench all --size tiny --out "$out" --scenes "$dir/fresh" --model "$bad_model" >/dev/null 2>"$dir/err"; status=$?
+[ $status -eq 1 ] || fail "failing run: exit $status, expected 1"
+grep -q "^error: bench all: gen_grid_2x1x2 failed (exit status 2); its log: $out/logs/gen_grid_2x1x2.log" "$dir/err" ||
+  fail "failing run: $(cat "$dir/err")"
+grep -q "glb_truncated_bin.glb" "$out/logs/gen_grid_2x1x2.log" || fail "the log does not name the bad model"
+cmp -s "$out/summary.md" "$dir/summary.before" || fail "a failed run changed summary.md"
+cmp -s "$out/breakdown.csv" "$dir/breakdown.before" || fail "a failed run changed breakdown.csv"
+ls "$out" | grep -q '\.tmp$' && fail "temporary files left in $out"
+echo "ok"
