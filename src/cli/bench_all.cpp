@@ -692,16 +692,13 @@ void Bench::streaming(std::ostringstream& md) {
                                         command({"bench", "pipeline", scene->oss.string(), scene->cam.string(),
                                                  "--out", dir.string()}));
         const Csv p(dir / "pipeline_bench.csv");
-        if (!header) {
-            csv << "scene,";
-        }
         {
+            // SC, SnC and NS only; the run's lod row (no occlusion culling) is the breakdown's business.
             std::ifstream in(dir / "pipeline_bench.csv");
             std::string line;
             std::getline(in, line);
-            if (!header) csv << line << "\n";
+            if (!header) csv << "scene," << line << "\n";
             header = true;
-            // SC, SnC and NS only; the run's lod row (no occlusion culling) is the breakdown's business.
             while (std::getline(in, line))
                 if (line.rfind("sc,", 0) == 0 || line.rfind("snc,", 0) == 0 || line.rfind("ns,", 0) == 0)
                     csv << scene->key << "," << line << "\n";
@@ -996,7 +993,7 @@ plot 'latency.csv' using 3:xtic(1) title 'latency ms', '' using 4 title 'display
     plots.push_back({"fps", common + R"(set output 'plots/fps.png'
 set multiplot layout 2,1 title 'Frames per second over the walk (Peng 2014, Figure 6)'
 set ylabel 'fps'
-set key top right
+set key outside right top vertical
 set title 'engine grid'
 plot 'fps_frames.csv' using 1:2 with lines lw 2 title 'oc+lod', '' using 1:3 with lines lw 2 title 'lod', \
      '' using 1:4 with lines lw 1 title 'full'
@@ -1009,6 +1006,8 @@ unset multiplot
     plots.push_back({"scaling", common + R"(set output 'plots/scaling.png'
 set title 'Scene size against frame time (every stage but drawing) and peak memory'
 set logscale xy
+set autoscale xfix
+set offsets graph 0.05, graph 0.05, 0, 0
 set xlabel 'triangles in the scene'
 set ylabel 'ms per frame (log)'
 set y2label 'peak resident MB'
