@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include "pipeline/pipeline.h"
+
 #include <cstdint>
 #include <string>
 
@@ -9,7 +11,7 @@ namespace occ::cli {
 struct PipelineBenchOptions {
     std::string scene, path, out_dir;
     uint32_t width = 512, height = 512;
-    uint64_t pvs_occluder_triangles = 30000;
+    uint64_t pvs_occluder_triangles = PipelineOptions::kAutoOccluderTriangles;
 };
 
 // `occswitch bench pipeline SCENE.oss P.cam`: in one run, per streaming mode (SC, SnC, NS) the

@@ -575,8 +575,10 @@ Command addBenchCommand(CLI::App& app) {
     pipeline->add_option("path", po->path, "camera path (.cam)")->required();
     pipeline->add_option("--out", po->out_dir, "folder for pipeline_bench.csv (created if missing)");
     pipeline->add_option("--size", *size, "viewport WxH")->capture_default_str();
-    pipeline->add_option("--pvs-occluders", po->pvs_occluder_triangles,
-                         "also raster last frame's largest visible objects up to this many triangles")
+    auto pvs = std::make_shared<std::string>("auto");
+    pipeline->add_option("--pvs-occluders", *pvs,
+                         "also raster last frame's largest visible objects up to this many triangles (0 = off;\n"
+                         "auto = a quarter of the vertex budget N, at least 30000)")
         ->capture_default_str();
 
     auto ao = std::make_shared<BenchAllOptions>();
@@ -597,10 +599,11 @@ Command addBenchCommand(CLI::App& app) {
     all->add_option("--scenes", ao->scenes, "folder of prepared scenes, reused by later runs (default: OUT/scenes)");
     all->add_option("--model", ao->model, "the model the engine grids tile")->capture_default_str();
     all->add_flag("--no-mpi", ao->no_mpi, "measure the layouts on 1 rank only, without mpirun");
-    return {bench, [o, prep, po, size, ao, all] {
+    return {bench, [o, prep, po, size, pvs, ao, all] {
                 if (prep->parsed()) return runBenchPrep(*o);
                 if (all->parsed()) return runBenchAll(*ao);
                 parseViewportSize("--size", *size, po->width, po->height);
+                po->pvs_occluder_triangles = parseOccluderTriangles(*pvs);
                 return runPipelineBench(*po);
             }};
 }

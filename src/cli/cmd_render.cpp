@@ -33,7 +33,7 @@ namespace occ::cli {
 namespace {
 
 struct RenderOptions {
-    std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc";
+    std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto";
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
     double rank_timeout = 5.0;
     std::string out, debug_views;
@@ -87,6 +87,7 @@ private:
 
 int runRender(RenderOptions o) {
     parseViewportSize("--size", o.size, o.pipeline.width, o.pipeline.height);
+    o.pipeline.pvs_occluder_triangles = parseOccluderTriangles(o.pvs_occluders);
     o.pipeline.mode = parseCullMode(o.mode);
     o.pipeline.stream = parseStreamMode(o.stream);
     if (o.pipeline.pvs_occluder_lag > 2) throw UsageError("render: --pvs-occluder-lag must be 1 or 2");
@@ -249,6 +250,16 @@ void parseViewportSize(const std::string& option, const std::string& text, uint3
     height = uint32_t(b);
 }
 
+uint64_t parseOccluderTriangles(const std::string& text) {
+    if (text == "auto") return PipelineOptions::kAutoOccluderTriangles;
+    unsigned long long n = 0;
+    char extra = 0;
+    if (text.empty() || text[0] == '-' || std::sscanf(text.c_str(), "%llu%c", &n, &extra) != 1 ||
+        n >= PipelineOptions::kAutoOccluderTriangles)
+        throw UsageError("--pvs-occluders " + text + ": expected auto or a number of triangles (0 = off)");
+    return n;
+}
+
 Command addRenderCommand(CLI::App& app) {
     auto o = std::make_shared<RenderOptions>();
     o->pipeline.pvs_occluder_lag = 0;  // 0 = what the rank layout has
@@ -287,8 +298,9 @@ Command addRenderCommand(CLI::App& app) {
     sub->add_option("--stream", o->stream, "sc (coherent), snc (no coherence) or ns (object by object)")
         ->capture_default_str();
     sub->add_option("--aos", o->pipeline.aos, "active occluders per frame (top-K of Eq. 3)")->capture_default_str();
-    sub->add_option("--pvs-occluders", o->pipeline.pvs_occluder_triangles,
-                    "also raster last frame's largest visible objects up to this many triangles (0 = off)")
+    sub->add_option("--pvs-occluders", o->pvs_occluders,
+                    "also raster last frame's largest visible objects up to this many triangles (0 = off;\n"
+                    "auto = a quarter of the vertex budget N, at least 30000)")
         ->capture_default_str();
     sub->add_option("--pvs-occluder-lag", o->pipeline.pvs_occluder_lag,
                     "take those from the PVS this many frames back: 1 or 2 (default: 1, and 2 with 3 ranks,\n"

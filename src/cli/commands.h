@@ -17,6 +17,10 @@ struct Command {
 // Parses a viewport "WxH" (1 <= W, H <= 16384); throws UsageError naming `option` otherwise.
 void parseViewportSize(const std::string& option, const std::string& text, uint32_t& width, uint32_t& height);
 
+// Parses --pvs-occluders: "auto" (PipelineOptions::kAutoOccluderTriangles) or a triangle count
+// (0 = off); throws UsageError otherwise.
+uint64_t parseOccluderTriangles(const std::string& text);
+
 Command addInfoCommand(CLI::App& app);
 Command addGenCommand(CLI::App& app);
 Command addPrepCommand(CLI::App& app);

@@ -49,6 +49,9 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     double scene_vertices = 0;
     for (uint32_t i = 0; i < n; ++i) scene_vertices += scene_.objects[i].vertex_count;
     budget_ = options.budget > 0 ? options.budget : 0.1 * scene_vertices;
+    if (options_.pvs_occluder_triangles == PipelineOptions::kAutoOccluderTriangles)
+        options_.pvs_occluder_triangles =
+            std::max(PipelineOptions::kMinAutoOccluderTriangles, uint64_t(std::llround(budget_ / 4)));
     host_ = {file.allPositions().data(), file.allTriangles().data(), scene_.vertex_first.data(),
              scene_.triangle_first.data(), scene_.objects.data()};
 
