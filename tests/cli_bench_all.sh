@@ -3,7 +3,8 @@
 # occswitch bench all --size tiny end to end: prepares its scenes, runs every experiment (with
 # 3 MPI ranks when mpirun is there), writes the CSVs, summary.md and seven PNG plots whose
 # numbers hold the invariants (0 false culls, 1 frame of switch latency, deltas smaller than
-# full sets); a second run reuses the scenes and prepares a corrupted one again; impossible
+# full sets); a second run reuses the scenes and prepares a corrupted one again; --no-mpi
+# measures the layouts on 1 rank; impossible
 # options exit 2; a failing run exits 1, names its log and leaves the earlier results intact.
 set -u
 exe=$1
@@ -63,6 +64,15 @@ truncate -s 1000 "$out/scenes/plant_400.oss"
 grep -q "scene engine grid 2x1x2: .*(reused" "$dir/stderr2" || fail "second run did not reuse the grid"
 grep -q "plant_400.oss does not verify; preparing it again" "$dir/stderr2" || fail "corrupt scene not prepared again"
 "$exe" verify "$out/scenes/plant_400.oss" >/dev/null || fail "the scene prepared again does not verify"
+
+# Without MPI every experiment still runs, the layouts on 1 rank, and the summary says so.
+"$exe" bench all --size tiny --no-mpi --scenes "$out/scenes" --out "$dir/nompi" >/dev/null 2>"$dir/stderr3" ||
+  { cat "$dir/stderr3"; fail "--no-mpi run"; }
+for k in 1 2 3 4 5 6 7; do
+  grep -q "^bench all \[$k/7\] " "$dir/stderr3" || fail "--no-mpi: no progress line for experiment $k"
+done
+[ "$(tail -n +2 "$dir/nompi/latency.csv" | wc -l)" -eq 1 ] || fail "--no-mpi: not 1 layout"
+grep -q "^- note: --no-mpi: the layouts were measured with 1 rank only" "$dir/nompi/summary.md" || fail "--no-mpi: no note"
 
 # Impossible options: exit 2, one error line, nothing run.
 for bad in "--size huge --out $dir/x" "--size tiny" "--size tiny --out $dir/x --model $dir/none.glb"; do

@@ -840,6 +840,11 @@ void Bench::bytesAndLatency(std::ostringstream& md) {
         for (size_t r : s->measured) latency_frames = std::max(latency_frames, s->csv.num(r, "latency_frames"));
         const double display_frame = s->meanFrameMs() + s->mean("ms_wait");
         const std::string other = other_rows > 0 ? fixed(others / other_rows, 2) : "-";
+        progress(5, latency_title,
+                 std::to_string(ranks) + " rank" + (ranks > 1 ? "s" : "") + ": latency " + fixed(latency_frames, 0) +
+                     " frame(s), " + fixed(s->mean("latency_ms"), 1) + " ms; display frame " +
+                     fixed(display_frame, 1) + " ms",
+                 0.0);
         csv << ranks << "," << fixed(latency_frames, 0) << "," << fixed(s->mean("latency_ms"), 3) << ","
             << fixed(s->mean("ms_wait"), 3) << "," << (other_rows > 0 ? fixed(others / other_rows, 3) : "") << ","
             << fixed(display_frame, 3) << "," << fixed(wall[ranks], 2) << "\n";
