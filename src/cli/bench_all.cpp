@@ -278,6 +278,13 @@ public:
         return size_t(it - header_.begin());
     }
     size_t rows() const { return rows_.size(); }
+    const std::vector<std::string>& header() const { return header_; }
+    const std::vector<std::string>& row(size_t r) const { return rows_[r]; }
+    static std::string join(const std::vector<std::string>& fields) {
+        std::string line;
+        for (size_t i = 0; i < fields.size(); ++i) line += (i ? "," : "") + fields[i];
+        return line;
+    }
     const std::string& text(size_t row, size_t column) const { return rows_[row][column]; }
     double num(size_t row, size_t column) const {
         const std::string& s = rows_[row][column];
@@ -327,12 +334,6 @@ struct RenderStats {
             if (std::isfinite(v)) sum += v, ++n;
         }
         return n ? sum / double(n) : NAN;
-    }
-    double sum(const std::string& column) const {
-        const size_t c = csv.col(column);
-        double total = 0;
-        for (size_t r : measured) total += csv.num(r, c);
-        return total;
     }
     // What a frame of the display takes: the pipeline stages it runs plus drawing.
     double frameMs(size_t row) const {
@@ -387,7 +388,7 @@ private:
     RunResult render(const std::string& name, const PreparedScene& scene, std::vector<std::string> extra, int ranks);
     bool useMpi() const;
 
-    void breakdownAndFps(std::ostringstream& md);
+    void breakdownAndFps(std::ostringstream& breakdown_md, std::ostringstream& fps_md);
     void accuracy(std::ostringstream& md);
     void streaming(std::ostringstream& md);
     void bytesAndLatency(std::ostringstream& md);
@@ -402,6 +403,7 @@ private:
     PreparedScene grid_, plant_;
     std::string backend_, display_;
     std::vector<std::string> notes_;  // what the summary must say about how this run differed
+    std::vector<std::string> headline_;  // rows of the summary's first table, as the experiments give them
 };
 
 PreparedScene Bench::grid(const GridDims& dims, uint32_t frames) {
@@ -492,6 +494,8 @@ RunResult Bench::render(const std::string& name, const PreparedScene& scene, std
     argv.insert(argv.end(), base.begin(), base.end());
     argv.insert(argv.end(), extra.begin(), extra.end());
     RunResult r = runner_.run(name, argv);
+    if (!backend_.empty() && !display_.empty()) return r;
+    // The summary names the kernels' backend and the GL renderer, as the first run printed them.
     const std::string log = readText(r.log);
     if (backend_.empty()) {
         const std::string line = lineStartingWith(log, "render: ");
@@ -529,7 +533,7 @@ const Stage kStages[] = {
 
 std::string modeKey(const std::string& mode) { return mode == "oc+lod" ? "oclod" : mode; }
 
-void Bench::breakdownAndFps(std::ostringstream& md) {
+void Bench::breakdownAndFps(std::ostringstream& md, std::ostringstream& fps_md) {
     const char* title = "frame time breakdown and fps (Peng 2014 Table 3, Figure 6)";
     std::ostringstream csv, fps_csv;
     csv << "scene,mode,frames";
@@ -595,7 +599,7 @@ void Bench::breakdownAndFps(std::ostringstream& md) {
     writeFileAtomic(out_ / "breakdown.csv", csv.str());
     writeFileAtomic(out_ / "fps_frames.csv", fps_csv.str());
 
-    md << "## 6. Frames per second over the walk (Peng 2014, Figure 6)\n\n"
+    fps_md << "## 6. Frames per second over the walk (Peng 2014, Figure 6)\n\n"
        << "From the same runs: per-frame 1000 / (pipeline + draw ms), `plots/fps.png`; per-frame values in\n"
        << "`fps_frames.csv`.\n\n| scene | oc+lod fps (mean) | lod fps | full fps | oc+lod / lod | frames where oc+lod is faster than lod |\n"
        << "|---|---|---|---|---|---|\n";
@@ -610,11 +614,11 @@ void Bench::breakdownAndFps(std::ostringstream& md) {
                  scene->label + ": oc+lod " + fixed(1000.0 / oc.meanFrameMs(), 1) + " fps, lod " +
                      fixed(1000.0 / lod.meanFrameMs(), 1) + ", full " + fixed(1000.0 / full.meanFrameMs(), 1),
                  0.0);
-        md << "| " << scene->label << " | " << fixed(1000.0 / oc.meanFrameMs(), 1) << " | "
+        fps_md << "| " << scene->label << " | " << fixed(1000.0 / oc.meanFrameMs(), 1) << " | "
            << fixed(1000.0 / lod.meanFrameMs(), 1) << " | " << fixed(1000.0 / full.meanFrameMs(), 1) << " | "
            << fixed(lod.meanFrameMs() / oc.meanFrameMs(), 2) << "x | " << faster << " of " << compared << " |\n";
     }
-    md << "\nPeng 2014's Figure 6 shows occlusion culling + LOD above LOD alone over its walk; the rows above\n"
+    fps_md << "\nPeng 2014's Figure 6 shows occlusion culling + LOD above LOD alone over its walk; the rows above\n"
        << "are the same comparison on our scenes.\n\n";
 }
 
@@ -659,6 +663,9 @@ void Bench::accuracy(std::ostringstream& md) {
         md << "| " << scene->label << " | " << n << " | " << fixed(frustum / n, 1) << " | " << fixed(occluded / n, 1)
            << " | " << fixed(exact / n, 1) << " | " << count(false_culls) << " | **" << fixed(ratio, 1) << " %** | "
            << fixed(mean / n, 1) << " % | " << fixed(psnr / n, 1) << " / " << fixed(psnr_min, 1) << " |\n";
+        headline_.push_back("| culling accuracy, " + scene->label + " | " + fixed(ratio, 1) + " %, " +
+                            count(false_culls) + " false culls | " + fixed(kPeng2014Accuracy, 1) +
+                            " % (Peng 2014) |\n");
         runs.push_back(std::move(s));
     }
     frames_csv << "frame,grid_accuracy,plant_accuracy,grid_false_culls,plant_false_culls\n";
@@ -692,26 +699,24 @@ void Bench::streaming(std::ostringstream& md) {
                                         command({"bench", "pipeline", scene->oss.string(), scene->cam.string(),
                                                  "--out", dir.string()}));
         const Csv p(dir / "pipeline_bench.csv");
-        {
-            // SC, SnC and NS only; the run's lod row (no occlusion culling) is the breakdown's business.
-            std::ifstream in(dir / "pipeline_bench.csv");
-            std::string line;
-            std::getline(in, line);
-            if (!header) csv << "scene," << line << "\n";
-            header = true;
-            while (std::getline(in, line))
-                if (line.rfind("sc,", 0) == 0 || line.rfind("snc,", 0) == 0 || line.rfind("ns,", 0) == 0)
-                    csv << scene->key << "," << line << "\n";
-        }
+        if (!header) csv << "scene," << Csv::join(p.header()) << "\n";
+        header = true;
         double sc_ms = NAN;
         std::string detail;
         for (size_t row = 0; row < p.rows(); ++row) {
+            // SC, SnC and NS only; the run's lod row (no occlusion culling) is the breakdown's business.
             const std::string mode = p.text(row, p.col("mode"));
             if (mode != "sc" && mode != "snc" && mode != "ns") continue;
+            csv << scene->key << "," << Csv::join(p.row(row)) << "\n";
             const double ms = p.num(row, "ms_total");
-            if (mode == "sc") sc_ms = ms;
             const double streamed = p.num(row, "streamed_triangles_per_frame");
             const double active = p.num(row, "active_triangles_per_frame");
+            if (mode == "sc") {
+                sc_ms = ms;
+                headline_.push_back("| streamed share of active triangles, " + scene->label + " | " +
+                                    fixed(100.0 * streamed / active, 3) + " % | " + fixed(kPengCaoStreamedShare, 2) +
+                                    " % (Peng & Cao 2012) |\n");
+            }
             md << "| " << scene->label << " | " << (mode == "sc" ? "SC" : mode == "snc" ? "SnC" : "NS") << " | "
                << count(streamed) << " | " << fixed(active > 0 ? 100.0 * streamed / active : 0.0, 3) << " % | "
                << fixed(p.num(row, "ms_stream_collect"), 2) << " | " << fixed(p.num(row, "ms_defragment"), 2) << " | "
@@ -795,6 +800,8 @@ void Bench::bytesAndLatency(std::ostringstream& md) {
                   << fixed(less, 2) << "\n";
         md << "| " << scene->label << " | " << max_ranks << " | " << fixed(visible, 0) << " | " << count(sum_delta / n)
            << " | " << count(sum_sent_full / n) << " | **" << fixed(less, 1) << " %** |\n";
+        headline_.push_back("| visible-set traffic saved by deltas, " + scene->label + " | " + fixed(less, 1) +
+                            " % | " + fixed(kGovindarajuLessTraffic, 0) + " % (Govindaraju et al. 2003) |\n");
         detail += (detail.empty() ? "" : "; ") + scene->label + " " + fixed(sum_delta / n, 0) + " vs " +
                   fixed(sum_sent_full / n, 0) + " bytes/frame, " + fixed(less, 1) + "% less";
         series.push_back(delta_bytes);
@@ -840,6 +847,9 @@ void Bench::bytesAndLatency(std::ostringstream& md) {
         for (size_t r : s->measured) latency_frames = std::max(latency_frames, s->csv.num(r, "latency_frames"));
         const double display_frame = s->meanFrameMs() + s->mean("ms_wait");
         const std::string other = other_rows > 0 ? fixed(others / other_rows, 2) : "-";
+        headline_.push_back("| latency, " + std::to_string(ranks) + " rank" + (ranks == 1 ? "" : "s") + " | " +
+                            fixed(latency_frames, 0) + " frame(s) | " +
+                            (ranks == 1 ? "-" : "1 frame (Govindaraju et al. 2003)") + " |\n");
         progress(5, latency_title,
                  std::to_string(ranks) + " rank" + (ranks > 1 ? "s" : "") + ": latency " + fixed(latency_frames, 0) +
                      " frame(s), " + fixed(s->mean("latency_ms"), 1) + " ms; display frame " +
@@ -1076,18 +1086,15 @@ int Bench::run() {
     plant_ = plant(size_.plant_objects, size_.frames);
 
     std::ostringstream body;
-    std::ostringstream part1_6, part2, part3, part45, part7;
-    breakdownAndFps(part1_6);
+    std::ostringstream part1, part2, part3, part45, part6, part7;
+    breakdownAndFps(part1, part6);
     accuracy(part2);
     streaming(part3);
     bytesAndLatency(part45);
     scaling(part7);
     plots();
 
-    // Section 6 comes out of the breakdown's runs; put it back in its place.
-    const std::string s16 = part1_6.str();
-    const size_t split = s16.find("## 6.");
-    body << s16.substr(0, split) << part2.str() << part3.str() << part45.str() << s16.substr(split) << part7.str();
+    body << part1.str() << part2.str() << part3.str() << part45.str() << part6.str() << part7.str();
 
     const double total = std::chrono::duration<double>(Clock::now() - start).count();
     std::time_t now = std::time(nullptr);
@@ -1108,29 +1115,7 @@ int Bench::run() {
        << "  `raw/`; the command line and output of every run: `logs/`\n";
     for (const std::string& note : notes_) md << "- note: " << note << "\n";
     md << "\n| figure | ours | paper |\n|---|---|---|\n";
-    {
-        const Csv acc(out_ / "accuracy.csv"), bytes(out_ / "bytes.csv"), lat(out_ / "latency.csv");
-        const Csv str(out_ / "streaming.csv");
-        for (size_t r = 0; r < acc.rows(); ++r)
-            md << "| culling accuracy, " << (r == 0 ? grid_.label : plant_.label) << " | "
-               << fixed(acc.num(r, "accuracy_ratio_of_sums"), 1) << " %, " << acc.text(r, acc.col("false_culls"))
-               << " false culls | " << fixed(kPeng2014Accuracy, 1) << " % (Peng 2014) |\n";
-        for (size_t r = 0; r < str.rows(); ++r)
-            if (str.text(r, str.col("mode")) == "sc") {
-                const double share =
-                    100.0 * str.num(r, "streamed_triangles_per_frame") / str.num(r, "active_triangles_per_frame");
-                md << "| streamed share of active triangles, " << str.text(r, 0) << " | " << fixed(share, 3)
-                   << " % | " << fixed(kPengCaoStreamedShare, 2) << " % (Peng & Cao 2012) |\n";
-            }
-        for (size_t r = 0; r < bytes.rows(); ++r)
-            md << "| visible-set traffic saved by deltas, " << (r == 0 ? grid_.label : plant_.label) << " | "
-               << fixed(bytes.num(r, "less_percent"), 1) << " % | " << fixed(kGovindarajuLessTraffic, 0)
-               << " % (Govindaraju et al. 2003) |\n";
-        for (size_t r = 0; r < lat.rows(); ++r)
-            md << "| latency, " << lat.text(r, 0) << " rank" << (lat.text(r, 0) == "1" ? "" : "s") << " | "
-               << lat.text(r, lat.col("latency_frames")) << " frame(s) | "
-               << (lat.text(r, 0) == "1" ? "-" : "1 frame (Govindaraju et al. 2003)") << " |\n";
-    }
+    for (const std::string& row : headline_) md << row;
     md << "\n" << body.str();
     writeFileAtomic(out_ / "summary.md", md.str());
     std::fprintf(stderr, "bench all: done in %.0f s\n", total);
