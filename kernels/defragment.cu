@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "defragment.h"
-#include "host_side.h"
+#include "layout_access.h"
 
 #include <thrust/copy.h>
 #include <thrust/execution_policy.h>
@@ -19,7 +19,7 @@ namespace occ::k {
 namespace {
 
 template <class T>
-void reserve(KernelArray<T>& array, uint64_t n) {
+void reserve(DeviceArray<T>& array, uint64_t n) {
     if (n > array.size()) array.resize(n + n / 2);
 }
 
@@ -142,6 +142,11 @@ void forEachTile(uint64_t total, const F& f) {
     thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), (total + kRunTile - 1) / kRunTile, f);
 }
 
+// exclusiveScan on the raw pointers of a plan.
+uint64_t scanRaw(const uint32_t* in, uint32_t n, uint64_t* out) {
+    return exclusiveScan(DeviceAccess::wrap(in), n, DeviceAccess::wrap(out));
+}
+
 struct ColumnPlan {
     Plan plan;
     uint64_t staged_total = 0, moved_total = 0, kept_total = 0;
@@ -154,10 +159,11 @@ ColumnPlan planColumn(const BlockColumn& previous, const BlockColumn& current, u
     c.plan = {lengths, lengths + n, lengths + 2 * n, lengths + 3 * n, offsets, offsets + n, offsets + 2 * n, offsets + 3 * n};
     if (n == 0) return c;
     thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), n, PlanBlock{previous, current, c.plan});
-    c.staged_total = exclusiveScan(c.plan.staged, n, c.plan.staged_offset);
-    c.moved_total = exclusiveScan(c.plan.moved, n, c.plan.moved_offset);
+    c.staged_total = scanRaw(c.plan.staged, n, c.plan.staged_offset);
+    c.moved_total = scanRaw(c.plan.moved, n, c.plan.moved_offset);
     const auto wide = thrust::make_transform_iterator(c.plan.kept, Widen());
     c.kept_total = thrust::reduce(thrust::device, wide, wide + n, uint64_t(0));
+    countReadback(sizeof c.kept_total);
     return c;
 }
 
@@ -174,21 +180,21 @@ struct ColumnCounts {
 
 template <class T, int W>
 ColumnCounts applyColumn(const ColumnPlan& c, const BlockColumn& current, const T* staging, ActiveBuffer<T>& buffer) {
-    KernelArray<T>& now = buffer.buffers[buffer.current];
-    KernelArray<T>& other = buffer.buffers[1 - buffer.current];
-    const bool in_place = W * current.total <= now.size() && 2 * c.moved_total <= c.kept_total;
+    ProvidedBuffer<T>& now = buffer.buffers[buffer.current];
+    ProvidedBuffer<T>& other = buffer.buffers[1 - buffer.current];
+    const bool in_place = W * current.total <= now.capacity() && 2 * c.moved_total <= c.kept_total;
     if (in_place) {
         if (c.moved_total > 0) {
-            reserve(other, W * c.moved_total);
-            forEachTile(c.moved_total, Bounce<T, W>{current, c.plan, c.moved_total, now.data(), other.data()});
+            other.reserve(W * c.moved_total);
+            forEachTile(c.moved_total, Bounce<T, W>{current, c.plan, c.moved_total, raw(now.ptr()), raw(other.ptr())});
         }
         const uint64_t written_total =
-            current.count > 0 ? exclusiveScan(c.plan.written, current.count, c.plan.written_offset) : 0;
+            current.count > 0 ? scanRaw(c.plan.written, current.count, c.plan.written_offset) : 0;
         forEachTile(written_total,
-                    PlaceInPlace<T, W>{current, c.plan, written_total, other.data(), staging, now.data()});
+                    PlaceInPlace<T, W>{current, c.plan, written_total, raw(other.ptr()), staging, raw(now.ptr())});
     } else {
-        reserve(other, W * current.total);
-        forEachTile(current.total, PlaceDoubleBuffered<T, W>{current, c.plan, now.data(), staging, other.data()});
+        other.reserve(W * current.total);
+        forEachTile(current.total, PlaceDoubleBuffered<T, W>{current, c.plan, raw(now.ptr()), staging, raw(other.ptr())});
         buffer.current = 1 - buffer.current;
     }
     buffer.count = current.total;
@@ -206,21 +212,24 @@ DefragmentCounts defragment(const ActiveLayout& previous, const ActiveLayout& cu
                                     " triangles but the previous layout has " + std::to_string(previous.vertex_total) +
                                     " and " + std::to_string(previous.triangle_total));
     // Blocks are matched across frames by binary search on the ids.
-    if (!thrust::is_sorted(thrust::device, current.objects, current.objects + current.count,
+    countReadback(1);  // is_sorted's answer
+    if (!thrust::is_sorted(thrust::device, raw(current.objects), raw(current.objects) + current.count,
                            thrust::less_equal<uint32_t>()))
         throw std::invalid_argument("defragment: the current layout's object ids are not strictly ascending");
     // Both columns are planned and checked before either is touched.
     const uint64_t n = current.count;
     reserve(active.lengths, 8 * n);
     reserve(active.offsets, 8 * n);
-    const ColumnPlan vp = planColumn(vertexBlocks(previous), vertexBlocks(current), active.lengths.data(),
-                                     active.offsets.data());
-    const ColumnPlan tp = planColumn(triangleBlocks(previous), triangleBlocks(current), active.lengths.data() + 4 * n,
-                                     active.offsets.data() + 4 * n);
+    uint32_t* const lengths = raw(active.lengths.ptr());
+    uint64_t* const offsets = raw(active.offsets.ptr());
+    const ColumnPlan vp = planColumn(vertexBlocks(previous), vertexBlocks(current), lengths, offsets);
+    const ColumnPlan tp = planColumn(triangleBlocks(previous), triangleBlocks(current), lengths + 4 * n, offsets + 4 * n);
     checkStaging(vp, staging.vertex_count, "vertices");
     checkStaging(tp, staging.triangle_count, "triangles");
-    const ColumnCounts v = applyColumn<glm::vec3, 1>(vp, vertexBlocks(current), staging.vertices.data(), active.vertices);
-    const ColumnCounts t = applyColumn<uint32_t, 3>(tp, triangleBlocks(current), staging.triangles.data(), active.triangles);
+    const ColumnCounts v =
+        applyColumn<glm::vec3, 1>(vp, vertexBlocks(current), raw(staging.device_vertices.ptr()), active.vertices);
+    const ColumnCounts t =
+        applyColumn<uint32_t, 3>(tp, triangleBlocks(current), raw(staging.device_triangles.ptr()), active.triangles);
     return {v.copied, t.copied, v.moved, t.moved, v.bounced, t.bounced};
 }
 
@@ -229,12 +238,12 @@ namespace {
 template <class T, int W>
 uint64_t copyObjectByObject(const BlockColumn& current, const T* source, const uint64_t* mesh_first,
                             const ObjectInfo* objects, ActiveBuffer<T>& buffer) {
-    reserve(buffer.buffers[buffer.current], W * current.total);
-    T* active = buffer.buffers[buffer.current].data();
+    buffer.buffers[buffer.current].reserve(W * current.total);
+    const DevicePtr<T> active = buffer.buffers[buffer.current].ptr();
     for (uint32_t j = 0; j < current.count; ++j) {
         if (current.size[j] == 0) continue;
         const T* src = source + W * mesh_first[objects[current.objects[j]].mesh];
-        thrust::copy(kHostSide, src, src + W * uint64_t(current.size[j]), active + W * current.offset[j]);
+        copyToDevice(active + W * current.offset[j], src, W * uint64_t(current.size[j]));
     }
     buffer.count = current.total;
     return current.total;
@@ -242,7 +251,7 @@ uint64_t copyObjectByObject(const BlockColumn& current, const T* source, const u
 
 }  // namespace
 
-StreamCounts streamObjectByObject(const ActiveLayout& current, const HostGeometry& host, ActiveArrays& active) {
+StreamCounts streamObjectByObject(const HostLayout& current, const HostGeometry& host, ActiveArrays& active) {
     StreamCounts counts;
     counts.vertices = copyObjectByObject<glm::vec3, 1>(vertexBlocks(current), host.positions, host.vertex_first,
                                                        host.objects, active.vertices);

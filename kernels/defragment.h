@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
-#include "kernel_memory.h"
+#include "device_memory.h"
 #include "scan.h"
 #include "stream_collect.h"
 
@@ -15,13 +15,15 @@ namespace occ::k {
 // for triangles) of the layout defragment last built; the other buffer is its workspace.
 // Read it through data(); only defragment and streamObjectByObject change it. A buffer's size()
 // is its capacity: they grow by half again when short and never shrink.
+// The two buffers live in device memory of their own, or in a display's GL buffers
+// (ProvidedBuffer::lendFrom), which OpenGL then draws from.
 template <class T>
 struct ActiveBuffer {
-    KernelArray<T> buffers[2];
+    ProvidedBuffer<T> buffers[2];
     uint32_t current = 0;
     uint64_t count = 0;
 
-    const T* data() const { return buffers[current].data(); }
+    DevicePtr<const T> data() const { return buffers[current].ptr(); }
 };
 
 // Peng & Cao's active vertex array (glm::vec3, object space, each drawn object's first vc
@@ -31,8 +33,8 @@ struct ActiveBuffer {
 struct ActiveArrays {
     ActiveBuffer<glm::vec3> vertices;
     ActiveBuffer<uint32_t> triangles;
-    KernelArray<uint32_t> lengths;  // per-block bookkeeping of defragment; no meaning outside it
-    KernelArray<uint64_t> offsets;
+    DeviceArray<uint32_t> lengths;  // per-block bookkeeping of defragment; no meaning outside it
+    DeviceArray<uint64_t> offsets;
 };
 
 // What one defragment wrote, per array. Elements are vertices or triangles.
@@ -64,9 +66,10 @@ DefragmentCounts defragment(const ActiveLayout& previous, const ActiveLayout& cu
                             ActiveArrays& active);
 
 // The NS baseline of Peng & Cao's Table 1, no streaming batch: every drawn block of `current` is
-// copied whole from `host` straight into `active`, one copy per object and array (2 x drawn
-// objects copies), with no staging and no reuse of the previous frame. Leaves `active` holding
-// `current`, so it may be mixed with defragment from frame to frame. Returns the counts copied.
-StreamCounts streamObjectByObject(const ActiveLayout& current, const HostGeometry& host, ActiveArrays& active);
+// copied whole from `host` straight into `active`, one bus copy per object and array (2 x drawn
+// objects copies), with no staging and no reuse of the previous frame. `current` is the host's
+// copy of the layout. Leaves `active` holding `current`, so it may be mixed with defragment from
+// frame to frame. Returns the counts copied.
+StreamCounts streamObjectByObject(const HostLayout& current, const HostGeometry& host, ActiveArrays& active);
 
 }  // namespace occ::k

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "depth_raster.h"
 
+#include "device_access.h"
+
 #include "hzm.h"
 
 #include <thrust/execution_policy.h>
@@ -475,9 +477,14 @@ void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* fla
         }
 }
 
-void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
-                 const uint8_t* edge_flags, const uint32_t* edge_neighbours, const Camera& camera, float* depth,
-                 DepthRasterScratch& scratch) {
+void depthRaster(DevicePtr<const glm::vec3> position_memory, DevicePtr<const uint32_t> triangle_memory,
+                 uint32_t tri_count, DevicePtr<const uint8_t> flag_memory, DevicePtr<const uint32_t> neighbour_memory,
+                 const Camera& camera, DevicePtr<float> depth_memory, DepthRasterScratch& scratch) {
+    const glm::vec3* const positions = raw(position_memory);
+    const uint32_t* const triangles = raw(triangle_memory);
+    const uint8_t* const edge_flags = raw(flag_memory);
+    const uint32_t* const edge_neighbours = raw(neighbour_memory);
+    float* const depth = raw(depth_memory);
     const uint32_t width = camera.width, height = camera.height;
     // The HZM's limit, which also keeps pixel boxes within 16 bits.
     if (width > kHzmMaxSide || height > kHzmMaxSide)
@@ -494,32 +501,31 @@ void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t
     const ChunkGrid grid{tri_count, (tri_count + chunk_count - 1) / chunk_count, chunk_count, tiles_x};
     const uint64_t cell_count = uint64_t(tile_count) * chunk_count;
     scratch.cells.resize(cell_count + 1);
-    uint64_t* cells = scratch.cells.data();
+    uint64_t* cells = raw(scratch.cells.ptr());
     thrust::fill(thrust::device, cells, cells + cell_count + 1, uint64_t(0));
 
     if (tri_count > 0) {
         const uint32_t vertex_count = thrust::reduce(thrust::device, triangles, triangles + uint64_t(tri_count) * 3,
                                                      0u, thrust::maximum<uint32_t>()) + 1;
+        countReadback(sizeof vertex_count);
         scratch.vertices.resize(vertex_count);
         scratch.setup.resize(tri_count);
-        ProjectVertices project{positions, scratch.vertices.data(), {}, float(width), float(height)};
+        ProjectVertices project{positions, raw(scratch.vertices.ptr()), {}, float(width), float(height)};
         for (int i = 0; i < 16; ++i) project.m[i] = camera.view_proj[i / 4][i % 4];
         thrust::for_each_n(thrust::device, first, vertex_count, project);
         thrust::for_each_n(thrust::device, first, tri_count,
-                           SetupTriangles{scratch.vertices.data(), triangles, edge_flags, edge_neighbours, tri_count,
-                                          scratch.setup.data(), int64_t(width) - 1, int64_t(height) - 1});
-        thrust::for_each_n(thrust::device, first, chunk_count, CountPerChunk{scratch.setup.data(), cells, grid});
+                           SetupTriangles{raw(scratch.vertices.ptr()), triangles, edge_flags, edge_neighbours, tri_count,
+                                          raw(scratch.setup.ptr()), int64_t(width) - 1, int64_t(height) - 1});
+        thrust::for_each_n(thrust::device, first, chunk_count, CountPerChunk{raw(scratch.setup.ptr()), cells, grid});
         // One more cell than there are, counting 0, so that the scan leaves the total there.
         thrust::exclusive_scan(thrust::device, cells, cells + cell_count + 1, cells);
-        kernelSynchronize();
-        scratch.pair_triangle.resize(cells[cell_count]);
+        scratch.pair_triangle.resize(readBack(DevicePtr<const uint64_t>(scratch.cells.ptr() + cell_count)));
         thrust::for_each_n(thrust::device, first, chunk_count,
-                           FillPerChunk{scratch.setup.data(), cells, scratch.pair_triangle.data(), grid});
+                           FillPerChunk{raw(scratch.setup.ptr()), cells, raw(scratch.pair_triangle.ptr()), grid});
     }
     thrust::for_each_n(thrust::device, first, tile_count,
-                       RasterTiles{scratch.setup.data(), scratch.pair_triangle.data(), cells, depth, width, height,
+                       RasterTiles{raw(scratch.setup.ptr()), raw(scratch.pair_triangle.ptr()), cells, depth, width, height,
                                    tiles_x, chunk_count});
-    kernelSynchronize();
 }
 
 }  // namespace occ::k

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
-#include "kernel_memory.h"
+#include "device_memory.h"
 #include "kernel_types.h"
 
 namespace occ::k {
@@ -55,10 +55,10 @@ struct DepthRasterTriangle;  // per-triangle setup, defined in depth_raster.cu
 // it needs more than any call before it. Its contents are meaningless between calls. One
 // scratch per concurrent call.
 struct DepthRasterScratch {
-    KernelArray<DepthRasterVertex> vertices;  // largest index + 1
-    KernelArray<DepthRasterTriangle> setup;   // tri_count
-    KernelArray<uint64_t> cells;              // (tiles x binning chunks) + 1 counts, then offsets
-    KernelArray<uint32_t> pair_triangle;      // one per (tile, triangle) pair, grouped by tile
+    DeviceArray<DepthRasterVertex> vertices;  // largest index + 1
+    DeviceArray<DepthRasterTriangle> setup;   // tri_count
+    DeviceArray<uint64_t> cells;              // (tiles x binning chunks) + 1 counts, then offsets
+    DeviceArray<uint32_t> pair_triangle;      // one per (tile, triangle) pair, grouped by tile
 };
 
 // Marks the edges that a triangle list shares within itself, once per mesh: flags[t] gets bit e
@@ -78,7 +78,8 @@ void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* fla
 // Conservative software depth rasterisation of occluder triangles into a W x H depth buffer,
 // W = camera.width, H = camera.height (each in [0, 32768], else std::invalid_argument; 0 draws
 // nothing).
-// positions: world-space vertices (already transformed by the caller). Every vertex up to the
+// All arrays are device memory. positions: world-space vertices (already transformed by the
+// caller). Every vertex up to the
 // largest index in `triangles` is projected, so pass a compact array (the occluders' vertices,
 // not the whole scene's). triangles: 3 * tri_count corner indices (may be empty). edge_flags:
 // tri_count bytes as sharedEdgeFlags makes them (for the triangles of each mesh, so that only
@@ -99,8 +100,8 @@ void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* fla
 // result depends neither on the thread count nor on the back end.
 // Memory: scratch grows to 16 bytes per vertex, 64 per triangle, 4 per (32x32 tile, triangle)
 // pair of overlapping screen boxes, and 8 per (tile, 4096 triangles), at most 32 MB.
-void depthRaster(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
-                 const uint8_t* edge_flags, const uint32_t* edge_neighbours, const Camera& camera, float* depth,
-                 DepthRasterScratch& scratch);
+void depthRaster(DevicePtr<const glm::vec3> positions, DevicePtr<const uint32_t> triangles, uint32_t tri_count,
+                 DevicePtr<const uint8_t> edge_flags, DevicePtr<const uint32_t> edge_neighbours, const Camera& camera,
+                 DevicePtr<float> depth, DepthRasterScratch& scratch);
 
 }  // namespace occ::k

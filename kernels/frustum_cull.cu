@@ -1,6 +1,9 @@
 // SPDX-License-Identifier: MIT
 #include "frustum_cull.h"
 
+#include "device_access.h"
+#include "scan.h"
+
 #include <thrust/count.h>
 #include <thrust/execution_policy.h>
 #include <thrust/iterator/counting_iterator.h>
@@ -57,11 +60,14 @@ struct PVertexTest {
 
 }  // namespace
 
-uint32_t frustumCull(const ObjectInfo* objects, uint32_t count, const Frustum& frustum, uint8_t* in_frustum) {
+uint32_t frustumCull(DevicePtr<const ObjectInfo> objects, uint32_t count, const Frustum& frustum,
+                     DevicePtr<uint8_t> in_frustum, DevicePtr<uint32_t> ids) {
     if (count == 0) return 0;
     thrust::transform(thrust::device, thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(count),
-                      in_frustum, PVertexTest{frustum, objects});
-    return uint32_t(thrust::count(thrust::device, in_frustum, in_frustum + count, uint8_t(1)));
+                      raw(in_frustum), PVertexTest{frustum, raw(objects)});
+    if (ids) return compactIndices(in_frustum, count, 1, ids);
+    countReadback(sizeof(uint32_t));
+    return uint32_t(thrust::count(thrust::device, raw(in_frustum), raw(in_frustum) + count, uint8_t(1)));
 }
 
 }  // namespace occ::k

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include "device_memory.h"
 #include "kernel_types.h"
 
 #include <cstdint>
@@ -16,7 +17,8 @@ namespace occ::k {
 Frustum frustumFromViewProj(const glm::mat4& view_proj);
 
 // Writes in_frustum[i] = 1 if objects[i].aabb may intersect the frustum, else 0, for i < count,
-// and returns the number of 1s.
+// writes the ids i with a 1, ascending, to ids (count entries of room; null: not wanted) and
+// returns how many there are (4 bytes back to the host).
 //
 // The test is the conservative p-vertex test: a box is rejected only when, for one plane, its
 // corner farthest along the inward normal is outside (by more than 1e-6 of the magnitude of the
@@ -25,8 +27,9 @@ Frustum frustumFromViewProj(const glm::mat4& view_proj);
 // corner of the frustum. A box that contains the whole frustum, and a box with a NaN
 // coordinate, get 1; a box around the eye that ends before the near plane gets 0.
 //
-// objects has `count` entries and in_frustum `count` bytes, both in kernel memory; count may be
+// objects has `count` entries and in_frustum `count` bytes, both in device memory; count may be
 // 0. Objects are tested in parallel.
-uint32_t frustumCull(const ObjectInfo* objects, uint32_t count, const Frustum& frustum, uint8_t* in_frustum);
+uint32_t frustumCull(DevicePtr<const ObjectInfo> objects, uint32_t count, const Frustum& frustum,
+                     DevicePtr<uint8_t> in_frustum, DevicePtr<uint32_t> ids = nullptr);
 
 }  // namespace occ::k

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include "device_memory.h"
+
 #include <cstdint>
 
 namespace occ::k {
@@ -16,7 +18,7 @@ inline constexpr uint32_t kHzmMaxSide = 32768;
 // stored back to back in one array, level l at offset[l], row-major (index y*width[l]+x).
 // level_count counts levels down to 1x1 inclusive. Plain data: kernels take it by value.
 struct HzmLevels {
-    const float* data;
+    DevicePtr<const float> data;
     uint32_t level_count;
     uint32_t width[kHzmMaxLevels];
     uint32_t height[kHzmMaxLevels];
@@ -26,7 +28,7 @@ struct HzmLevels {
 // Fills every field of `out` but data (left null) for a w x h level 0. w and h must be in
 // [1, 32768]; a zero side gives level_count 0.
 inline void hzmLayout(uint32_t w, uint32_t h, HzmLevels& out) {
-    out.data = nullptr;
+    out.data = {};
     out.level_count = 0;
     if (w == 0 || h == 0) return;
     uint64_t offset = 0;

@@ -2,7 +2,7 @@
 #include "hzm_build.h"
 
 #include "host_device.h"
-#include "kernel_memory.h"
+#include "device_access.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
@@ -36,7 +36,8 @@ struct ReduceMax {
 
 }  // namespace
 
-void hzmBuild(float* levels, uint32_t width, uint32_t height) {
+void hzmBuild(DevicePtr<float> level_memory, uint32_t width, uint32_t height) {
+    float* const levels = raw(level_memory);
     HzmLevels layout;
     hzmLayout(width, height, layout);
     for (uint32_t l = 1; l < layout.level_count; ++l) {
@@ -45,7 +46,6 @@ void hzmBuild(float* levels, uint32_t width, uint32_t height) {
                            ReduceMax{levels + layout.offset[l - 1], levels + layout.offset[l], layout.width[l - 1],
                                      layout.height[l - 1], layout.width[l]});
     }
-    kernelSynchronize();
 }
 
 }  // namespace occ::k

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "hzm_test.h"
 
+#include "device_access.h"
+
 #include <thrust/execution_policy.h>
 #include <thrust/iterator/counting_iterator.h>
 #include <thrust/transform.h>
@@ -19,6 +21,7 @@ struct HzmOcclusion {
     glm::mat4 view_proj;
     float near_plane;
     HzmLevels hzm;
+    const float* texels;  // hzm.data
 
     OCC_HD uint8_t operator()(uint32_t j) const {
         if (hzm.level_count == 0) return 0;
@@ -84,7 +87,7 @@ struct HzmOcclusion {
         Texel stack[kStack];
         uint32_t top = 0;
         const auto hidden = [&](uint32_t l, uint32_t x, uint32_t y) {
-            return z_min > hzm.data[hzm.offset[l] + uint64_t(y) * hzm.width[l] + x] + kDepthEpsilon;
+            return z_min > texels[hzm.offset[l] + uint64_t(y) * hzm.width[l] + x] + kDepthEpsilon;
         };
         for (uint32_t ty = y0 >> level; ty <= y1 >> level; ++ty)
             for (uint32_t tx = x0 >> level; tx <= x1 >> level; ++tx)
@@ -114,11 +117,12 @@ struct HzmOcclusion {
 
 }  // namespace
 
-void hzmTest(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, const Camera& camera,
-             const HzmLevels& hzm, uint8_t* occluded) {
+void hzmTest(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count, const Camera& camera,
+             const HzmLevels& hzm, DevicePtr<uint8_t> occluded) {
     if (count == 0) return;
     thrust::transform(thrust::device, thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(count),
-                      occluded, HzmOcclusion{objects, ids, camera.view_proj, camera.near_plane, hzm});
+                      raw(occluded),
+                      HzmOcclusion{raw(objects), raw(ids), camera.view_proj, camera.near_plane, hzm, raw(hzm.data)});
 }
 
 }  // namespace occ::k

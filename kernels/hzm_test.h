@@ -2,6 +2,7 @@
 #pragma once
 
 #include "hzm.h"
+#include "device_memory.h"
 #include "kernel_types.h"
 
 #include <cstdint>
@@ -35,10 +36,10 @@ namespace occ::k {
 // projection (clip.w = distance in front of the eye), as the near-plane rule relies on it.
 //
 // objects holds every object, ids has count indices into it (count may be 0), occluded room for
-// count bytes, hzm.data all levels; all in kernel memory. If hzm.level_count is 0 every box is
+// count bytes, hzm.data all levels; all in device memory. If hzm.level_count is 0 every box is
 // visible. Boxes in parallel; a box reads at most 4 texels when the coarse level settles it,
 // and at most about 4/3 of its rectangle's pixels otherwise.
-void hzmTest(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, const Camera& camera,
-             const HzmLevels& hzm, uint8_t* occluded);
+void hzmTest(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count, const Camera& camera,
+             const HzmLevels& hzm, DevicePtr<uint8_t> occluded);
 
 }  // namespace occ::k

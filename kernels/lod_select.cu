@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "lod_select.h"
 
-#include "kernel_memory.h"
+#include "device_access.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
@@ -219,31 +219,36 @@ struct WriteCounts {
 
 }  // namespace
 
-uint64_t lodSelect(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, const Camera& camera,
-                   const LodParams& params, const uint64_t* map_first, const uint32_t* maps,
-                   uint32_t* vertex_count, uint32_t* triangle_count) {
+uint64_t lodSelect(DevicePtr<const ObjectInfo> object_memory, DevicePtr<const uint32_t> id_memory, uint32_t count,
+                   const Camera& camera, const LodParams& params, DevicePtr<const uint64_t> map_first,
+                   DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
+                   DevicePtr<uint32_t> triangle_count, DeviceArray<float>& share_memory) {
     if (count == 0) return 0;
+    const ObjectInfo* const objects = raw(object_memory);
+    const uint32_t* const ids = raw(id_memory);
     const thrust::counting_iterator<uint32_t> first(0);
-    KernelArray<float> shares(count);
+    if (share_memory.size() < count) share_memory.resize(count);
+    float* const shares = raw(share_memory.ptr());
 
     const float exponent = (params.alpha - 1.0f) / params.alpha;
-    thrust::transform(thrust::device, first, first + count, shares.data(),
-                      LogShare{objects, ids, camera, exponent, params.pet});
-    const float max_log = thrust::reduce(thrust::device, shares.data(), shares.data() + count, -INFINITY, Maximum());
-    thrust::transform(thrust::device, shares.data(), shares.data() + count, shares.data(), NormalizeShare{max_log});
+    thrust::transform(thrust::device, first, first + count, shares, LogShare{objects, ids, camera, exponent, params.pet});
+    const float max_log = thrust::reduce(thrust::device, shares, shares + count, -INFINITY, Maximum());
+    countReadback(sizeof max_log);
+    thrust::transform(thrust::device, shares, shares + count, shares, NormalizeShare{max_log});
 
-    const Totals totals = thrust::transform_reduce(thrust::device, first, first + count,
-                                                   TotalsOf{objects, ids, shares.data()},
+    const Totals totals = thrust::transform_reduce(thrust::device, first, first + count, TotalsOf{objects, ids, shares},
                                                    Totals{0, 0, 0.0, 0.0}, AddTotals());
+    countReadback(sizeof totals);
     const auto evaluate = [&](double lambda) {
-        return thrust::transform_reduce(thrust::device, first, first + count,
-                                        EvaluateAt{objects, ids, shares.data(), lambda},
+        countReadback(sizeof(Evaluation));
+        return thrust::transform_reduce(thrust::device, first, first + count, EvaluateAt{objects, ids, shares, lambda},
                                         Evaluation{0.0, 0.0, 0}, AddEvaluations());
     };
 
     const double lambda = solveLambda(evaluate, totals, params.budget);
     thrust::for_each_n(thrust::device, first, count,
-                       WriteCounts{objects, ids, shares.data(), map_first, maps, lambda, vertex_count, triangle_count});
+                       WriteCounts{objects, ids, shares, raw(map_first), raw(maps), lambda, raw(vertex_count),
+                                   raw(triangle_count)});
     return evaluate(lambda).rounded_sum;
 }
 

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include "device_memory.h"
 #include "kernel_types.h"
 
 namespace occ::k {
@@ -25,12 +26,15 @@ struct LodParams {
 // shared by the others in proportion to s). If the floors alone exceed the budget every drawn
 // object gets q_i. Rounding typically leaves a few vertices per hundred objects unspent.
 //
-// vertex_count and triangle_count (kernel memory, count entries each) receive vc_i and
-// tc_i = map_i[vc_i] (0 when vc_i = 0), map_i being maps + map_first[objects[i].mesh] (kernel
+// vertex_count and triangle_count (device memory, count entries each) receive vc_i and
+// tc_i = map_i[vc_i] (0 when vc_i = 0), map_i being maps + map_first[objects[i].mesh] (device
 // memory; each mesh's map has its vertex count + 1 entries). ids may be in any order and may be
-// empty (count = 0). Returns sum vc_i: at most budget unless the floors force more.
-uint64_t lodSelect(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, const Camera& camera,
-                   const LodParams& params, const uint64_t* map_first, const uint32_t* maps,
-                   uint32_t* vertex_count, uint32_t* triangle_count);
+// empty (count = 0). shares is scratch kept by the caller (grows to count floats). Returns
+// sum vc_i: at most budget unless the floors force more. The solve reads back one small sum per
+// pass (typically 5 to 10 passes of 24 bytes).
+uint64_t lodSelect(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
+                   const Camera& camera, const LodParams& params, DevicePtr<const uint64_t> map_first,
+                   DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
+                   DevicePtr<uint32_t> triangle_count, DeviceArray<float>& shares);
 
 }  // namespace occ::k

@@ -1,12 +1,13 @@
 // SPDX-License-Identifier: MIT
 #include "occluder_weight.h"
 
-#include "kernel_memory.h"
+#include "device_access.h"
 
 #include <thrust/copy.h>
 #include <thrust/execution_policy.h>
 #include <thrust/iterator/counting_iterator.h>
 #include <thrust/iterator/transform_iterator.h>
+#include <thrust/for_each.h>
 #include <thrust/sort.h>
 #include <thrust/transform.h>
 
@@ -61,25 +62,114 @@ struct KeyToId {
 
 }  // namespace
 
-void occluderWeight(const ObjectInfo* objects, const uint32_t* cos, uint32_t cos_count, const uint8_t* in_frustum,
-                    const Camera& camera, float* weight) {
+void occluderWeight(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> cos, uint32_t cos_count,
+                    DevicePtr<const uint8_t> in_frustum, const Camera& camera, DevicePtr<float> weight) {
     if (cos_count == 0) return;
     thrust::transform(thrust::device, thrust::counting_iterator<uint32_t>(0),
-                      thrust::counting_iterator<uint32_t>(cos_count), weight,
-                      Eq3Weight{objects, cos, in_frustum, camera.eye, camera.forward});
+                      thrust::counting_iterator<uint32_t>(cos_count), raw(weight),
+                      Eq3Weight{raw(objects), raw(cos), raw(in_frustum), camera.eye, camera.forward});
 }
 
-uint32_t selectTopK(const uint32_t* cos, const float* weight, uint32_t cos_count, uint32_t k, uint32_t* aos) {
+uint32_t selectTopK(DevicePtr<const uint32_t> cos, DevicePtr<const float> weight, uint32_t cos_count, uint32_t k,
+                    DevicePtr<uint32_t> aos, DeviceArray<uint64_t>& keys) {
     if (cos_count == 0 || k == 0) return 0;
-    KernelArray<uint64_t> keys(cos_count);
-    const auto first_key = thrust::make_transform_iterator(thrust::counting_iterator<uint32_t>(0), TopKKey{cos, weight});
+    if (keys.size() < cos_count) keys.resize(cos_count);
+    uint64_t* const key_data = raw(keys.ptr());
+    const auto first_key =
+        thrust::make_transform_iterator(thrust::counting_iterator<uint32_t>(0), TopKKey{raw(cos), raw(weight)});
     uint64_t* const keys_end =
-        thrust::copy_if(thrust::device, first_key, first_key + cos_count, weight, keys.data(), IsPositive{});
-    const auto positive = uint32_t(keys_end - keys.data());
-    thrust::sort(thrust::device, keys.data(), keys_end);
+        thrust::copy_if(thrust::device, first_key, first_key + cos_count, raw(weight), key_data, IsPositive{});
+    countReadback(sizeof(uint32_t));  // copy_if's count
+    const auto positive = uint32_t(keys_end - key_data);
+    thrust::sort(thrust::device, key_data, keys_end);
     const uint32_t chosen = positive < k ? positive : k;
-    thrust::transform(thrust::device, keys.data(), keys.data() + chosen, aos, KeyToId{});
+    thrust::transform(thrust::device, key_data, key_data + chosen, raw(aos), KeyToId{});
     return chosen;
+}
+
+namespace {
+
+// Ascending keys sort by score descending, then id ascending (the bit trick of TopKKey; scores
+// are >= 0, and 0 sorts last).
+struct PvsOccluderKey {
+    const ObjectInfo* objects;
+    const uint32_t* candidates;
+    const uint8_t* in_frustum;
+    glm::vec3 eye;
+    float near_plane;
+
+    OCC_HD uint64_t operator()(uint32_t j) const {
+        const uint32_t id = candidates[j];
+        if (!in_frustum[id]) return ~uint64_t(0);  // dropped after the sort
+        const ObjectInfo& o = objects[id];
+        const glm::vec3 nearest = glm::clamp(eye, o.aabb.min, o.aabb.max);
+        const float length = glm::length(nearest - eye);
+        const float distance = length > near_plane ? length : near_plane;
+        const float size = glm::length(o.aabb.max - o.aabb.min) / distance;
+        const float triangles = float(o.triangle_count > 1 ? o.triangle_count : 1u);
+        float score = size * size * o.compactness / triangles;
+        if (!(score >= 0.0f)) score = 0.0f;  // a NaN or negative score ranks last, not first
+        uint32_t bits;
+        memcpy(&bits, &score, sizeof bits);
+        return (uint64_t(~bits) << 32) | id;
+    }
+};
+
+struct MarkTaken {
+    uint8_t* taken;
+    uint8_t value;
+    OCC_HD void operator()(uint32_t id) const { taken[id] = value; }
+};
+
+// The greedy pass: one thread, in rank order.
+struct TakeWithinBudget {
+    const ObjectInfo* objects;
+    const uint64_t* keys;
+    uint32_t count;
+    const uint8_t* taken;
+    uint64_t budget;
+    uint32_t* out;
+    uint32_t* chosen;
+
+    OCC_HD void operator()(uint32_t) const {
+        uint64_t triangles = 0;
+        uint32_t n = 0;
+        for (uint32_t j = 0; j < count; ++j) {
+            if (keys[j] == ~uint64_t(0)) break;
+            const uint32_t id = uint32_t(keys[j]);
+            if (taken[id]) continue;
+            const uint64_t t = objects[id].triangle_count;
+            if (triangles + t > budget) continue;
+            triangles += t;
+            out[n++] = id;
+        }
+        *chosen = n;
+    }
+};
+
+}  // namespace
+
+uint32_t selectPvsOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> candidates, uint32_t count,
+                            DevicePtr<const uint8_t> in_frustum, const Camera& camera,
+                            DevicePtr<const uint32_t> exclude, uint32_t exclude_count, uint64_t triangle_budget,
+                            PvsOccluderScratch& scratch, DevicePtr<uint32_t> out) {
+    if (count == 0 || triangle_budget == 0) return 0;
+    if (scratch.keys.size() < count) scratch.keys.resize(count);
+    if (scratch.chosen.size() < 1) scratch.chosen.resize(1);
+    uint64_t* const keys = raw(scratch.keys.ptr());
+    uint8_t* const taken = raw(scratch.taken.ptr());
+    const thrust::counting_iterator<uint32_t> first(0);
+    thrust::transform(thrust::device, first, first + count, keys,
+                      PvsOccluderKey{raw(objects), raw(candidates), raw(in_frustum), camera.eye, camera.near_plane});
+    thrust::sort(thrust::device, keys, keys + count);
+    if (exclude_count > 0)
+        thrust::for_each_n(thrust::device, raw(exclude), exclude_count, MarkTaken{taken, 1});
+    thrust::for_each_n(thrust::device, first, 1,
+                       TakeWithinBudget{raw(objects), keys, count, taken, triangle_budget, raw(out),
+                                        raw(scratch.chosen.ptr())});
+    if (exclude_count > 0)
+        thrust::for_each_n(thrust::device, raw(exclude), exclude_count, MarkTaken{taken, 0});
+    return readBack(DevicePtr<const uint32_t>(scratch.chosen.ptr()));
 }
 
 }  // namespace occ::k

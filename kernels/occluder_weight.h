@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include "device_memory.h"
 #include "kernel_types.h"
 
 #include <cstdint>
@@ -19,9 +20,9 @@ namespace occ::k {
 //
 // objects holds every object (indexed by the ids in cos), cos has cos_count ids (may be 0),
 // in_frustum one byte per object (as frustumCull writes it), weight room for cos_count floats;
-// all in kernel memory. Candidates in parallel.
-void occluderWeight(const ObjectInfo* objects, const uint32_t* cos, uint32_t cos_count, const uint8_t* in_frustum,
-                    const Camera& camera, float* weight);
+// all in device memory. Candidates in parallel.
+void occluderWeight(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> cos, uint32_t cos_count,
+                    DevicePtr<const uint8_t> in_frustum, const Camera& camera, DevicePtr<float> weight);
 
 // The active occluder set (AOS of Peng 2014): writes to aos the object ids of the (up to) k
 // candidates with the largest weights, in decreasing weight, equal weights by increasing object
@@ -29,9 +30,34 @@ void occluderWeight(const ObjectInfo* objects, const uint32_t* cos, uint32_t cos
 // with weight 0 (or negative, or NaN) are never chosen.
 //
 // cos and weight have cos_count entries (as occluderWeight takes and writes them; cos_count may
-// be 0), aos has room for k ids; all in kernel memory. Allocates 8 bytes of kernel memory per
-// candidate for the call. The work is a filter and one sort of 64-bit keys (weight, id) over the
-// candidates with positive weight: about 1 ms for 10^5 candidates on 2 CPU cores.
-uint32_t selectTopK(const uint32_t* cos, const float* weight, uint32_t cos_count, uint32_t k, uint32_t* aos);
+// be 0), aos has room for k ids; all in device memory. keys is scratch kept by the caller (it
+// grows to 8 bytes per candidate). The work is a filter and one sort of 64-bit keys (weight, id)
+// over the candidates with positive weight: about 1 ms for 10^5 candidates on 2 CPU cores.
+uint32_t selectTopK(DevicePtr<const uint32_t> cos, DevicePtr<const float> weight, uint32_t cos_count, uint32_t k,
+                    DevicePtr<uint32_t> aos, DeviceArray<uint64_t>& keys);
+
+// Scratch of selectPvsOccluders, kept by the caller between frames; contents are meaningless
+// between calls. `taken` must be all zero when first used (the call leaves it so).
+struct PvsOccluderScratch {
+    DeviceArray<uint64_t> keys;
+    DeviceArray<uint8_t> taken;   // one byte per object
+    DeviceArray<uint32_t> chosen;  // the count, read back
+};
+
+// Beyond the papers, the two-pass idea of occlusion-switches and GPU-driven renderers: what was
+// visible in an earlier frame is likely to occlude now. Of candidates[0, count) (object ids,
+// distinct), those in the frustum (in_frustum as frustumCull writes it) are ranked by most
+// screen per rastered triangle first: (|aabb diagonal| / D)^2 x compactness / max(1, triangles),
+// D the distance from the eye to the box, at least camera.near_plane; equal scores by
+// increasing id. Then, in that order and skipping ids of exclude[0, exclude_count) (the AOS),
+// each is taken while the triangles taken so far plus its own stay within triangle_budget.
+// Writes the taken ids to out in rank order (room for count) and returns how many. All arrays
+// in device memory; `scratch.taken` is sized by the caller to the object count and zeroed once.
+// The ranking is parallel; the greedy pass is one device thread (candidates are one PVS, a few
+// thousand ids).
+uint32_t selectPvsOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> candidates, uint32_t count,
+                            DevicePtr<const uint8_t> in_frustum, const Camera& camera,
+                            DevicePtr<const uint32_t> exclude, uint32_t exclude_count, uint64_t triangle_budget,
+                            PvsOccluderScratch& scratch, DevicePtr<uint32_t> out);
 
 }  // namespace occ::k

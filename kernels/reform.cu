@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "reform.h"
 
+#include "layout_access.h"
+
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
 #include <thrust/iterator/counting_iterator.h>
@@ -10,7 +12,7 @@ namespace occ::k {
 namespace {
 
 struct ReformTile {
-    ActiveLayout layout;
+    HostLayout layout;  // device pointers, raw
     const ObjectInfo* objects;
     const uint64_t* vertex_first;
     const int32_t* ecol;
@@ -65,12 +67,14 @@ struct ReformTile {
 
 }  // namespace
 
-void reform(const ActiveLayout& layout, const ObjectInfo* objects, const uint64_t* vertex_first, const int32_t* ecol,
-            const uint32_t* active_triangles, uint32_t* indices, const uint32_t* walk_vertex_count) {
+void reform(const ActiveLayout& layout, DevicePtr<const ObjectInfo> objects, DevicePtr<const uint64_t> vertex_first,
+            DevicePtr<const int32_t> ecol, DevicePtr<const uint32_t> active_triangles, DevicePtr<uint32_t> indices,
+            DevicePtr<const uint32_t> walk_vertex_count) {
     if (layout.triangle_total == 0) return;
     thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0),
                        (layout.triangle_total + kRunTile - 1) / kRunTile,
-                       ReformTile{layout, objects, vertex_first, ecol, active_triangles, indices, walk_vertex_count});
+                       ReformTile{rawLayout(layout), raw(objects), raw(vertex_first), raw(ecol), raw(active_triangles),
+                                  raw(indices), raw(walk_vertex_count)});
 }
 
 }  // namespace occ::k

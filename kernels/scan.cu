@@ -1,7 +1,11 @@
 // SPDX-License-Identifier: MIT
 #include "scan.h"
 
+#include "device_access.h"
+
+#include <thrust/copy.h>
 #include <thrust/execution_policy.h>
+#include <thrust/iterator/counting_iterator.h>
 #include <thrust/iterator/transform_iterator.h>
 #include <thrust/scan.h>
 
@@ -14,15 +18,36 @@ struct Widen {
     OCC_HD uint64_t operator()(uint32_t x) const { return x; }
 };
 
+struct Equals {
+    uint8_t value;
+    OCC_HD bool operator()(uint8_t x) const { return x == value; }
+};
+
 }  // namespace
 
-uint64_t exclusiveScan(const uint32_t* in, uint32_t count, uint64_t* out) {
+uint64_t exclusiveScan(DevicePtr<const uint32_t> in, uint32_t count, DevicePtr<uint64_t> out) {
     if (count == 0) return 0;
-    const auto wide = thrust::make_transform_iterator(in, Widen());
-    thrust::exclusive_scan(thrust::device, wide, wide + count, out, uint64_t(0));
-    // Thrust's device algorithms return after the device has finished, so kernel memory is
-    // readable here on either back end.
-    return out[count - 1] + in[count - 1];
+    const auto wide = thrust::make_transform_iterator(raw(in), Widen());
+    thrust::exclusive_scan(thrust::device, wide, wide + count, raw(out), uint64_t(0));
+    // The total is the last offset plus the last count: 12 bytes back to the host.
+    return readBack(DevicePtr<const uint64_t>(out + (count - 1))) + readBack(in + (count - 1));
+}
+
+uint32_t compactIndices(DevicePtr<const uint8_t> flags, uint32_t count, uint8_t value, DevicePtr<uint32_t> out) {
+    if (count == 0) return 0;
+    const thrust::counting_iterator<uint32_t> first(0);
+    uint32_t* const end = thrust::copy_if(thrust::device, first, first + count, raw(flags), raw(out), Equals{value});
+    countReadback(sizeof(uint32_t));  // copy_if's count
+    return uint32_t(end - raw(out));
+}
+
+uint32_t compactSelected(DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t> flags, uint32_t count, uint8_t value,
+                         DevicePtr<uint32_t> out) {
+    if (count == 0) return 0;
+    uint32_t* const end =
+        thrust::copy_if(thrust::device, raw(ids), raw(ids) + count, raw(flags), raw(out), Equals{value});
+    countReadback(sizeof(uint32_t));
+    return uint32_t(end - raw(out));
 }
 
 }  // namespace occ::k

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "stream_collect.h"
+#include "layout_access.h"
 #include "host_side.h"
 
 #include <thrust/execution_policy.h>
@@ -55,15 +56,15 @@ struct GatherTile {
     }
 };
 
-template <class T>
-void reserve(KernelArray<T>& array, uint64_t n) {
+template <class Array>
+void reserve(Array& array, uint64_t n) {
     if (n > array.size()) array.resize(n + n / 2);
 }
 
 // Stages one column (the vertex or the triangle blocks); returns the element count.
 template <class T, int W>
 uint64_t collect(const BlockColumn& previous, const BlockColumn& current, const T* source,
-                 const uint64_t* mesh_first, const ObjectInfo* objects, KernelArray<T>& staging,
+                 const uint64_t* mesh_first, const ObjectInfo* objects, PinnedArray<T>& staging,
                  StagingBuffers& bookkeeping) {
     if (current.count == 0) return 0;
     reserve(bookkeeping.lengths, current.count);
@@ -86,7 +87,7 @@ uint64_t collect(const BlockColumn& previous, const BlockColumn& current, const 
 
 }  // namespace
 
-StreamCounts streamCollect(const ActiveLayout& previous, const ActiveLayout& current, const HostGeometry& host,
+StreamCounts streamCollect(const HostLayout& previous, const HostLayout& current, const HostGeometry& host,
                            StagingBuffers& staging) {
     // Blocks are matched across frames by binary search on the ids.
     if (!thrust::is_sorted(kHostSide, current.objects, current.objects + current.count,
@@ -99,6 +100,11 @@ StreamCounts streamCollect(const ActiveLayout& previous, const ActiveLayout& cur
                                             host.triangle_first, host.objects, staging.triangles, staging);
     staging.vertex_count = counts.vertices;
     staging.triangle_count = counts.triangles;
+    // The transfer: what was gathered, and nothing else, crosses the bus.
+    reserve(staging.device_vertices, counts.vertices);
+    reserve(staging.device_triangles, 3 * counts.triangles);
+    copyToDevice(staging.device_vertices.ptr(), staging.vertices.data(), counts.vertices);
+    copyToDevice(staging.device_triangles.ptr(), staging.triangles.data(), 3 * counts.triangles);
     return counts;
 }
 

@@ -1,9 +1,11 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
-#include "kernel_memory.h"
+#include "device_memory.h"
 #include "kernel_types.h"
 #include "scan.h"
+
+#include <vector>
 
 // Streaming with frame-to-frame coherence (SC, Algorithm 3 of Peng & Cao 2012), part 1 of 2:
 // gather on the host what the device's active arrays lack. Part 2, defragment.h, builds the new
@@ -41,7 +43,7 @@ struct HostGeometry {
     const uint32_t* triangles;       // 3 corners per triangle, each mesh's own vertex numbering
     const uint64_t* vertex_first;    // per mesh: index of its first vertex in positions
     const uint64_t* triangle_first;  // per mesh: index of its first triangle in triangles
-    const ObjectInfo* objects;       // per object (kernel memory, which the host may read): .mesh
+    const ObjectInfo* objects;       // per object, the host's copy (DeviceScene::host_objects): .mesh
 };
 
 // What travels host -> device in one frame: for every current block, in layout order, the
@@ -49,13 +51,17 @@ struct HostGeometry {
 // Owned by the caller and reused from frame to frame; streamCollect sizes it (capacity grows
 // by half again when short, never shrinks). vertex_count / triangle_count say what the last
 // streamCollect wrote: vertices[0, vertex_count), triangles[0, 3 * triangle_count).
+// The gather writes pinned host memory; the transfer copies it over the bus into the device
+// side, which defragment reads.
 struct StagingBuffers {
-    KernelArray<glm::vec3> vertices;
-    KernelArray<uint32_t> triangles;
+    PinnedArray<glm::vec3> vertices;
+    PinnedArray<uint32_t> triangles;
+    DeviceArray<glm::vec3> device_vertices;
+    DeviceArray<uint32_t> device_triangles;
     uint64_t vertex_count = 0;
     uint64_t triangle_count = 0;
-    KernelArray<uint32_t> lengths;  // per-block bookkeeping of streamCollect; no meaning outside it
-    KernelArray<uint64_t> offsets;
+    std::vector<uint32_t> lengths;  // per-block bookkeeping of streamCollect; no meaning outside it
+    std::vector<uint64_t> offsets;
 };
 
 struct StreamCounts {
@@ -65,11 +71,13 @@ struct StreamCounts {
 };
 
 // Fills `staging` with what `current` needs beyond what `previous` held, gathered from `host`,
-// and returns the counts. Both layouts are read only (they may share arrays, e.g. an unchanged
-// frame); previous may be ActiveLayout{} (first frame, or the SNC baseline). Objects in
-// `current` with vc = 0 contribute nothing. Throws std::invalid_argument if current's ids are
-// not strictly ascending. Thread-parallel on the host; the device is not used.
-StreamCounts streamCollect(const ActiveLayout& previous, const ActiveLayout& current, const HostGeometry& host,
+// copies it to the device side of `staging` (the frame's one bulk host -> device transfer) and
+// returns the counts. The layouts are the host's copies of the device layouts defragment gets
+// (same blocks), read only; they may share arrays (an unchanged frame); previous may be
+// HostLayout{} (first frame, or the SNC baseline). Objects in `current` with vc = 0 contribute
+// nothing. Throws std::invalid_argument if current's ids are not strictly ascending. The gather
+// is thread-parallel on the host.
+StreamCounts streamCollect(const HostLayout& previous, const HostLayout& current, const HostGeometry& host,
                            StagingBuffers& staging);
 
 }  // namespace occ::k

@@ -60,6 +60,22 @@ private:
     TransportCounters last_;
 };
 
+// Per-row differences of this thread's bus counters: what the rank moved between host and
+// device memory since its last row (kernels/device_memory.h).
+class BusWindow {
+public:
+    BusWindow() : last_(k::busCounters()) {}
+    void take(FrameStats& s) {
+        const k::BusCounters now = k::busCounters();
+        s.bus_h2d_bytes = now.h2d_bytes - last_.h2d_bytes;
+        s.bus_d2h_bytes = now.d2h_bytes - last_.d2h_bytes;
+        last_ = now;
+    }
+
+private:
+    k::BusCounters last_;
+};
+
 std::string fixed3(double v) {
     char b[64];
     std::snprintf(b, sizeof b, "%.3f", v);
@@ -235,7 +251,7 @@ public:
         }
         const CameraPose& pose = run_.cameras[f];
         if (!pipeline_.frustumIsFor(pose)) pipeline_.frustumPass(pose, stats);
-        stats.objects_in_frustum = pipeline_.frustumObjects().size();
+        stats.objects_in_frustum = pipeline_.frustumCount();
         stats.objects_occluded = stats.objects_in_frustum - std::min<uint64_t>(stats.objects_in_frustum, ids.size());
         pipeline_.streamPass(f, stats);
         const std::string drawn = run_.draw ? run_.draw(pipeline_, pose, f) : std::string();
@@ -287,6 +303,9 @@ void addToSummary(RunSummary& sum, const FrameStats& s, const NetColumns& net, d
     sum.streamed_triangles += double(s.streamed_triangles);
     sum.ms_wait += net.ms_wait;
     if (s.frame > 0) {
+        sum.bus_h2d_bytes += s.bus_h2d_bytes;
+        sum.bus_d2h_bytes += s.bus_d2h_bytes;
+        sum.streamed_bytes += s.streamed_bytes;
         sum.latency_ms += net.latency_ms;
         sum.latency_frames = uint32_t(net.latency_frames);
     }
@@ -354,6 +373,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                              std::to_string(layout.occluderLag()) + " frames back at the newest");
         Pipeline pipeline(file, o);
         CounterWindow window(transport);
+        BusWindow bus;  // after the pipeline's start-up copies
         const std::string no_draw = emptyColumns(run.draw_header);
         std::vector<std::string> rows;
         summary = RunSummary{};
@@ -376,6 +396,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 std::copy(std::begin(counted.bytes), std::end(counted.bytes), net.bytes);
                 std::copy(std::begin(counted.messages), std::end(counted.messages), net.messages);
                 net.ms_wait = counted.ms_wait;
+                bus.take(s);
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
                 addToSummary(summary, s, net, std::chrono::duration<double, std::milli>(Clock::now() - start).count());
                 if (run.on_frame) run.on_frame(f + 1);
@@ -395,6 +416,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 net.latency_frames = shown.latency_frames;
                 net.visible_hash = shown.visible_hash;
                 net.added = shown.added, net.removed = shown.removed, net.changed = shown.changed;
+                bus.take(s);
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
                 addToSummary(summary, s, net, std::chrono::duration<double, std::milli>(Clock::now() - start).count());
                 if (run.on_frame) run.on_frame(f + 1);
@@ -406,7 +428,8 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             if (first < frames) culler.occluders(first);
             for (uint64_t f = first; f < frames; f += step) {
                 NetColumns sent;
-                const FrameStats s = culler.cull(f, sent);
+                FrameStats s = culler.cull(f, sent);
+                bus.take(s);
                 NetColumns net = window.take();
                 net.full_pvs_bytes = sent.full_pvs_bytes;
                 net.visible_hash = sent.visible_hash;

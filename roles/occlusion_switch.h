@@ -63,6 +63,8 @@ struct RunSummary {
     double latency_ms = 0;                // mean camera send -> frame drawn, frames after the first
     uint32_t latency_frames = 0;          // for frames after the first
     double ms_wait = 0;                   // rank 0: mean per frame
+    // Rank 0, frames after the first: host <-> device bytes and the streamed geometry among them.
+    uint64_t bus_h2d_bytes = 0, bus_d2h_bytes = 0, streamed_bytes = 0;
 };
 
 // The --stats header of a multi-role run: "rank,role," + frameStatsHeader() + the message

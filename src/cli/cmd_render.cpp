@@ -2,7 +2,7 @@
 #include "cli/commands.h"
 #include "cli/progress.h"
 
-#include "kernel_memory.h"
+#include "device_memory.h"
 #include "net/transport.h"
 #include "pipeline/pipeline.h"
 #include "roles/occlusion_switch.h"
@@ -36,6 +36,7 @@ struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto";
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
     double rank_timeout = 5.0;
+    int device = -1;
     std::string out, debug_views;
     std::vector<uint64_t> debug_frames;
     PipelineOptions pipeline;
@@ -106,6 +107,8 @@ int runRender(RenderOptions o) {
         throw UsageError(std::string("render: --path P.cam is required with ") +
                          (o.headless ? "--headless" : "--no-display"));
 
+    // Before anything touches the device: each rank on a node its own GPU.
+    const k::DeviceInfo device = k::selectDevice(o.device);
     const OssFile file = OssFile::open(o.scene);
 #ifdef OCC_HAVE_GL
     if (draws && !o.headless) {
@@ -161,7 +164,7 @@ int runRender(RenderOptions o) {
     display_options.exact = o.exact;
     display_options.reference = o.reference;
     if (draws && rank0) {
-        context = std::make_unique<render::HeadlessContext>();
+        context = std::make_unique<render::HeadlessContext>(device.ordinal);
         run.draw_header = render::displayStatsHeader(display_options);
         run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t f) {
             if (!display)
@@ -206,7 +209,7 @@ int runRender(RenderOptions o) {
                 "(%.1f fps); %.1f of %u objects in the frustum, %.1f%% of those occluded, %.1f visible; "
                 "%.0f active triangles, %.4f%% of them streamed per frame\n",
                 o.scene.c_str(), cameras.size(), o.pipeline.width, o.pipeline.height, o.mode.c_str(),
-                o.stream.c_str(), k::kernelBackend(), layout.size(), layout.size() > 1 ? "s" : "", sum.ms_frame / frames,
+                o.stream.c_str(), k::deviceBackend(), layout.size(), layout.size() > 1 ? "s" : "", sum.ms_frame / frames,
                 1000.0 * frames / sum.ms_frame, sum.objects_in_frustum / frames, file.objectCount(),
                 sum.objects_in_frustum > 0 ? 100.0 * (sum.objects_in_frustum - sum.objects_visible) / sum.objects_in_frustum
                                            : 0.0,
@@ -221,6 +224,12 @@ int runRender(RenderOptions o) {
                 double(sum.bytes_camera) / frames, double(sum.bytes_eof) / frames, sum.latency_frames,
                 sum.latency_frames == 1 ? "" : "s", frames > 1 ? sum.latency_ms / (frames - 1) : 0.0,
                 sum.ms_wait / frames);
+    const double later = std::max(1.0, frames - 1);
+    std::printf("device: %s%s%s; host <-> device bus on rank 0: %.0f bytes/frame to the device, %.0f back "
+                "(frames after the first), of which streamed geometry %.0f\n",
+                device.ordinal >= 0 ? ("CUDA device " + std::to_string(device.ordinal) + ", ").c_str() : "",
+                device.name.c_str(), device.uuid.empty() ? "" : (", UUID " + device.uuid).c_str(),
+                double(sum.bus_h2d_bytes) / later, double(sum.bus_d2h_bytes) / later, double(sum.streamed_bytes) / later);
 #ifdef OCC_HAVE_GL
     if (draws) std::printf("display: %s, mean %.2f ms/frame to draw\n", context->description().c_str(), draw_ms / frames);
     if (o.exact)
@@ -294,6 +303,9 @@ Command addRenderCommand(CLI::App& app) {
                     "seconds a rank waits for a message before it declares the sender dead")
         ->capture_default_str();
     sub->add_option("--size", o->size, "viewport and occlusion buffer size WxH")->capture_default_str();
+    sub->add_option("--device", o->device,
+                    "CUDA device for occswitch-cuda (default -1: the node-local MPI rank modulo the GPU count)")
+        ->capture_default_str();
     sub->add_option("--mode", o->mode, "full (no LOD, no occlusion), lod ([PC12]) or oc+lod")->capture_default_str();
     sub->add_option("--stream", o->stream, "sc (coherent), snc (no coherence) or ns (object by object)")
         ->capture_default_str();

@@ -7,19 +7,32 @@
 #include <cstring>
 #include <execution>
 #include <numeric>
-#include <vector>
 
 namespace occ {
 
 namespace {
 
 template <class T>
-void copyInto(k::KernelArray<T>& dst, std::span<const T> src) {
-    dst.resize(src.size());
-    if (!src.empty()) std::memcpy(dst.data(), src.data(), src.size_bytes());
+void copyUp(k::DeviceArray<T>& dst, std::span<const T> src) {
+    dst.resize(std::max<size_t>(1, src.size()));
+    k::copyToDevice(dst.ptr(), src.data(), src.size());
+}
+
+template <class T>
+void copyUp(k::DeviceArray<T>& dst, const std::vector<T>& src) {
+    copyUp(dst, std::span<const T>(src));
 }
 
 }  // namespace
+
+k::MeshGeometry DeviceScene::meshes() const {
+    return {positions.ptr(), triangles.ptr(), edge_flags.ptr(), edge_neighbours.ptr(), vertex_first.ptr(),
+            triangle_first.ptr()};
+}
+
+uint32_t DeviceScene::lodTriangles(uint32_t mesh, uint32_t vertices) const {
+    return vertices ? file->allMaps()[host_map_first[mesh] + vertices] : 0u;
+}
 
 DeviceScene DeviceScene::upload(const OssFile& file) {
     DeviceScene d;
@@ -28,37 +41,34 @@ DeviceScene DeviceScene::upload(const OssFile& file) {
     d.mesh_count = file.meshCount();
 
     const std::span<const oss::MeshRecord> meshes = file.meshRecords();
-    d.vertex_first.resize(d.mesh_count);
-    d.triangle_first.resize(d.mesh_count);
-    d.map_first.resize(d.mesh_count);
+    d.host_vertex_first.resize(d.mesh_count);
+    d.host_triangle_first.resize(d.mesh_count);
+    d.host_map_first.resize(d.mesh_count);
     for (uint32_t m = 0; m < d.mesh_count; ++m) {
-        d.vertex_first[m] = meshes[m].vertex_first;
-        d.triangle_first[m] = meshes[m].triangle_first;
-        d.map_first[m] = meshes[m].map_first;
+        d.host_vertex_first[m] = meshes[m].vertex_first;
+        d.host_triangle_first[m] = meshes[m].triangle_first;
+        d.host_map_first[m] = meshes[m].map_first;
     }
-    copyInto(d.ecol, file.allEcol());
-    copyInto(d.maps, file.allMaps());
-    copyInto(d.cos, file.cos());
 
     // Meshes are independent and most are small: one task each.
     const std::span<const uint32_t> triangles = file.allTriangles();
-    d.edge_flags.resize(triangles.size() / 3);
-    d.edge_neighbours.resize(triangles.size());
+    std::vector<uint8_t> edge_flags(triangles.size() / 3);
+    std::vector<uint32_t> edge_neighbours(triangles.size());
     std::vector<uint32_t> mesh_ids(d.mesh_count);
     std::iota(mesh_ids.begin(), mesh_ids.end(), 0u);
     std::for_each(std::execution::par, mesh_ids.begin(), mesh_ids.end(), [&](uint32_t m) {
         k::sharedEdgeFlags(triangles.data() + 3 * meshes[m].triangle_first, meshes[m].triangle_count,
-                           d.edge_flags.data() + meshes[m].triangle_first,
-                           d.edge_neighbours.data() + 3 * meshes[m].triangle_first);
+                           edge_flags.data() + meshes[m].triangle_first,
+                           edge_neighbours.data() + 3 * meshes[m].triangle_first);
     });
 
     const std::span<const oss::ObjectDisk> objects = file.objects();
-    d.objects.resize(d.object_count);
-    d.world.resize(d.object_count);
+    d.host_objects.resize(d.object_count);
+    d.host_world.resize(d.object_count);
     for (uint32_t i = 0; i < d.object_count; ++i) {
         const oss::ObjectDisk& o = objects[i];
         const oss::MeshRecord& m = meshes[o.mesh];
-        k::ObjectInfo& info = d.objects[i];
+        k::ObjectInfo& info = d.host_objects[i];
         info.aabb.min = glm::vec3(o.aabb_min[0], o.aabb_min[1], o.aabb_min[2]);
         info.aabb.max = glm::vec3(o.aabb_max[0], o.aabb_max[1], o.aabb_max[2]);
         info.occluder_normal = glm::vec3(o.occluder_normal[0], o.occluder_normal[1], o.occluder_normal[2]);
@@ -67,8 +77,28 @@ DeviceScene DeviceScene::upload(const OssFile& file) {
         info.vertex_count = m.vertex_count;
         info.q = m.q;
         info.triangle_count = m.triangle_count;
-        std::memcpy(&d.world[i], o.world, sizeof(glm::mat4));
+        std::memcpy(&d.host_world[i], o.world, sizeof(glm::mat4));
     }
+
+    // Once, at start-up: everything the frames read on the device. A GPU too small for it says so.
+    const uint64_t needed = uint64_t(d.object_count) * (sizeof(k::ObjectInfo) + sizeof(glm::mat4)) +
+                            uint64_t(d.mesh_count) * 3 * sizeof(uint64_t) + file.allEcol().size_bytes() +
+                            file.allMaps().size_bytes() + file.cos().size_bytes() + file.allPositions().size_bytes() +
+                            triangles.size_bytes() + edge_flags.size() + edge_neighbours.size() * sizeof(uint32_t);
+    k::requireDeviceMemory(needed, "the scene " + file.path());
+    copyUp(d.objects, d.host_objects);
+    copyUp(d.world, d.host_world);
+    copyUp(d.vertex_first, d.host_vertex_first);
+    copyUp(d.triangle_first, d.host_triangle_first);
+    copyUp(d.map_first, d.host_map_first);
+    copyUp(d.ecol, file.allEcol());
+    copyUp(d.maps, file.allMaps());
+    copyUp(d.cos, file.cos());
+    d.cos_count = uint32_t(file.cos().size());
+    copyUp(d.positions, file.allPositions());
+    copyUp(d.triangles, triangles);
+    copyUp(d.edge_flags, edge_flags);
+    copyUp(d.edge_neighbours, edge_neighbours);
     return d;
 }
 

@@ -1,34 +1,56 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
-#include "kernel_memory.h"
+#include "device_memory.h"
 #include "kernel_types.h"
+#include "occluder_gather.h"
 #include "scene/oss_file.h"
+
+#include <vector>
 
 namespace occ {
 
-// What the kernels read every frame, uploaded once from a mapped .oss into kernel memory
-// (device memory under CUDA). Mesh positions and triangles stay in the mapped file, on the
-// host: streaming moves only the parts of them a frame needs.
+// What the kernels read every frame, copied once from a mapped .oss into device memory, and
+// the few per-object and per-mesh tables the host decides with, kept apart in host memory.
+// The full-detail meshes are resident too, for the occluder raster (each instanced mesh once).
+// Streaming reads the mapped file's positions and triangles on the host: only the parts a frame
+// needs cross to the active arrays.
 struct DeviceScene {
     const OssFile* file = nullptr;
-    uint32_t object_count = 0, mesh_count = 0;
-    k::KernelArray<k::ObjectInfo> objects;  // per object
-    k::KernelArray<glm::mat4> world;        // per object, local -> world
-    k::KernelArray<uint32_t> cos;           // candidate occluder ids, most compact first
-    k::KernelArray<uint64_t> vertex_first;  // per mesh, into ecol (and the file's positions)
-    k::KernelArray<uint64_t> triangle_first;  // per mesh, in triangles, into the file's triangles
-    k::KernelArray<uint64_t> map_first;     // per mesh, into maps
-    k::KernelArray<int32_t> ecol;           // all meshes back to back
-    k::KernelArray<uint32_t> maps;          // all meshes back to back, vertex_count + 1 each
+    uint32_t object_count = 0, mesh_count = 0, cos_count = 0;
+
+    // Host memory.
+    std::vector<k::ObjectInfo> host_objects;      // per object
+    std::vector<glm::mat4> host_world;            // per object, local -> world
+    std::vector<uint64_t> host_vertex_first;      // per mesh, into the file's positions and ecol
+    std::vector<uint64_t> host_triangle_first;    // per mesh, in triangles
+    std::vector<uint64_t> host_map_first;         // per mesh, into the file's maps
+
+    // Device memory.
+    k::DeviceArray<k::ObjectInfo> objects;  // per object
+    k::DeviceArray<glm::mat4> world;        // per object, local -> world
+    k::DeviceArray<uint32_t> cos;           // candidate occluder ids, most compact first
+    k::DeviceArray<uint64_t> vertex_first;  // per mesh, into ecol and positions
+    k::DeviceArray<uint64_t> triangle_first;  // per mesh, in triangles, into triangles
+    k::DeviceArray<uint64_t> map_first;     // per mesh, into maps
+    k::DeviceArray<int32_t> ecol;           // all meshes back to back
+    k::DeviceArray<uint32_t> maps;          // all meshes back to back, vertex_count + 1 each
+    k::DeviceArray<glm::vec3> positions;    // all meshes at full detail, object space
+    k::DeviceArray<uint32_t> triangles;     // all meshes at full detail, 3 mesh-local corners each
     // Per triangle, the edges it shares within its mesh (k::sharedEdgeFlags), all meshes back to
     // back like the file's triangles: mesh m's triangle t is at triangle_first[m] + t.
-    k::KernelArray<uint8_t> edge_flags;
+    k::DeviceArray<uint8_t> edge_flags;
     // Per triangle, 3 entries: the triangle of the same mesh across each shared edge (mesh-local
     // index), UINT32_MAX across the others (k::sharedEdgeFlags' neighbours).
-    k::KernelArray<uint32_t> edge_neighbours;
+    k::DeviceArray<uint32_t> edge_neighbours;
 
-    // file must outlive the DeviceScene.
+    // The full-detail meshes as gatherOccluders reads them.
+    k::MeshGeometry meshes() const;
+    // Triangles of mesh `mesh`'s LOD with `vertices` vertices (maps[vertices]; 0 for 0),
+    // from the mapped file.
+    uint32_t lodTriangles(uint32_t mesh, uint32_t vertices) const;
+
+    // file must outlive the DeviceScene. Throws std::bad_alloc when the device has no room.
     static DeviceScene upload(const OssFile& file);
 };
 

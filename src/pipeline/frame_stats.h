@@ -42,6 +42,11 @@ struct FrameStats {
     uint64_t streamed_vertices = 0;
     uint64_t streamed_bytes = 0;
     uint64_t moved_bytes = 0;         // device -> device by defragmentation
+    // Every byte that crossed between host and device memory for this frame's work on this
+    // rank, all purposes (streaming, layouts, results read back, the display's copies), counted
+    // by the bus (kernels/device_memory.h); measurement passes (--exact, --reference) excluded.
+    uint64_t bus_h2d_bytes = 0;
+    uint64_t bus_d2h_bytes = 0;
     double ms[size_t(Stage::Count)] = {};
     double ms_total = 0;
 };

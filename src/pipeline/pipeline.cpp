@@ -47,24 +47,38 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     scene_ = DeviceScene::upload(file);
     const uint32_t n = scene_.object_count;
     double scene_vertices = 0;
-    for (uint32_t i = 0; i < n; ++i) scene_vertices += scene_.objects[i].vertex_count;
+    for (uint32_t i = 0; i < n; ++i) scene_vertices += scene_.host_objects[i].vertex_count;
     budget_ = options.budget > 0 ? options.budget : 0.1 * scene_vertices;
     if (options_.pvs_occluder_triangles == PipelineOptions::kAutoOccluderTriangles)
         options_.pvs_occluder_triangles =
             std::max(PipelineOptions::kMinAutoOccluderTriangles, uint64_t(std::llround(budget_ / 4)));
-    host_ = {file.allPositions().data(), file.allTriangles().data(), scene_.vertex_first.data(),
-             scene_.triangle_first.data(), scene_.objects.data()};
+    host_ = {file.allPositions().data(), file.allTriangles().data(), scene_.host_vertex_first.data(),
+             scene_.host_triangle_first.data(), scene_.host_objects.data()};
 
-    in_frustum_.resize(n);
-    occluded_.resize(n);
-    frustum_ids_.resize(n);
-    weights_.resize(scene_.cos.size());
-    aos_.resize(options.aos);
+    // Every array a frame needs, sized once for the worst case (every object in the frustum,
+    // visible and drawn): no frame allocates but the ones whose sizes depend on geometry.
+    const size_t room = std::max<uint32_t>(1, n);
+    in_frustum_.resize(room);
+    occluded_.resize(room);
+    frustum_ids_.resize(room);
+    weights_.resize(std::max<uint32_t>(1, scene_.cos_count));
+    occluders_.resize(room);
+    occluder_source_.resize(room);
+    pvs_occluder_scratch_.taken.resize(room);
+    k::deviceMemset(pvs_occluder_scratch_.taken.ptr(), 0, room);
     hzm_.resize(size_t(k::hzmTotalTexels(options.width, options.height)));
-    for (LayoutArrays& l : layouts_) {
-        for (k::KernelArray<uint32_t>* a : {&l.ids, &l.vc, &l.tc, &l.draw_vc, &l.draw_tc}) a->resize(n);
-        l.voff.resize(n);
-        l.toff.resize(n);
+    pvs_device_.resize(room);
+    pvs_vc_device_.resize(room);
+    pvs_tc_device_.resize(room);
+    for (HostLayoutArrays& l : host_layouts_) {
+        for (std::vector<uint32_t>* a : {&l.ids, &l.vc, &l.tc, &l.draw_vc, &l.draw_tc}) a->resize(room);
+        l.voff.resize(room);
+        l.toff.resize(room);
+    }
+    for (DeviceLayoutArrays& l : device_layouts_) {
+        for (k::DeviceArray<uint32_t>* a : {&l.ids, &l.vc, &l.tc, &l.draw_vc}) a->resize(room);
+        l.voff.resize(room);
+        l.toff.resize(room);
     }
     pvs_vc_.resize(n);
     pvs_tc_.resize(n);
@@ -72,102 +86,81 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     last_drawn_.assign(n, 0);
 }
 
+void Pipeline::lendActiveArrays(k::BufferProvider& lender) {
+    lender.beginDeviceWrites();
+    for (uint32_t b = 0; b < 2; ++b)
+        active_.vertices.buffers[b].lendFrom(&lender, kActiveVertexSlot + b,
+                                             b == active_.vertices.current ? active_.vertices.count : 0);
+    indices_.lendFrom(&lender, kIndexSlot, index_count_);
+    lender.endDeviceWrites();
+    lender_ = &lender;
+}
+
+std::vector<uint32_t> Pipeline::downloadFrustumObjects() const {
+    std::vector<uint32_t> ids(frustum_count_);
+    k::copyToHost(ids.data(), frustum_ids_.ptr(), ids.size());
+    return ids;
+}
+
+std::vector<uint32_t> Pipeline::downloadOccluders() const {
+    std::vector<uint32_t> ids(occluder_count_);
+    k::copyToHost(ids.data(), occluders_.ptr(), ids.size());
+    return ids;
+}
+
 k::HzmLevels Pipeline::hzmLevels() const {
     k::HzmLevels levels;
     k::hzmLayout(options_.width, options_.height, levels);
-    levels.data = hzm_.data();
+    levels.data = hzm_.ptr();
     return levels;
 }
 
+// The AOS (Eq. 3's top-K of the COS), then the earlier PVS's best occluders per triangle, all
+// chosen on the device; only their count comes back.
 void Pipeline::chooseOccluders(const k::Camera& camera, std::span<const uint32_t> occluder_source) {
-    occluders_.clear();
-    const uint32_t cos_count = uint32_t(scene_.cos.size());
-    if (cos_count > 0 && options_.aos > 0) {
-        k::occluderWeight(scene_.objects.data(), scene_.cos.data(), cos_count, in_frustum_.data(), camera,
-                          weights_.data());
-        const uint32_t chosen = k::selectTopK(scene_.cos.data(), weights_.data(), cos_count, options_.aos, aos_.data());
-        occluders_.assign(aos_.data(), aos_.data() + chosen);
+    uint32_t aos = 0;
+    if (scene_.cos_count > 0 && options_.aos > 0) {
+        k::occluderWeight(scene_.objects.ptr(), scene_.cos.ptr(), scene_.cos_count, in_frustum_.ptr(), camera,
+                          weights_.ptr());
+        aos = k::selectTopK(scene_.cos.ptr(), weights_.ptr(), scene_.cos_count, options_.aos, occluders_.ptr(),
+                            topk_keys_);
     }
-    if (options_.pvs_occluder_triangles == 0) return;
-    // The two-pass idea of occlusion-switches and GPU-driven renderers: what was visible last
-    // frame is likely to occlude now. Most screen per rastered triangle first: (extent over
-    // distance)^2 x compactness (Eq. 2: how solid the object is) / triangles.
-    std::vector<std::pair<float, uint32_t>> ranked;
-    for (uint32_t id : occluder_source) {
-        if (!in_frustum_[id]) continue;
-        const k::Aabb& b = scene_.objects[id].aabb;
-        const glm::vec3 nearest = glm::clamp(camera.eye, b.min, b.max);
-        const float distance = std::max(glm::length(nearest - camera.eye), camera.near_plane);
-        const float size = glm::length(b.max - b.min) / distance;
-        const float triangles = float(std::max(1u, scene_.objects[id].triangle_count));
-        ranked.emplace_back(-size * size * scene_.objects[id].compactness / triangles, id);
+    uint32_t extra = 0;
+    if (options_.pvs_occluder_triangles > 0 && !occluder_source.empty()) {
+        const uint32_t count = uint32_t(std::min<size_t>(occluder_source.size(), scene_.object_count));
+        k::copyToDevice(occluder_source_.ptr(), occluder_source.data(), count);
+        extra = k::selectPvsOccluders(scene_.objects.ptr(), occluder_source_.ptr(), count, in_frustum_.ptr(), camera,
+                                      occluders_.ptr(), aos, options_.pvs_occluder_triangles, pvs_occluder_scratch_,
+                                      occluders_.ptr() + aos);
     }
-    std::sort(ranked.begin(), ranked.end());
-    std::vector<uint8_t> taken(scene_.object_count, 0);
-    for (uint32_t id : occluders_) taken[id] = 1;
-    uint64_t triangles = 0;
-    for (const auto& [negative_size, id] : ranked) {
-        if (taken[id]) continue;
-        const uint64_t t = scene_.objects[id].triangle_count;
-        if (triangles + t > options_.pvs_occluder_triangles) continue;
-        triangles += t;
-        occluders_.push_back(id);
-    }
+    occluder_count_ = aos + extra;
 }
 
 void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
-    // Occluders are rastered at full detail, in world space.
-    std::vector<uint64_t> vertex_base(occluders_.size() + 1, 0), triangle_base(occluders_.size() + 1, 0);
-    for (size_t j = 0; j < occluders_.size(); ++j) {
-        const k::ObjectInfo& o = scene_.objects[occluders_[j]];
-        vertex_base[j + 1] = vertex_base[j] + o.vertex_count;
-        triangle_base[j + 1] = triangle_base[j] + o.triangle_count;
-    }
-    raster_positions_.resize(vertex_base.back());
-    raster_triangles_.resize(3 * triangle_base.back());
-    raster_edge_flags_.resize(triangle_base.back());
-    raster_neighbours_.resize(3 * triangle_base.back());
-    std::vector<uint32_t> slots(occluders_.size());
-    std::iota(slots.begin(), slots.end(), 0u);
-    std::for_each(std::execution::par, slots.begin(), slots.end(), [&](uint32_t j) {
-        const uint32_t id = occluders_[j];
-        const k::ObjectInfo& o = scene_.objects[id];
-        const glm::mat4& world = scene_.world[id];
-        const glm::vec3* src = host_.positions + scene_.vertex_first[o.mesh];
-        glm::vec3* dst = raster_positions_.data() + vertex_base[j];
-        for (uint32_t v = 0; v < o.vertex_count; ++v) dst[v] = glm::vec3(world * glm::vec4(src[v], 1.0f));
-        const uint32_t* tri = host_.triangles + 3 * scene_.triangle_first[o.mesh];
-        uint32_t* out = raster_triangles_.data() + 3 * triangle_base[j];
-        const uint32_t base = uint32_t(vertex_base[j]);
-        for (uint64_t c = 0; c < 3ull * o.triangle_count; ++c) out[c] = tri[c] + base;
-        std::copy_n(scene_.edge_flags.data() + scene_.triangle_first[o.mesh], o.triangle_count,
-                    raster_edge_flags_.data() + triangle_base[j]);
-        const uint32_t* across = scene_.edge_neighbours.data() + 3 * scene_.triangle_first[o.mesh];
-        uint32_t* across_out = raster_neighbours_.data() + 3 * triangle_base[j];
-        const uint32_t first = uint32_t(triangle_base[j]);
-        for (uint64_t e = 0; e < 3ull * o.triangle_count; ++e)
-            across_out[e] = across[e] == UINT32_MAX ? UINT32_MAX : across[e] + first;
-    });
-    k::depthRaster(raster_positions_.data(), raster_triangles_.data(), uint32_t(triangle_base.back()),
-                   raster_edge_flags_.data(), raster_neighbours_.data(), camera, hzm_.data(), raster_scratch_);
-    stats.aos_size = occluders_.size();
-    stats.occluder_triangles = triangle_base.back();
+    // Occluders are rastered at full detail, in world space, from the resident meshes.
+    k::gatherOccluders(scene_.objects.ptr(), scene_.world.ptr(), scene_.meshes(), occluders_.ptr(), occluder_count_,
+                       occluder_geometry_);
+    const k::OccluderGeometry& g = occluder_geometry_;
+    k::depthRaster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(),
+                   g.edge_neighbours.ptr(), camera, hzm_.ptr(), raster_scratch_);
+    stats.aos_size = occluder_count_;
+    stats.occluder_triangles = g.triangle_total;
 }
 
 // The blocks of this frame's active arrays: every object drawn now, and (coherent streaming)
 // every object still resident from recent frames, with at least the vertices it draws.
 void Pipeline::buildLayout(uint64_t frame, FrameStats& stats) {
-    LayoutArrays& l = layouts_[cur_index_];
+    HostLayoutArrays& l = host_layouts_[cur_index_];
     const bool retain = options_.stream == StreamMode::Coherent && options_.retain_frames > 0;
-    const uint32_t* prev_ids = prev_.objects;
+    const uint32_t* prev_ids = prev_host_.objects;
     uint32_t a = 0, b = 0, out = 0;
     uint64_t resident = 0;
     const auto residentTriangles = [&](uint32_t id, uint32_t vc) {
-        return vc ? scene_.maps[scene_.map_first[scene_.objects[id].mesh] + vc] : 0u;
+        return scene_.lodTriangles(scene_.host_objects[id].mesh, vc);
     };
     // Merge last frame's resident ids with this frame's PVS (both ascending).
-    while (a < prev_.count || b < pvs_.size()) {
-        const uint32_t pa = a < prev_.count ? prev_ids[a] : UINT32_MAX;
+    while (a < prev_host_.count || b < pvs_.size()) {
+        const uint32_t pa = a < prev_host_.count ? prev_ids[a] : UINT32_MAX;
         const uint32_t pb = b < pvs_.size() ? pvs_[b] : UINT32_MAX;
         const uint32_t id = std::min(pa, pb);
         uint32_t draw = 0, draw_tc = 0;
@@ -225,7 +218,7 @@ class StageClock {
 public:
     explicit StageClock(FrameStats& stats) : stats_(stats), mark_(Clock::now()) {}
     void lap(Stage s) {
-        k::kernelSynchronize();
+        k::deviceSynchronize();
         const Clock::time_point now = Clock::now();
         stats_.ms[uint32_t(s)] += std::chrono::duration<double, std::milli>(now - mark_).count();
         stats_.ms_total += std::chrono::duration<double, std::milli>(now - mark_).count();
@@ -244,11 +237,7 @@ void Pipeline::frustumPass(const CameraPose& pose, FrameStats& stats) {
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
     const uint32_t n = scene_.object_count;
     const k::Frustum frustum = k::frustumFromViewProj(camera.view_proj);
-    k::frustumCull(scene_.objects.data(), n, frustum, in_frustum_.data());
-    uint32_t in_count = 0;
-    for (uint32_t i = 0; i < n; ++i)
-        if (in_frustum_[i]) frustum_ids_[in_count++] = i;
-    frustum_count_ = in_count;
+    frustum_count_ = k::frustumCull(scene_.objects.ptr(), n, frustum, in_frustum_.ptr(), frustum_ids_.ptr());
     frustum_pose_ = pose;
     has_frustum_pose_ = true;
     clock.lap(Stage::FrustumCull);
@@ -267,7 +256,7 @@ void Pipeline::occluderPass(const CameraPose& pose, std::span<const uint32_t> oc
     clock.lap(Stage::OccluderSelect);
     rasterOccluders(camera, stats);
     clock.lap(Stage::DepthRaster);
-    k::hzmBuild(hzm_.data(), options_.width, options_.height);
+    k::hzmBuild(hzm_.ptr(), options_.width, options_.height);
     clock.lap(Stage::HzmBuild);
 }
 
@@ -276,32 +265,33 @@ void Pipeline::cullPass(const CameraPose& pose, FrameStats& stats,
     if (!frustumIsFor(pose)) frustumPass(pose, stats);
     StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
-    const k::ObjectInfo* objects = scene_.objects.data();
     const uint32_t in_count = frustum_count_;
     stats.objects_in_frustum = in_count;
-    pvs_.clear();
+    uint32_t count = in_count;
+    k::DevicePtr<const uint32_t> pvs = frustum_ids_.ptr();
     if (options_.mode == CullMode::OcLod) {
-        const k::HzmLevels levels = hzmLevels();
-        k::hzmTest(objects, frustum_ids_.data(), in_count, camera, levels, occluded_.data());
-        for (uint32_t j = 0; j < in_count; ++j)
-            if (!occluded_[j]) pvs_.push_back(frustum_ids_[j]);
+        k::hzmTest(scene_.objects.ptr(), frustum_ids_.ptr(), in_count, camera, hzmLevels(), occluded_.ptr());
+        count = k::compactSelected(frustum_ids_.ptr(), occluded_.ptr(), in_count, 0, pvs_device_.ptr());
+        pvs = pvs_device_.ptr();
         clock.lap(Stage::HzmTest);
-    } else {
-        pvs_.assign(frustum_ids_.data(), frustum_ids_.data() + in_count);
     }
-    stats.objects_visible = pvs_.size();
-    stats.objects_occluded = in_count - pvs_.size();
+    stats.objects_visible = count;
+    stats.objects_occluded = in_count - count;
+    // The visible set comes back to the host: the network sends it and the layout is built from it.
+    pvs_.resize(count);
+    k::copyToHost(pvs_.data(), pvs, count);
 
-    const uint32_t count = uint32_t(pvs_.size());
     if (options_.mode == CullMode::Full) {
         for (uint32_t j = 0; j < count; ++j) {
-            pvs_vc_[j] = objects[pvs_[j]].vertex_count;
-            pvs_tc_[j] = objects[pvs_[j]].triangle_count;
+            pvs_vc_[j] = scene_.host_objects[pvs_[j]].vertex_count;
+            pvs_tc_[j] = scene_.host_objects[pvs_[j]].triangle_count;
         }
     } else {
         const k::LodParams params{float(budget_), options_.alpha, options_.pet};
-        k::lodSelect(objects, pvs_.data(), count, camera, params, scene_.map_first.data(), scene_.maps.data(),
-                     pvs_vc_.data(), pvs_tc_.data());
+        k::lodSelect(scene_.objects.ptr(), pvs, count, camera, params, scene_.map_first.ptr(), scene_.maps.ptr(),
+                     pvs_vc_device_.ptr(), pvs_tc_device_.ptr(), lod_shares_);
+        k::copyToHost(pvs_vc_.data(), pvs_vc_device_.ptr(), count);
+        k::copyToHost(pvs_tc_.data(), pvs_tc_device_.ptr(), count);
         if (options_.lod_hysteresis > 0) keepSimilarLods(previous_lod);
     }
     clock.lap(Stage::LodSelect);
@@ -339,23 +329,24 @@ void Pipeline::keepSimilarLods(std::span<const std::pair<uint32_t, uint32_t>> pr
             total -= extra;
         }
     }
-    for (uint32_t j = 0; j < count; ++j) {
-        const k::ObjectInfo& o = scene_.objects[pvs_[j]];
-        if (pvs_vc_[j] != eq1[j]) pvs_tc_[j] = scene_.maps[scene_.map_first[o.mesh] + pvs_vc_[j]];
-    }
+    for (uint32_t j = 0; j < count; ++j)
+        if (pvs_vc_[j] != eq1[j]) pvs_tc_[j] = scene_.lodTriangles(scene_.host_objects[pvs_[j]].mesh, pvs_vc_[j]);
 }
 
 void Pipeline::setVisible(std::span<const uint32_t> ids, std::span<const uint32_t> vertex_counts) {
     if (ids.size() != vertex_counts.size() || ids.size() > scene_.object_count)
         throw std::invalid_argument("Pipeline::setVisible: ids and vertex counts differ in size");
+    for (size_t j = 0; j < ids.size(); ++j) {
+        if ((j > 0 && ids[j] <= ids[j - 1]) || ids[j] >= scene_.object_count)
+            throw std::invalid_argument("Pipeline::setVisible: entry " + std::to_string(j) + " is not a valid LOD");
+        const k::ObjectInfo& o = scene_.host_objects[ids[j]];
+        if (vertex_counts[j] > o.vertex_count || (vertex_counts[j] != 0 && vertex_counts[j] < o.q))
+            throw std::invalid_argument("Pipeline::setVisible: entry " + std::to_string(j) + " is not a valid LOD");
+    }
     pvs_.assign(ids.begin(), ids.end());
     for (size_t j = 0; j < ids.size(); ++j) {
-        const k::ObjectInfo& o = scene_.objects[ids[j]];
-        if ((j > 0 && ids[j] <= ids[j - 1]) || ids[j] >= scene_.object_count || vertex_counts[j] > o.vertex_count ||
-            (vertex_counts[j] != 0 && vertex_counts[j] < o.q))
-            throw std::invalid_argument("Pipeline::setVisible: entry " + std::to_string(j) + " is not a valid LOD");
         pvs_vc_[j] = vertex_counts[j];
-        pvs_tc_[j] = vertex_counts[j] ? scene_.maps[scene_.map_first[o.mesh] + vertex_counts[j]] : 0;
+        pvs_tc_[j] = scene_.lodTriangles(scene_.host_objects[ids[j]].mesh, vertex_counts[j]);
     }
 }
 
@@ -364,28 +355,44 @@ void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
     stats.frame = frame;
     stats.budget_vertices = uint64_t(budget_);
     stats.objects_visible = pvs_.size();
-    const k::ObjectInfo* objects = scene_.objects.data();
     buildLayout(frame, stats);
-    LayoutArrays& l = layouts_[cur_index_];
+    HostLayoutArrays& l = host_layouts_[cur_index_];
+    DeviceLayoutArrays& d = device_layouts_[cur_index_];
     const uint32_t blocks = layout_count_;
-    const uint64_t vertex_total = k::exclusiveScan(l.vc.data(), blocks, l.voff.data());
-    const uint64_t triangle_total = k::exclusiveScan(l.tc.data(), blocks, l.toff.data());
-    cur_ = {l.ids.data(), l.vc.data(), l.tc.data(), l.voff.data(), l.toff.data(), blocks, vertex_total, triangle_total};
+    // The host's copy of the layout, for the gather and the display.
+    uint64_t vertex_total = 0, triangle_total = 0;
+    for (uint32_t j = 0; j < blocks; ++j) {
+        l.voff[j] = vertex_total;
+        l.toff[j] = triangle_total;
+        vertex_total += l.vc[j];
+        triangle_total += l.tc[j];
+    }
+    cur_host_ = {l.ids.data(), l.vc.data(), l.tc.data(), l.voff.data(), l.toff.data(), blocks, vertex_total, triangle_total};
+    // The device's: the per-block counts cross the bus, the offsets are scanned there.
+    k::copyToDevice(d.ids.ptr(), l.ids.data(), blocks);
+    k::copyToDevice(d.vc.ptr(), l.vc.data(), blocks);
+    k::copyToDevice(d.tc.ptr(), l.tc.data(), blocks);
+    k::copyToDevice(d.draw_vc.ptr(), l.draw_vc.data(), blocks);
+    k::exclusiveScan(d.vc.ptr(), blocks, d.voff.ptr());
+    k::exclusiveScan(d.tc.ptr(), blocks, d.toff.ptr());
+    cur_ = {d.ids.ptr(), d.vc.ptr(), d.tc.ptr(), d.voff.ptr(), d.toff.ptr(), blocks, vertex_total, triangle_total};
     stats.resident_vertices = vertex_total;
     stats.resident_triangles = triangle_total;
     clock.lap(Stage::Scan);
     k::StreamCounts sent;
     k::DefragmentCounts moved;
+    // The active arrays may be the display's buffers: the kernels write them only in here.
+    if (lender_) lender_->beginDeviceWrites();
     if (options_.stream == StreamMode::None) {
-        sent = k::streamObjectByObject(cur_, host_, active_);
+        sent = k::streamObjectByObject(cur_host_, host_, active_);
         clock.lap(Stage::StreamCollect);
         clock.lap(Stage::Defragment);
     } else {
         // Without coherence nothing of the last frame is reused: the previous layout is empty.
-        const k::ActiveLayout previous = options_.stream == StreamMode::Coherent ? prev_ : k::ActiveLayout{};
-        sent = k::streamCollect(previous, cur_, host_, staging_);
+        const bool coherent = options_.stream == StreamMode::Coherent;
+        sent = k::streamCollect(coherent ? prev_host_ : k::HostLayout{}, cur_host_, host_, staging_);
         clock.lap(Stage::StreamCollect);
-        moved = k::defragment(previous, cur_, staging_, active_);
+        moved = k::defragment(coherent ? prev_ : k::ActiveLayout{}, cur_, staging_, active_);
         clock.lap(Stage::Defragment);
     }
     stats.streamed_vertices = sent.vertices;
@@ -396,29 +403,33 @@ void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
 
     // Beyond the paper: a frame that draws exactly what the last one drew, from blocks that did
     // not move, has last frame's index buffer already; only the checks above cost anything.
-    const LayoutArrays& p = layouts_[cur_index_ ^ 1];
+    const HostLayoutArrays& p = host_layouts_[cur_index_ ^ 1];
     const auto same = [&](const auto& a, const auto& b) {
         return std::memcmp(a.data(), b.data(), size_t(blocks) * sizeof(a[0])) == 0;
     };
     const bool unchanged = options_.stream == StreamMode::Coherent && moved.vertices_moved == 0 &&
                            moved.vertices_bounced == 0 && moved.vertices_copied == 0 && moved.triangles_moved == 0 &&
-                           moved.triangles_bounced == 0 && moved.triangles_copied == 0 && prev_.count == blocks &&
-                           indices_.size() == 3 * triangle_total && same(l.ids, p.ids) && same(l.vc, p.vc) &&
+                           moved.triangles_bounced == 0 && moved.triangles_copied == 0 && prev_host_.count == blocks &&
+                           index_count_ == 3 * triangle_total && same(l.ids, p.ids) && same(l.vc, p.vc) &&
                            same(l.draw_vc, p.draw_vc);
     if (!unchanged) {
-        indices_.resize(size_t(3 * triangle_total));
-        k::reform(cur_, objects, scene_.vertex_first.data(), scene_.ecol.data(), active_.triangles.data(),
-                  indices_.data(), l.draw_vc.data());
+        indices_.reserve(size_t(3 * triangle_total));
+        k::reform(cur_, scene_.objects.ptr(), scene_.vertex_first.ptr(), scene_.ecol.ptr(), active_.triangles.data(),
+                  indices_.ptr(), d.draw_vc.ptr());
+        index_count_ = 3 * triangle_total;
     }
+    if (lender_) lender_->endDeviceWrites();
     clock.lap(Stage::Reform);
 
     prev_ = cur_;
+    prev_host_ = cur_host_;
     cur_index_ ^= 1;
 }
 
 FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
     FrameStats stats;
     stats.frame = frame;
+    const k::BusCounters bus_before = k::busCounters();
     // The PVS `pvs_occluder_lag` frames back supplies this frame's extra occluders.
     occluderPass(pose, pvs_history_[options_.pvs_occluder_lag - 1], stats);
     cullPass(pose, stats, last_lod_);
@@ -427,6 +438,8 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
     pvs_history_[1].swap(pvs_history_[0]);
     pvs_history_[0] = pvs_;
     streamPass(frame, stats);
+    stats.bus_h2d_bytes = k::busCounters().h2d_bytes - bus_before.h2d_bytes;
+    stats.bus_d2h_bytes = k::busCounters().d2h_bytes - bus_before.d2h_bytes;
     return stats;
 }
 

@@ -3,7 +3,9 @@
 
 #include "defragment.h"
 #include "depth_raster.h"
-#include "kernel_memory.h"
+#include "device_memory.h"
+#include "occluder_gather.h"
+#include "occluder_weight.h"
 #include "pipeline/device_scene.h"
 #include "pipeline/frame_stats.h"
 #include "scan.h"
@@ -65,6 +67,13 @@ struct PipelineOptions {
 
 // The one-rank pipeline: every stage of a frame over the kernels (DESIGN.md, "One frame").
 // Keeps the previous frame's active set and layout for coherent streaming.
+//
+// Where the data lives: every per-object stage works on device arrays (frustum culling and its
+// compaction, the occluders (Eq. 3 and the earlier PVS's) and their full-detail geometry, the
+// depth raster, HZM, HZM test and PVS compaction, LOD selection). The host gets back the PVS
+// with its LOD counts (for the network and the layout), builds the layout of the active
+// arrays, gathers what the layout lacks from the mapped file, and sends the layout's per-block
+// counts and the gathered geometry over the bus. FrameStats' bus columns count every byte.
 class Pipeline {
 public:
     // file must outlive the pipeline. Throws UsageError for impossible options.
@@ -102,32 +111,50 @@ public:
     void setMode(CullMode mode) { options_.mode = mode; }
     CullMode mode() const { return options_.mode; }
 
-    // Results of the last frame, valid until the next runFrame.
+    // Results of the last frame, valid until the next runFrame. Host memory:
     const std::vector<uint32_t>& visibleObjects() const { return pvs_; }  // PVS, ascending ids
-    // Blocks of the active arrays: resident vertex / triangle counts, offsets, ids (ascending).
-    const k::ActiveLayout& layout() const { return cur_; }
-    // Per block of layout(): what this frame draws, a prefix of the resident block (0 = resident
-    // only). Block j's triangles to draw are indices()[3 * triangle_offset[j], + 3 * drawTriangles()[j]).
-    const uint32_t* drawVertices() const { return layouts_[cur_index_ ^ 1].draw_vc.data(); }
-    const uint32_t* drawTriangles() const { return layouts_[cur_index_ ^ 1].draw_tc.data(); }
-    const glm::vec3* activeVertices() const { return active_.vertices.data(); }
-    const uint32_t* activeTriangles() const { return active_.triangles.data(); }
-    const uint32_t* indices() const { return indices_.data(); }     // 3 * layout().triangle_total
-    const float* occluderDepth() const { return hzm_.data(); }      // W x H, level 0 of the HZM
-    // Every level of the HZM (meaningful after an oc+lod frame).
-    k::HzmLevels hzmLevels() const;
-    // Objects in the frustum, ascending ids.
-    std::span<const uint32_t> frustumObjects() const { return {frustum_ids_.data(), frustum_count_}; }
     // Eq. 1's vertex count for each PVS object, in visibleObjects() order (0 = below the PET).
     std::span<const uint32_t> visibleLodVertices() const { return {pvs_vc_.data(), pvs_.size()}; }
-    const std::vector<uint32_t>& occluders() const { return occluders_; }
+    // The host's copy of the layout of the active arrays: resident vertex / triangle counts,
+    // offsets, ids (ascending), one block per object.
+    const k::HostLayout& layout() const { return prev_host_; }
+    // Per block of layout(): what this frame draws, a prefix of the resident block (0 = resident
+    // only). Block j's triangles to draw are indices()[3 * triangle_offset[j], + 3 * drawTriangles()[j]).
+    const uint32_t* drawVertices() const { return host_layouts_[cur_index_ ^ 1].draw_vc.data(); }
+    const uint32_t* drawTriangles() const { return host_layouts_[cur_index_ ^ 1].draw_tc.data(); }
+    uint32_t frustumCount() const { return frustum_count_; }
     const DeviceScene& scene() const { return scene_; }
     double budget() const { return budget_; }
+    // Device memory:
+    const k::ActiveLayout& deviceLayout() const { return prev_; }
+    // Per block of deviceLayout(), drawVertices() on the device.
+    k::DevicePtr<const uint32_t> deviceDrawVertices() const { return device_layouts_[cur_index_ ^ 1].draw_vc.ptr(); }
+    k::DevicePtr<const glm::vec3> activeVertices() const { return active_.vertices.data(); }  // layout().vertex_total
+    k::DevicePtr<const uint32_t> indices() const { return indices_.ptr(); }  // 3 * layout().triangle_total
+    k::DevicePtr<const float> occluderDepth() const { return hzm_.ptr(); }  // W x H, level 0 of the HZM
+    // Every level of the HZM (meaningful after an oc+lod frame).
+    k::HzmLevels hzmLevels() const;
+    // Objects in the frustum, ascending ids, frustumCount() of them.
+    k::DevicePtr<const uint32_t> frustumIds() const { return frustum_ids_.ptr(); }
+    // From now on the active vertex array's two buffers and the index buffer live in the
+    // lender's slots kActiveVertexSlot + 0 / 1 and kIndexSlot (the display's GL buffers), which
+    // streamPass brackets with its write calls; what they hold is copied over once. The lender
+    // must outlive the pipeline. activeVertexSlot(): the slot the last frame's vertices are in.
+    static constexpr uint32_t kActiveVertexSlot = 0, kIndexSlot = 2;
+    void lendActiveArrays(k::BufferProvider& lender);
+    uint32_t activeVertexSlot() const { return kActiveVertexSlot + active_.vertices.current; }
+    // Read back over the bus, for measurements and debug pictures (not part of a frame's work):
+    std::vector<uint32_t> downloadFrustumObjects() const;
+    std::vector<uint32_t> downloadOccluders() const;  // the last occluderPass's, AOS first
 
 private:
-    struct LayoutArrays {
-        k::KernelArray<uint32_t> ids, vc, tc, draw_vc, draw_tc;
-        k::KernelArray<uint64_t> voff, toff;
+    struct HostLayoutArrays {
+        std::vector<uint32_t> ids, vc, tc, draw_vc, draw_tc;
+        std::vector<uint64_t> voff, toff;
+    };
+    struct DeviceLayoutArrays {
+        k::DeviceArray<uint32_t> ids, vc, tc, draw_vc;
+        k::DeviceArray<uint64_t> voff, toff;
     };
     void keepSimilarLods(std::span<const std::pair<uint32_t, uint32_t>> previous);
     void chooseOccluders(const k::Camera& camera, std::span<const uint32_t> occluder_source);
@@ -140,33 +167,42 @@ private:
     double budget_ = 0;
     k::HostGeometry host_{};
 
-    k::KernelArray<uint8_t> in_frustum_, occluded_;
-    k::KernelArray<uint32_t> frustum_ids_;
+    // Device memory of the culling stages.
+    k::DeviceArray<uint8_t> in_frustum_, occluded_;
+    k::DeviceArray<uint32_t> frustum_ids_;
     uint32_t frustum_count_ = 0;
-    k::KernelArray<float> weights_;
-    k::KernelArray<uint32_t> aos_;
-    std::vector<uint32_t> occluders_, pvs_;
-    std::vector<uint32_t> pvs_history_[2];  // the PVS of the last frame and of the one before
-    std::vector<std::pair<uint32_t, uint32_t>> last_lod_;  // runFrame's last visible set with counts
+    k::DeviceArray<float> weights_;
+    k::DeviceArray<uint64_t> topk_keys_;
+    k::DeviceArray<uint32_t> occluders_;        // AOS, then the PVS occluders
+    uint32_t occluder_count_ = 0;
+    k::DeviceArray<uint32_t> occluder_source_;  // the earlier PVS, uploaded
+    k::PvsOccluderScratch pvs_occluder_scratch_;
+    k::OccluderGeometry occluder_geometry_;
+    k::DepthRasterScratch raster_scratch_;
+    k::DeviceArray<float> hzm_;
+    k::DeviceArray<uint32_t> pvs_device_, pvs_vc_device_, pvs_tc_device_;
+    k::DeviceArray<float> lod_shares_;
     CameraPose frustum_pose_{};
     bool has_frustum_pose_ = false;
-    k::KernelArray<glm::vec3> raster_positions_;
-    k::KernelArray<uint32_t> raster_triangles_;
-    k::KernelArray<uint8_t> raster_edge_flags_;  // per triangle of raster_triangles_
-    k::KernelArray<uint32_t> raster_neighbours_;  // 3 per triangle of raster_triangles_
-    k::DepthRasterScratch raster_scratch_;
-    k::KernelArray<float> hzm_;
-    k::KernelArray<uint32_t> pvs_vc_, pvs_tc_;  // Eq. 1's choice for each PVS object
+
+    // Host memory: the visible set and what the layout is built from.
+    std::vector<uint32_t> pvs_, pvs_vc_, pvs_tc_;  // Eq. 1's choice for each PVS object
+    std::vector<uint32_t> pvs_history_[2];  // the PVS of the last frame and of the one before
+    std::vector<std::pair<uint32_t, uint32_t>> last_lod_;  // runFrame's last visible set with counts
     std::vector<uint32_t> resident_vc_;         // per object, vertices in the active arrays
     std::vector<uint64_t> last_drawn_;          // per object, last frame it was drawn
 
-    LayoutArrays layouts_[2];
+    HostLayoutArrays host_layouts_[2];
+    DeviceLayoutArrays device_layouts_[2];
     uint32_t cur_index_ = 0;
     uint32_t layout_count_ = 0;
+    k::HostLayout prev_host_{}, cur_host_{};
     k::ActiveLayout prev_{}, cur_{};
     k::StagingBuffers staging_;
     k::ActiveArrays active_;
-    k::KernelArray<uint32_t> indices_;
+    k::ProvidedBuffer<uint32_t> indices_;
+    uint64_t index_count_ = 0;
+    k::BufferProvider* lender_ = nullptr;  // what indices_ holds: 3 x the triangles of the last reform
 };
 
 CullMode parseCullMode(const std::string& s);      // "full", "lod", "oc+lod"

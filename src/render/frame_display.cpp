@@ -108,8 +108,9 @@ double changedPixelPercent(const uint8_t* a, const uint8_t* b, uint64_t pixels, 
     return 100.0 * double(changed) / double(pixels);
 }
 
-FrameDisplay::FrameDisplay(const Pipeline& pipeline, uint32_t width, uint32_t height, const DisplayOptions& options)
+FrameDisplay::FrameDisplay(Pipeline& pipeline, uint32_t width, uint32_t height, const DisplayOptions& options)
     : options_(options), width_(width), height_(height), renderer_(pipeline.scene()), frame_(width, height) {
+    renderer_.attach(pipeline);
     if (options.exact || options.reference) full_ = std::make_unique<FrameTarget>(width, height);
 }
 
@@ -132,11 +133,13 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
     picture_read_ = false;
     if (!full_) return s;
 
+    // What follows measures the frame; it is not part of it.
+    const k::BusMeasurementScope measuring;
     start = Clock::now();
     const uint32_t n = pipeline.scene().object_count;
     candidates_.clear();
     for (uint32_t i = 0; i < n; ++i)
-        if (boxMayHavePixels(pipeline.scene().objects[i].aabb, camera.view_proj)) candidates_.push_back(i);
+        if (boxMayHavePixels(pipeline.scene().host_objects[i].aabb, camera.view_proj)) candidates_.push_back(i);
     full_->begin(true);
     renderer_.drawFullDetail(candidates_.data(), candidates_.size(), camera);
     const uint64_t pixels = uint64_t(width_) * height_;
@@ -150,23 +153,21 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
 
         // Peng 2014's exact culling: each frustum object's box against the full-detail depth
         // buffer at every pixel it covers (hzmTest against the full buffer's pyramid is that test).
-        const std::span<const uint32_t> frustum = pipeline.frustumObjects();
+        const uint32_t frustum = pipeline.frustumCount();
         full_hzm_.resize(size_t(k::hzmTotalTexels(width_, height_)));
         std::vector<float> depth;
         full_->readDepth(depth);
-        std::memcpy(full_hzm_.data(), depth.data(), pixels * sizeof(float));
-        k::hzmBuild(full_hzm_.data(), width_, height_);
+        k::copyToDevice(full_hzm_.ptr(), depth.data(), pixels);
+        k::hzmBuild(full_hzm_.ptr(), width_, height_);
         k::HzmLevels levels;
         k::hzmLayout(width_, height_, levels);
-        levels.data = full_hzm_.data();
-        occluded_.resize(std::max<size_t>(1, frustum.size()));
-        k::KernelArray<uint32_t> ids(std::max<size_t>(1, frustum.size()));
-        std::copy(frustum.begin(), frustum.end(), ids.data());
-        k::hzmTest(pipeline.scene().objects.data(), ids.data(), uint32_t(frustum.size()), camera, levels,
-                   occluded_.data());
-        k::kernelSynchronize();
-        for (size_t j = 0; j < frustum.size(); ++j) s.exact_occluded += occluded_[j];
-        const uint64_t ours = frustum.size() - pipeline.visibleObjects().size();
+        levels.data = full_hzm_.ptr();
+        occluded_.resize(std::max<size_t>(1, frustum));
+        k::hzmTest(pipeline.scene().objects.ptr(), pipeline.frustumIds(), frustum, camera, levels, occluded_.ptr());
+        std::vector<uint8_t> occluded(frustum);
+        k::copyToHost(occluded.data(), occluded_.ptr(), frustum);
+        for (uint8_t o : occluded) s.exact_occluded += o;
+        const uint64_t ours = frustum - pipeline.visibleObjects().size();
         s.culling_accuracy = s.exact_occluded == 0 ? (ours == 0 ? 100.0 : 0.0) : 100.0 * double(ours) / double(s.exact_occluded);
     }
     if (options_.reference) {
@@ -180,32 +181,36 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
 }
 
 void FrameDisplay::drawCullingView(const Pipeline& pipeline, const k::Camera& camera) {
+    const k::BusMeasurementScope measuring;
     frame_.begin(false);
     renderer_.drawFrame(pipeline, camera);
     std::vector<SceneRenderer::Box> boxes;
     in_pvs_.assign(pipeline.scene().object_count, 0);
     for (uint32_t id : pipeline.visibleObjects()) in_pvs_[id] = 1;
     const auto box = [&](uint32_t id, glm::vec3 colour) {
-        const k::Aabb& b = pipeline.scene().objects[id].aabb;
+        const k::Aabb& b = pipeline.scene().host_objects[id].aabb;
         boxes.push_back({glm::vec4(b.min, 0), glm::vec4(b.max, 0), glm::vec4(colour, 1)});
     };
-    for (uint32_t id : pipeline.frustumObjects())
+    for (uint32_t id : pipeline.downloadFrustumObjects())
         if (!in_pvs_[id]) box(id, {0.95f, 0.15f, 0.1f});
-    for (uint32_t id : pipeline.occluders()) box(id, {0.7f, 0.2f, 0.95f});
+    for (uint32_t id : pipeline.downloadOccluders()) box(id, {0.7f, 0.2f, 0.95f});
     renderer_.drawBoxes(boxes, camera, false);
     picture_read_ = false;
 }
 
 void FrameDisplay::writeDebugViews(const Pipeline& pipeline, const CameraPose& pose, const std::string& dir,
                                    const std::string& name) {
+    const k::BusMeasurementScope measuring;
     const std::string base = dir + "/" + name;
     const k::HzmLevels levels = pipeline.hzmLevels();
     const uint64_t pixels = uint64_t(width_) * height_;
-    writePng(base + "_aos_depth.png", width_, height_, 1, depthToGrey(pipeline.occluderDepth(), pixels).data());
+    std::vector<float> hzm(size_t(k::hzmTotalTexels(width_, height_)));
+    k::copyToHost(hzm.data(), levels.data, hzm.size());
+    writePng(base + "_aos_depth.png", width_, height_, 1, depthToGrey(hzm.data(), pixels).data());
     // Levels scaled back to W x H (texel of pixel p at level l is p >> l), so that they overlay.
     std::vector<float> scaled(pixels);
     for (uint32_t l = 1; l < levels.level_count; ++l) {
-        const float* texels = levels.data + levels.offset[l];
+        const float* texels = hzm.data() + levels.offset[l];
         for (uint32_t y = 0; y < height_; ++y)
             for (uint32_t x = 0; x < width_; ++x)
                 scaled[uint64_t(y) * width_ + x] = texels[uint64_t(y >> l) * levels.width[l] + (x >> l)];

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
-#include "kernel_memory.h"
+#include "device_memory.h"
 #include "pipeline/pipeline.h"
 #include "render/scene_renderer.h"
 
@@ -53,7 +53,8 @@ double changedPixelPercent(const uint8_t* a, const uint8_t* b, uint64_t pixels, 
 // offscreen target the size of the pipeline's viewport, and measures them when asked.
 class FrameDisplay {
 public:
-    FrameDisplay(const Pipeline& pipeline, uint32_t width, uint32_t height, const DisplayOptions& options);
+    // Attaches the renderer to the pipeline: its active arrays become the display's GL buffers.
+    FrameDisplay(Pipeline& pipeline, uint32_t width, uint32_t height, const DisplayOptions& options);
 
     // Draws the frame pipeline.runFrame(pose) just produced, then the exact and reference passes
     // the options ask for. The picture stays in target() until the next call.
@@ -85,8 +86,8 @@ private:
     std::vector<uint8_t> picture_, full_picture_, in_pvs_, seen_;
     bool picture_read_ = false;
     std::vector<uint32_t> items_, candidates_;
-    k::KernelArray<float> full_hzm_;
-    k::KernelArray<uint8_t> occluded_;
+    k::DeviceArray<float> full_hzm_;
+    k::DeviceArray<uint8_t> occluded_;
 };
 
 }  // namespace occ::render

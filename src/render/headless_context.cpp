@@ -5,6 +5,7 @@
 
 #include <epoxy/egl.h>
 
+#include <algorithm>
 #include <cstring>
 #include <vector>
 
@@ -68,7 +69,7 @@ EGLContext makeContext(EGLDisplay display, std::string& why) {
 
 }  // namespace
 
-HeadlessContext::HeadlessContext() {
+HeadlessContext::HeadlessContext(int cuda_device) {
     const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
     std::string why_device = "no EGL_EXT_platform_device", why_surfaceless = "no EGL_MESA_platform_surfaceless";
     if (hasExtension(client, "EGL_EXT_platform_device") && hasExtension(client, "EGL_EXT_device_enumeration")) {
@@ -77,6 +78,17 @@ HeadlessContext::HeadlessContext() {
         std::vector<EGLDeviceEXT> devices(size_t(count > 0 ? count : 0));
         if (count > 0) eglQueryDevicesEXT(count, devices.data(), &count);
         why_device = "no hardware EGL device";
+        // The CUDA device's own GL device first (EGL_NV_device_cuda names it), the others after.
+        const auto cudaOrdinal = [](EGLDeviceEXT device) -> EGLAttrib {
+            EGLAttrib ordinal = -1;
+            if (!hasExtension(eglQueryDeviceStringEXT(device, EGL_EXTENSIONS), "EGL_NV_device_cuda") ||
+                !eglQueryDeviceAttribEXT(device, EGL_CUDA_DEVICE_NV, &ordinal))
+                return -1;
+            return ordinal;
+        };
+        if (cuda_device >= 0)
+            std::stable_partition(devices.begin(), devices.end(),
+                                  [&](EGLDeviceEXT d) { return cudaOrdinal(d) == cuda_device; });
         for (EGLDeviceEXT device : devices) {
             // Mesa marks its software device; llvmpipe is better reached through surfaceless.
             if (hasExtension(eglQueryDeviceStringEXT(device, EGL_EXTENSIONS), "EGL_MESA_device_software")) continue;
@@ -85,7 +97,8 @@ HeadlessContext::HeadlessContext() {
             if (EGLContext context = makeContext(display, why_device); context != EGL_NO_CONTEXT) {
                 display_ = display;
                 context_ = context;
-                description_ = "EGL device";
+                const EGLAttrib ordinal = cudaOrdinal(device);
+                description_ = ordinal >= 0 ? "EGL device (CUDA device " + std::to_string(ordinal) + ")" : "EGL device";
                 break;
             }
         }

@@ -10,9 +10,11 @@ namespace occ::render {
 // Tries, in order: the EGL device platform (EGL_EXT_platform_device) on a device that is not a
 // software renderer, i.e. a real GPU; then Mesa's surfaceless platform (llvmpipe on a machine
 // without a GPU). Throws SystemError saying what EGL lacks when neither gives a 4.5 context.
+// cuda_device >= 0: among EGL devices that name their CUDA device (EGL_NV_device_cuda), the one
+// that is CUDA device cuda_device comes first, so that CUDA-OpenGL interop shares one GPU.
 class HeadlessContext {
 public:
-    HeadlessContext();
+    explicit HeadlessContext(int cuda_device = -1);
     ~HeadlessContext();
     HeadlessContext(const HeadlessContext&) = delete;
     HeadlessContext& operator=(const HeadlessContext&) = delete;

@@ -6,15 +6,15 @@
 #include "scene/splitmix.h"
 
 #include <algorithm>
+#include <cstddef>
 
 namespace occ::render {
 
 namespace {
 
 constexpr float kBackground[4] = {0.08f, 0.09f, 0.11f, 1.0f};
-constexpr GLuint kWorldBinding = 0, kColourBinding = 1, kBoxBinding = 2, kDepthFloorBinding = 3;
+constexpr GLuint kWorldBinding = 0, kColourBinding = 1, kBoxBinding = 2;
 constexpr GLint kViewProjLocation = 0, kEyeLocation = 1;
-constexpr uint32_t kCommandWords = 5;  // count, instanceCount, firstIndex, baseVertex, baseInstance
 
 GLuint makeBuffer() {
     GLuint b = 0;
@@ -22,31 +22,22 @@ GLuint makeBuffer() {
     return b;
 }
 
-// (Re)allocates `buffer` to hold at least `bytes`, growing by half again so that a slowly
-// growing frame does not reallocate every time. Returns true if it reallocated (contents lost).
-bool reserve(GLuint buffer, uint64_t& capacity, uint64_t bytes) {
-    if (bytes <= capacity && capacity > 0) return false;
-    capacity = std::max<uint64_t>({bytes + bytes / 2, 4096, capacity});
-    OCC_GL_CHECK(glNamedBufferData(buffer, GLsizeiptr(capacity), nullptr, GL_DYNAMIC_DRAW));
-    return true;
-}
-
-// A vertex array of position (location 0, vec3 floats) and per-draw object id (location 1,
-// uint, divisor 1) with its element buffer.
-GLuint makeVertexArray(GLuint positions, GLuint ids, GLuint indices) {
-    GLuint vao = 0;
-    glCreateVertexArrays(1, &vao);
+// Points `vao` at positions (location 0, vec3 floats), the per-draw attributes (object id at
+// location 1 and depth floor at location 2, divisor 1, k::DrawAttributes) and the indices.
+void bindVertexArray(GLuint vao, GLuint positions, GLuint attributes, GLuint indices) {
     glVertexArrayVertexBuffer(vao, 0, positions, 0, sizeof(glm::vec3));
     glEnableVertexArrayAttrib(vao, 0);
     glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
     glVertexArrayAttribBinding(vao, 0, 0);
-    glVertexArrayVertexBuffer(vao, 1, ids, 0, sizeof(uint32_t));
+    glVertexArrayVertexBuffer(vao, 1, attributes, 0, sizeof(k::DrawAttributes));
     glVertexArrayBindingDivisor(vao, 1, 1);
     glEnableVertexArrayAttrib(vao, 1);
-    glVertexArrayAttribIFormat(vao, 1, 1, GL_UNSIGNED_INT, 0);
+    glVertexArrayAttribIFormat(vao, 1, 1, GL_UNSIGNED_INT, offsetof(k::DrawAttributes, object));
     glVertexArrayAttribBinding(vao, 1, 1);
+    glEnableVertexArrayAttrib(vao, 2);
+    glVertexArrayAttribFormat(vao, 2, 1, GL_FLOAT, GL_FALSE, offsetof(k::DrawAttributes, depth_floor));
+    glVertexArrayAttribBinding(vao, 2, 1);
     glVertexArrayElementBuffer(vao, indices);
-    return vao;
 }
 
 }  // namespace
@@ -132,34 +123,30 @@ SceneRenderer::SceneRenderer(const DeviceScene& scene) : scene_(scene) {
     std::vector<glm::vec4> colours(n);
     for (uint32_t i = 0; i < n; ++i) colours[i] = glm::vec4(objectColour(i), 1.0f);
     OCC_GL_CHECK(glNamedBufferStorage(world_buffer_, GLsizeiptr(std::max<size_t>(1, n) * sizeof(glm::mat4)),
-                                      n ? scene.world.data() : nullptr, n ? 0 : GL_DYNAMIC_STORAGE_BIT));
+                                      n ? scene.host_world.data() : nullptr, n ? 0 : GL_DYNAMIC_STORAGE_BIT));
     OCC_GL_CHECK(glNamedBufferStorage(colour_buffer_, GLsizeiptr(std::max<size_t>(1, n) * sizeof(glm::vec4)),
                                       n ? colours.data() : nullptr, n ? 0 : GL_DYNAMIC_STORAGE_BIT));
     glCreateVertexArrays(1, &empty_vao_);
-    floor_buffer_ = makeBuffer();
-    depth_floors_.assign(std::max<uint32_t>(1, n), 0.0f);
-    OCC_GL_CHECK(glNamedBufferStorage(floor_buffer_, GLsizeiptr(depth_floors_.size() * sizeof(float)),
-                                      depth_floors_.data(), GL_DYNAMIC_STORAGE_BIT));
-
-    lod_vertices_ = makeBuffer();
-    lod_indices_ = makeBuffer();
-    lod_ids_ = makeBuffer();
-    lod_commands_ = makeBuffer();
-    lod_vao_ = makeVertexArray(lod_vertices_, lod_ids_, lod_indices_);
-    records_.resize(n);
+    glCreateVertexArrays(1, &lod_vao_);
+    for (uint32_t slot = 0; slot < kSlotCount; ++slot) reserve(slot, 4096);
 
     full_vertices_ = makeBuffer();
     full_indices_ = makeBuffer();
-    full_ids_ = makeBuffer();
+    full_attributes_ = makeBuffer();
     full_commands_ = makeBuffer();
-    full_vao_ = makeVertexArray(full_vertices_, full_ids_, full_indices_);
+    glCreateVertexArrays(1, &full_vao_);
+    bindVertexArray(full_vao_, full_vertices_, full_attributes_, full_indices_);
     checkGlError("SceneRenderer setup", __FILE__, __LINE__);
 }
 
 SceneRenderer::~SceneRenderer() {
-    const GLuint buffers[] = {floor_buffer_, world_buffer_,  colour_buffer_, box_buffer_,   lod_vertices_,  lod_indices_,
-                              lod_ids_,       lod_commands_,  full_vertices_, full_indices_, full_ids_,
-                              full_commands_};
+    if (drawn_) glDeleteSync(drawn_);
+    for (GlSlot& slot : slots_) {
+        slot.view.reset();
+        glDeleteBuffers(1, &slot.buffer);
+    }
+    const GLuint buffers[] = {world_buffer_, colour_buffer_, box_buffer_, full_vertices_, full_indices_,
+                              full_attributes_, full_commands_};
     glDeleteBuffers(GLsizei(std::size(buffers)), buffers);
     const GLuint arrays[] = {empty_vao_, lod_vao_, full_vao_};
     glDeleteVertexArrays(GLsizei(std::size(arrays)), arrays);
@@ -167,122 +154,103 @@ SceneRenderer::~SceneRenderer() {
     glDeleteProgram(box_program_);
 }
 
-void SceneRenderer::updateDepthFloors(const k::Camera& camera) {
-    if (camera.view_proj == floors_view_proj_) return;
-    floors_view_proj_ = camera.view_proj;
-    const glm::mat4& m = camera.view_proj;
-    for (uint32_t i = 0; i < scene_.object_count; ++i) {
-        const k::Aabb& b = scene_.objects[i].aabb;
-        float nearest = 1.0f;
-        for (int c = 0; c < 8; ++c) {
-            const glm::vec4 clip = m * glm::vec4(c & 1 ? b.max.x : b.min.x, c & 2 ? b.max.y : b.min.y,
-                                                 c & 4 ? b.max.z : b.min.z, 1.0f);
-            // A box reaching the near plane (or NaN) gets no floor.
-            if (!(clip.w > camera.near_plane) || !(clip.z >= -clip.w)) {
-                nearest = 0.0f;
-                break;
-            }
-            nearest = std::min(nearest, clip.z / clip.w * 0.5f + 0.5f);
-        }
-        // A hair nearer than the box, for the rounding of this float projection.
-        depth_floors_[i] = std::max(0.0f, nearest - 1e-6f);
+void SceneRenderer::reserve(uint32_t slot, size_t bytes) {
+    GlSlot& s = slots_[slot];
+    if (bytes <= s.capacity) return;
+    // Immutable storage cannot grow: a new buffer replaces the old one, once GL no longer reads it.
+    if (drawn_) {
+        glClientWaitSync(drawn_, GL_SYNC_FLUSH_COMMANDS_BIT, GLuint64(60) * 1000000000);
+        glDeleteSync(drawn_);
+        drawn_ = nullptr;
     }
-    if (scene_.object_count > 0)
-        glNamedBufferSubData(floor_buffer_, 0, GLsizeiptr(scene_.object_count * sizeof(float)), depth_floors_.data());
+    s.view.reset();
+    glDeleteBuffers(1, &s.buffer);
+    s.buffer = makeBuffer();
+    if (k::GlBufferView::usesInterop()) {
+        OCC_GL_CHECK(glNamedBufferStorage(s.buffer, GLsizeiptr(bytes), nullptr, 0));
+        s.view = std::make_unique<k::GlBufferView>(s.buffer, nullptr);
+        if (writing_) s.view->map();
+    } else {
+        // The device (this CPU) writes GL's memory directly: persistent, coherent mapping.
+        const GLbitfield access = GL_MAP_READ_BIT | GL_MAP_WRITE_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+        OCC_GL_CHECK(glNamedBufferStorage(s.buffer, GLsizeiptr(bytes), nullptr, access));
+        void* mapped = glMapNamedBufferRange(s.buffer, 0, GLsizeiptr(bytes), access);
+        if (!mapped)
+            throw SystemError("OpenGL: cannot map a " + std::to_string(bytes) +
+                              "-byte buffer persistently (GL 4.4 buffer storage)");
+        s.view = std::make_unique<k::GlBufferView>(s.buffer, mapped);
+    }
+    s.capacity = bytes;
+    checkGlError("allocating a device-written buffer", __FILE__, __LINE__);
+}
+
+k::DevicePtr<void> SceneRenderer::pointer(uint32_t slot) const { return slots_[slot].view->ptr(); }
+
+void SceneRenderer::beginDeviceWrites() {
+    // The last frame's draw reads the buffers the device is about to write.
+    if (drawn_) {
+        const GLenum r = glClientWaitSync(drawn_, GL_SYNC_FLUSH_COMMANDS_BIT, GLuint64(60) * 1000000000);
+        if (r == GL_TIMEOUT_EXPIRED || r == GL_WAIT_FAILED)
+            throw SystemError("OpenGL: the last frame's draw did not finish within 60 s");
+        glDeleteSync(drawn_);
+        drawn_ = nullptr;
+    }
+    for (GlSlot& slot : slots_) slot.view->map();
+    writing_ = true;
+}
+
+void SceneRenderer::endDeviceWrites() {
+    // The kernels have finished when they return (Thrust synchronises); GL may read now.
+    k::deviceSynchronize();
+    for (GlSlot& slot : slots_) slot.view->unmap();
+    writing_ = false;
+}
+
+void SceneRenderer::attach(Pipeline& pipeline) {
+    if (attached_ == &pipeline) return;
+    if (attached_) throw std::logic_error("SceneRenderer::attach: already drawing another pipeline");
+    pipeline.lendActiveArrays(*this);
+    attached_ = &pipeline;
 }
 
 void SceneRenderer::setCamera(GLuint program, const k::Camera& camera) {
     glProgramUniformMatrix4fv(program, kViewProjLocation, 1, GL_FALSE, &camera.view_proj[0][0]);
-    if (program == shaded_program_) {
-        glProgramUniform3fv(program, kEyeLocation, 1, &camera.eye[0]);
-        updateDepthFloors(camera);
-        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kDepthFloorBinding, floor_buffer_);
-    }
+    if (program == shaded_program_) glProgramUniform3fv(program, kEyeLocation, 1, &camera.eye[0]);
 }
 
 DrawCounts SceneRenderer::drawFrame(const Pipeline& pipeline, const k::Camera& camera) {
+    if (attached_ != &pipeline) throw std::logic_error("SceneRenderer::drawFrame: the pipeline is not attached");
     DrawCounts counts;
-    const k::ActiveLayout& layout = pipeline.layout();
-    const uint32_t* draw_vc = pipeline.drawVertices();
-    const uint32_t* draw_tc = pipeline.drawTriangles();
-    const uint64_t frame = frames_drawn_++;
-
-    const bool vertices_lost =
-        reserve(lod_vertices_, lod_vertex_capacity_, std::max<uint64_t>(1, layout.vertex_total) * sizeof(glm::vec3));
-    const bool indices_lost = reserve(lod_indices_, lod_index_capacity_,
-                                      std::max<uint64_t>(1, layout.triangle_total) * 3 * sizeof(uint32_t));
-    const glm::vec3* vertices = pipeline.activeVertices();
-    const uint32_t* indices = pipeline.indices();
-    // Dirty ranges, merged when adjacent so that a frame that moved everything is one upload.
-    uint64_t v_begin = 0, v_end = 0, i_begin = 0, i_end = 0;
-    const auto flushVertices = [&] {
-        if (v_end == v_begin) return;
-        glNamedBufferSubData(lod_vertices_, GLintptr(v_begin * sizeof(glm::vec3)),
-                             GLsizeiptr((v_end - v_begin) * sizeof(glm::vec3)), vertices + v_begin);
-        counts.uploaded_bytes += (v_end - v_begin) * sizeof(glm::vec3);
-        v_begin = v_end = 0;
-    };
-    const auto flushIndices = [&] {
-        if (i_end == i_begin) return;
-        glNamedBufferSubData(lod_indices_, GLintptr(i_begin * sizeof(uint32_t)),
-                             GLsizeiptr((i_end - i_begin) * sizeof(uint32_t)), indices + i_begin);
-        counts.uploaded_bytes += (i_end - i_begin) * sizeof(uint32_t);
-        i_begin = i_end = 0;
-    };
-    const auto dirtyVertices = [&](uint64_t b, uint64_t e) {
-        if (b == e) return;
-        if (v_end != b) flushVertices(), v_begin = b;
-        v_end = e;
-    };
-    const auto dirtyIndices = [&](uint64_t b, uint64_t e) {
-        if (b == e) return;
-        if (i_end != b) flushIndices(), i_begin = b;
-        i_end = e;
-    };
-
-    draw_ids_.clear();
-    commands_.clear();
-    for (uint32_t j = 0; j < layout.count; ++j) {
-        const uint32_t id = layout.objects[j];
-        BlockRecord& r = records_[id];
-        const uint64_t voff = layout.vertex_offset[j], toff = layout.triangle_offset[j];
-        const uint32_t vc = layout.vertex_count[j], tc = layout.triangle_count[j];
-        // A block's vertices are its mesh's first vc positions, so a block that stayed where it
-        // was holds them already up to the old count.
-        const bool was_here = !vertices_lost && r.frame + 1 == frame && r.voff == voff;
-        dirtyVertices(voff + (was_here ? std::min(vc, r.vc) : 0), voff + vc);
-        const bool same_indices = !indices_lost && was_here && r.toff == toff &&
-                                  r.vc == vc && r.tc == tc && r.draw_vc == draw_vc[j];
-        if (!same_indices) dirtyIndices(3 * toff, 3 * (toff + tc));
-        r = {frame, voff, toff, vc, tc, draw_vc[j]};
-        if (draw_tc[j] == 0) continue;
-        commands_.insert(commands_.end(), {3 * draw_tc[j], 1, uint32_t(3 * toff), 0, uint32_t(draw_ids_.size())});
-        draw_ids_.push_back(id);
-    }
-    flushVertices();
-    flushIndices();
-    counts.blocks = draw_ids_.size();
-
-    if (!draw_ids_.empty()) {
-        multiDraw(lod_vao_, lod_ids_, lod_draw_capacity_, lod_commands_, camera);
+    const k::ActiveLayout& layout = pipeline.deviceLayout();
+    // The device writes the frame's commands into GL's buffers.
+    beginDeviceWrites();
+    reserve(kCommandSlot, std::max<size_t>(1, layout.count) * sizeof(k::DrawCommand));
+    reserve(kDrawAttributeSlot, std::max<size_t>(1, layout.count) * sizeof(k::DrawAttributes));
+    const uint32_t draws = k::writeDrawCommands(
+        layout, pipeline.deviceDrawVertices(), scene_.objects.ptr(), scene_.map_first.ptr(), scene_.maps.ptr(), camera,
+        k::devicePtrCast<k::DrawCommand>(pointer(kCommandSlot)),
+        k::devicePtrCast<k::DrawAttributes>(pointer(kDrawAttributeSlot)), draw_blocks_);
+    endDeviceWrites();
+    counts.blocks = draws;
+    bindVertexArray(lod_vao_, slots_[pipeline.activeVertexSlot()].buffer, slots_[kDrawAttributeSlot].buffer,
+                    slots_[Pipeline::kIndexSlot].buffer);
+    if (draws > 0) {
+        glBindBuffer(GL_DRAW_INDIRECT_BUFFER, slots_[kCommandSlot].buffer);
+        multiDraw(lod_vao_, draws, camera);
         counts.multi_draws = 1;
     }
+    drawn_ = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
     checkGlError("drawing the frame", __FILE__, __LINE__);
     return counts;
 }
 
-void SceneRenderer::multiDraw(GLuint vao, GLuint ids, uint64_t& ids_capacity, GLuint commands,
-                              const k::Camera& camera) {
-    reserve(ids, ids_capacity, draw_ids_.size() * sizeof(uint32_t));
-    glNamedBufferSubData(ids, 0, GLsizeiptr(draw_ids_.size() * sizeof(uint32_t)), draw_ids_.data());
-    glNamedBufferData(commands, GLsizeiptr(commands_.size() * sizeof(uint32_t)), commands_.data(), GL_STREAM_DRAW);
+void SceneRenderer::multiDraw(GLuint vao, uint32_t draws, const k::Camera& camera) {
     glUseProgram(shaded_program_);
     setCamera(shaded_program_, camera);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kWorldBinding, world_buffer_);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kColourBinding, colour_buffer_);
     glBindVertexArray(vao);
-    glBindBuffer(GL_DRAW_INDIRECT_BUFFER, commands);
-    glMultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr, GLsizei(draw_ids_.size()), 0);
+    glMultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr, GLsizei(draws), 0);
 }
 
 void SceneRenderer::uploadFullDetail() {
@@ -301,16 +269,24 @@ void SceneRenderer::uploadFullDetail() {
 void SceneRenderer::drawFullDetail(const uint32_t* ids, size_t count, const k::Camera& camera) {
     if (!full_uploaded_) uploadFullDetail();
     const auto meshes = scene_.file->meshRecords();
-    draw_ids_.clear();
-    commands_.clear();
+    full_draws_.clear();
+    full_commands_host_.clear();
     for (size_t j = 0; j < count; ++j) {
-        const oss::MeshRecord& m = meshes[scene_.objects[ids[j]].mesh];
+        const k::ObjectInfo& o = scene_.host_objects[ids[j]];
+        const oss::MeshRecord& m = meshes[o.mesh];
         if (m.triangle_count == 0) continue;
-        commands_.insert(commands_.end(), {3 * m.triangle_count, 1, uint32_t(3 * m.triangle_first),
-                                           uint32_t(m.vertex_first), uint32_t(draw_ids_.size())});
-        draw_ids_.push_back(ids[j]);
+        full_commands_host_.push_back({3 * m.triangle_count, 1, uint32_t(3 * m.triangle_first),
+                                       int32_t(m.vertex_first), uint32_t(full_draws_.size())});
+        full_draws_.push_back({ids[j], k::objectDepthFloor(o.aabb, camera.view_proj, camera.near_plane)});
     }
-    if (!draw_ids_.empty()) multiDraw(full_vao_, full_ids_, full_draw_capacity_, full_commands_, camera);
+    if (!full_draws_.empty()) {
+        glNamedBufferData(full_attributes_, GLsizeiptr(full_draws_.size() * sizeof(k::DrawAttributes)),
+                          full_draws_.data(), GL_STREAM_DRAW);
+        glNamedBufferData(full_commands_, GLsizeiptr(full_commands_host_.size() * sizeof(k::DrawCommand)),
+                          full_commands_host_.data(), GL_STREAM_DRAW);
+        glBindBuffer(GL_DRAW_INDIRECT_BUFFER, full_commands_);
+        multiDraw(full_vao_, uint32_t(full_draws_.size()), camera);
+    }
     checkGlError("drawing at full detail", __FILE__, __LINE__);
 }
 

@@ -1,12 +1,14 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include "draw_commands.h"
 #include "kernel_types.h"
 #include "pipeline/pipeline.h"
 
 #include <epoxy/gl.h>
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace occ::render {
@@ -41,7 +43,7 @@ private:
 
 // What drawing one pipeline frame cost the display.
 struct DrawCounts {
-    uint64_t uploaded_bytes = 0;  // vertex + index bytes sent to GL this frame
+    uint64_t uploaded_bytes = 0;  // bytes the host handed GL for the frame (geometry, commands)
     uint64_t blocks = 0;          // objects drawn
     uint64_t multi_draws = 0;     // glMultiDrawElementsIndirect calls
 };
@@ -49,19 +51,28 @@ struct DrawCounts {
 // Draws a scene with OpenGL 4.5 (a context must be current): the pipeline's reformed LOD
 // meshes, the full-detail model, and boxes. Every object's world matrix and colour live in
 // shader storage buffers, uploaded once; a draw of many objects is one
-// glMultiDrawElementsIndirect call whose per-draw object id is an instanced attribute read at
-// the command's base instance.
-class SceneRenderer {
+// glMultiDrawElementsIndirect call whose per-draw object id and depth floor are instanced
+// attributes read at the command's base instance.
+//
+// The pipeline's active vertex arrays and index buffer are this renderer's GL buffers (it is
+// their BufferProvider, slots Pipeline::kActiveVertexSlot + 0 / 1 and kIndexSlot), and so are
+// the indirect commands and per-draw attributes (kCommandSlot, kDrawAttributeSlot), which the
+// device writes (k::writeDrawCommands): a frame's drawing hands GL nothing from the host. CPU
+// build: buffer storage mapped persistent and coherent, with a fence after each frame's draw
+// that the next frame's device writes wait on. CUDA build: the same buffers registered with
+// CUDA-OpenGL interop, mapped for the device's writes.
+class SceneRenderer : public k::BufferProvider {
 public:
     explicit SceneRenderer(const DeviceScene& scene);
-    ~SceneRenderer();
+    ~SceneRenderer() override;
     SceneRenderer(const SceneRenderer&) = delete;
     SceneRenderer& operator=(const SceneRenderer&) = delete;
 
-    // Draws what pipeline.runFrame just produced, into the bound target. The active vertex and
-    // index arrays are mirrored in GL buffers: only the ranges whose contents changed since the
-    // last call are uploaded (a block whose object, offsets and counts are unchanged costs
-    // nothing; a block that grew in place uploads its new suffix).
+    // From now on the pipeline's active arrays live in this renderer's buffers (once per
+    // pipeline; the renderer must outlive the pipeline's frames).
+    void attach(Pipeline& pipeline);
+
+    // Draws what the attached pipeline's last streamPass produced, into the bound target.
     DrawCounts drawFrame(const Pipeline& pipeline, const k::Camera& camera);
 
     // Draws objects ids[0, count) at full detail (every triangle of their meshes) into the bound
@@ -74,35 +85,40 @@ public:
     // Draws the edges of each box as lines; with depth_test false they show through everything.
     void drawBoxes(const std::vector<Box>& boxes, const k::Camera& camera, bool depth_test);
 
+    // k::BufferProvider: the GL buffers the device writes.
+    static constexpr uint32_t kCommandSlot = 3, kDrawAttributeSlot = 4, kSlotCount = 5;
+    void reserve(uint32_t slot, size_t bytes) override;
+    size_t capacity(uint32_t slot) const override { return slots_[slot].capacity; }
+    k::DevicePtr<void> pointer(uint32_t slot) const override;
+    void beginDeviceWrites() override;
+    void endDeviceWrites() override;
+
 private:
-    struct BlockRecord {  // where an object's block was in the last frame's active arrays
-        uint64_t frame = ~uint64_t(0);
-        uint64_t voff = 0, toff = 0;
-        uint32_t vc = 0, tc = 0, draw_vc = 0;
+    struct GlSlot {
+        GLuint buffer = 0;
+        size_t capacity = 0;
+        std::unique_ptr<k::GlBufferView> view;
     };
     void uploadFullDetail();
-    // One glMultiDrawElementsIndirect of commands_ (5 words each) for the objects draw_ids_
-    // (the per-draw attribute buffer `ids`) with the shaded program.
-    void multiDraw(GLuint vao, GLuint ids, uint64_t& ids_capacity, GLuint commands, const k::Camera& camera);
-    void updateDepthFloors(const k::Camera& camera);
+    // One glMultiDrawElementsIndirect of `draws` commands from the bound indirect buffer with
+    // the shaded program and `vao`.
+    void multiDraw(GLuint vao, uint32_t draws, const k::Camera& camera);
     void setCamera(GLuint program, const k::Camera& camera);
 
     const DeviceScene& scene_;
+    const Pipeline* attached_ = nullptr;
     GLuint shaded_program_ = 0, box_program_ = 0;
-    GLuint world_buffer_ = 0, colour_buffer_ = 0, box_buffer_ = 0, empty_vao_ = 0, floor_buffer_ = 0;
-    std::vector<float> depth_floors_;  // per object, for the camera below
-    glm::mat4 floors_view_proj_{0.0f};
-    // The active arrays' mirror.
-    GLuint lod_vao_ = 0, lod_vertices_ = 0, lod_indices_ = 0, lod_ids_ = 0, lod_commands_ = 0;
-    uint64_t lod_vertex_capacity_ = 0, lod_index_capacity_ = 0, lod_draw_capacity_ = 0;
-    std::vector<BlockRecord> records_;
-    uint64_t frames_drawn_ = 0;
-    // The full-detail model.
-    GLuint full_vao_ = 0, full_vertices_ = 0, full_indices_ = 0, full_ids_ = 0, full_commands_ = 0;
-    uint64_t full_draw_capacity_ = 0;
+    GLuint world_buffer_ = 0, colour_buffer_ = 0, box_buffer_ = 0, empty_vao_ = 0;
+    GlSlot slots_[kSlotCount];
+    GLsync drawn_ = nullptr;  // after the last frame's draw: the device may write again
+    bool writing_ = false;    // between beginDeviceWrites and endDeviceWrites
+    k::DeviceArray<uint32_t> draw_blocks_;  // writeDrawCommands' scratch
+    GLuint lod_vao_ = 0;
+    // The full-detail model (measurements only): uploaded once, commands from the host.
+    GLuint full_vao_ = 0, full_vertices_ = 0, full_indices_ = 0, full_attributes_ = 0, full_commands_ = 0;
     bool full_uploaded_ = false;
-    std::vector<uint32_t> draw_ids_;
-    std::vector<uint32_t> commands_;  // 5 words per DrawElementsIndirectCommand
+    std::vector<k::DrawAttributes> full_draws_;
+    std::vector<k::DrawCommand> full_commands_host_;
 };
 
 }  // namespace occ::render

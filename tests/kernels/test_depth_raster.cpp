@@ -2,7 +2,8 @@
 #include "depth_raster.h"
 #include "hzm.h"
 #include "hzm_build.h"
-#include "kernel_memory.h"
+
+#include "device_test_support.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
@@ -18,6 +19,12 @@
 
 namespace occ::k {
 namespace {
+
+using test::filledDevice;
+using test::toDevice;
+using test::toHost;
+
+using DepthRaster = test::DeviceTest;
 
 constexpr float kEps = kDepthRasterEpsilon;
 
@@ -74,19 +81,16 @@ std::vector<uint8_t> sharedFlags(const Mesh& mesh) { return sharedFlags(mesh.tri
 // flags: one per triangle, or empty for none (null); neighbours: 3 per triangle, or empty.
 std::vector<float> rasterize(const Mesh& mesh, const Camera& camera, DepthRasterScratch& scratch,
                              const std::vector<uint8_t>& flags = {}, const std::vector<uint32_t>& neighbours = {}) {
-    KernelArray<glm::vec3> positions(mesh.positions.size());
-    std::copy(mesh.positions.begin(), mesh.positions.end(), positions.begin());
-    KernelArray<uint32_t> triangles(mesh.triangles.size());
-    std::copy(mesh.triangles.begin(), mesh.triangles.end(), triangles.begin());
-    KernelArray<uint8_t> edge_flags(flags.size());
-    std::copy(flags.begin(), flags.end(), edge_flags.begin());
-    KernelArray<uint32_t> across(neighbours.size());
-    std::copy(neighbours.begin(), neighbours.end(), across.begin());
-    KernelArray<float> depth(uint64_t(camera.width) * camera.height);
-    std::fill(depth.begin(), depth.end(), -3.0f);  // the raster must clear it
-    depthRaster(positions.data(), triangles.data(), mesh.triangleCount(), flags.empty() ? nullptr : edge_flags.data(),
-                neighbours.empty() ? nullptr : across.data(), camera, depth.data(), scratch);
-    return std::vector<float>(depth.begin(), depth.end());
+    const DeviceArray<glm::vec3> positions = toDevice(mesh.positions);
+    const DeviceArray<uint32_t> triangles = toDevice(mesh.triangles);
+    const DeviceArray<uint8_t> edge_flags = toDevice(flags);
+    const DeviceArray<uint32_t> across = toDevice(neighbours);
+    const uint64_t pixels = uint64_t(camera.width) * camera.height;
+    DeviceArray<float> depth = filledDevice(pixels, -3.0f);  // the raster must clear it
+    depthRaster(positions.ptr(), triangles.ptr(), mesh.triangleCount(),
+                flags.empty() ? DevicePtr<const uint8_t>() : edge_flags.ptr(),
+                neighbours.empty() ? DevicePtr<const uint32_t>() : across.ptr(), camera, depth.ptr(), scratch);
+    return toHost(depth, pixels);
 }
 
 std::vector<float> rasterize(const Mesh& mesh, const Camera& camera, const std::vector<uint8_t>& flags = {}) {
@@ -201,7 +205,7 @@ Mesh knownTriangle(const Camera& c) {
     return mesh;
 }
 
-TEST(DepthRaster, KnownTriangleCoversCentresWithInterpolatedDepth) {
+TEST_F(DepthRaster, KnownTriangleCoversCentresWithInterpolatedDepth) {
     const Camera c = identityCamera(8, 8);
     const std::vector<float> depth = rasterize(knownTriangle(c), c);
     // hand-computed plane values at a few centres
@@ -223,7 +227,7 @@ TEST(DepthRaster, KnownTriangleCoversCentresWithInterpolatedDepth) {
     EXPECT_EQ(coveredCount(depth), 28);
 }
 
-TEST(DepthRaster, PixelCentreOnEdgeIsNotCovered) {
+TEST_F(DepthRaster, PixelCentreOnEdgeIsNotCovered) {
     const Camera c = identityCamera(8, 8);
     // the hypotenuse of the known triangle passes through the centres with px + py = 7
     const std::vector<float> depth = rasterize(knownTriangle(c), c);
@@ -251,7 +255,7 @@ TEST(DepthRaster, PixelCentreOnEdgeIsNotCovered) {
     EXPECT_TRUE(columnTwoCovered(1.0f / 32));
 }
 
-TEST(DepthRaster, OverlappingTrianglesKeepTheNearerDepth) {
+TEST_F(DepthRaster, OverlappingTrianglesKeepTheNearerDepth) {
     const Camera c = identityCamera(8, 8);
     Mesh flat, tilted;
     flat.add(atWindow(c, -8, -8, 0.5f), atWindow(c, 24, -8, 0.5f), atWindow(c, -8, 24, 0.5f));
@@ -272,7 +276,7 @@ TEST(DepthRaster, OverlappingTrianglesKeepTheNearerDepth) {
     EXPECT_EQ(rasterize(reversed, c), depth);
 }
 
-TEST(DepthRaster, TriangleCrossingNearPlaneIsSkipped) {
+TEST_F(DepthRaster, TriangleCrossingNearPlaneIsSkipped) {
     const Camera c = perspectiveCamera(16, 16, 0.5f, 100.0f);
     const glm::vec3 a(-1, -1, -5), b(1, -1, -5);
     Mesh in_front, inside_near, behind_eye;
@@ -284,7 +288,7 @@ TEST(DepthRaster, TriangleCrossingNearPlaneIsSkipped) {
     EXPECT_EQ(coveredCount(rasterize(behind_eye, c)), 0);
 }
 
-TEST(DepthRaster, BothWindingsDrawTheSame) {
+TEST_F(DepthRaster, BothWindingsDrawTheSame) {
     const Camera c = identityCamera(8, 8);
     const Mesh forward = knownTriangle(c);
     Mesh backward;
@@ -294,7 +298,7 @@ TEST(DepthRaster, BothWindingsDrawTheSame) {
     EXPECT_EQ(rasterize(backward, c), depth);
 }
 
-TEST(DepthRaster, TriangleLargerThanScreenCoversEveryPixel) {
+TEST_F(DepthRaster, TriangleLargerThanScreenCoversEveryPixel) {
     const Camera c = perspectiveCamera(70, 50);
     Mesh wall;  // facing the camera at distance 10, its edges thousands of pixels off screen
     wall.add(glm::vec3(-1000, -1000, -10), glm::vec3(3000, -1000, -10), glm::vec3(-1000, 3000, -10));
@@ -396,7 +400,7 @@ TEST(SharedEdgeFlags, GridSharesExactlyItsInteriorEdges) {
 // Without flags the margin applies to every edge, shared or not: centres on the diagonal that
 // splits a quad into two triangles belong to neither and stay far. With them the diagonal is
 // exact: each of its centres belongs to exactly one of the two triangles.
-TEST(DepthRaster, CentresOnSharedEdgeStayFarOnlyWithoutFlags) {
+TEST_F(DepthRaster, CentresOnSharedEdgeStayFarOnlyWithoutFlags) {
     const Camera c = perspectiveCamera(70, 50);
     Mesh quad;  // its diagonal projects to y - 25 = x - 35, through the centres with py = px - 10
     quad.positions = {glm::vec3(-1000, -1000, -10), glm::vec3(1000, -1000, -10), glm::vec3(1000, 1000, -10),
@@ -429,7 +433,7 @@ std::vector<float> rasterizeWithNeighbours(const Mesh& mesh, const Camera& camer
     return rasterize(mesh, camera, scratch, flags, across);
 }
 
-TEST(DepthRaster, FoldedSharedEdgeKeepsTheMarginInteriorOneDoesNot) {
+TEST_F(DepthRaster, FoldedSharedEdgeKeepsTheMarginInteriorOneDoesNot) {
     const Camera c = identityCamera(16, 12);
     // Edge A-B lies exactly on the centres of row 4 (y = 4.5). Both triangles below it: a fold,
     // whose top-left tie would cover those centres; one below and one above: an interior edge.
@@ -462,7 +466,7 @@ TEST(SharedEdgeFlags, NeighboursNameTheTriangleAcrossEachSharedEdge) {
 
 // Which of the two triangles gets the centres exactly on their shared edge: the one for which
 // it is a left or top edge, counter-clockwise, whatever the winding of the input.
-TEST(DepthRaster, CentresOnSharedEdgeGoToTheTriangleWhoseLeftOrTopEdgeItIs) {
+TEST_F(DepthRaster, CentresOnSharedEdgeGoToTheTriangleWhoseLeftOrTopEdgeItIs) {
     const Camera c = identityCamera(8, 8);
     // diagonal from (-8, -8) to (16, 16), exactly through the centres with px = py
     const glm::vec3 bl = atWindow(c, -8, -8, 0.5f), br = atWindow(c, 16, -8, 0.5f), tr = atWindow(c, 16, 16, 0.5f),
@@ -505,7 +509,7 @@ TEST(DepthRaster, CentresOnSharedEdgeGoToTheTriangleWhoseLeftOrTopEdgeItIs) {
 // Corners on the half-pixel grid, so that many centres lie exactly on shared edges and exactly
 // on shared corners: the top-left rule gives each of them to exactly one triangle, whichever
 // way the diagonals run and whichever winding the triangles have.
-TEST(DepthRaster, SharedEdgesAndCornersCoverEachCentreExactlyOnce) {
+TEST_F(DepthRaster, SharedEdgesAndCornersCoverEachCentreExactlyOnce) {
     const Camera c = identityCamera(48, 40);
     std::mt19937 rng(5);
     std::uniform_int_distribution<int> jitter(-2, 2);
@@ -533,7 +537,7 @@ TEST(DepthRaster, SharedEdgesAndCornersCoverEachCentreExactlyOnce) {
 // The max-pyramid spreads every far pixel upwards: with the margin on shared edges, the cracks of
 // a tessellated wall that fills the screen turn its coarse levels far; with flags, no level has
 // a far texel.
-TEST(DepthRaster, TessellatedWallHasNoCracksAtAnyHzmLevel) {
+TEST_F(DepthRaster, TessellatedWallHasNoCracksAtAnyHzmLevel) {
     const Camera c = perspectiveCamera(160, 128);
     // 20 x 20 quads of about 12 pixels, turned a little about every axis so that its edges run
     // at odd slopes through the pixel grid
@@ -545,10 +549,11 @@ TEST(DepthRaster, TessellatedWallHasNoCracksAtAnyHzmLevel) {
     hzmLayout(c.width, c.height, layout);
     const uint32_t levels = layout.level_count;
     auto farShares = [&](const Mesh& mesh, const std::vector<uint8_t>& flags) {
-        KernelArray<float> pyramid(size_t(hzmTotalTexels(c.width, c.height)));
-        const std::vector<float> depth = rasterize(mesh, c, flags);
-        std::copy(depth.begin(), depth.end(), pyramid.begin());
-        hzmBuild(pyramid.data(), c.width, c.height);
+        std::vector<float> pyramid = rasterize(mesh, c, flags);
+        pyramid.resize(size_t(hzmTotalTexels(c.width, c.height)));
+        DeviceArray<float> pyramid_d = toDevice(pyramid);
+        hzmBuild(pyramid_d.ptr(), c.width, c.height);
+        pyramid = toHost(pyramid_d);
         std::vector<double> shares;
         for (uint32_t l = 0; l < levels; ++l) {
             const float* level = pyramid.data() + layout.offset[l];
@@ -572,18 +577,20 @@ TEST(DepthRaster, TessellatedWallHasNoCracksAtAnyHzmLevel) {
 
 // A wall that does not fill the screen: every texel of every level whose pixels all lie in the
 // wall, its boundary margin included, stays near.
-TEST(DepthRaster, TessellatedWallIsNearEverywhereInsideItsSilhouette) {
+TEST_F(DepthRaster, TessellatedWallIsNearEverywhereInsideItsSilhouette) {
     const Camera c = identityCamera(128, 96);
     // a 20 x 20 quad wall turned by 0.1 radian about its centre (64, 48), 80 pixels on a side
     const glm::mat4 place = glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(64, 48, 0)), 0.1f, glm::vec3(0, 0, 1));
     Mesh mesh = wall(20, 80.0f, place, true);
     for (glm::vec3& p : mesh.positions) p = atWindow(c, p.x, p.y, 0.4f + p.x / 1024.0f);
     const std::vector<uint8_t> flags = sharedFlags(mesh);
-    KernelArray<float> pyramid(size_t(hzmTotalTexels(c.width, c.height)));
     const std::vector<float> depth = rasterize(mesh, c, flags);
     EXPECT_EQ(depth, referenceRaster(mesh, c, flags));
-    std::copy(depth.begin(), depth.end(), pyramid.begin());
-    hzmBuild(pyramid.data(), c.width, c.height);
+    std::vector<float> pyramid = depth;
+    pyramid.resize(size_t(hzmTotalTexels(c.width, c.height)));
+    DeviceArray<float> pyramid_d = toDevice(pyramid);
+    hzmBuild(pyramid_d.ptr(), c.width, c.height);
+    pyramid = toHost(pyramid_d);
     HzmLevels layout;
     hzmLayout(c.width, c.height, layout);
     // inside the wall: the centre rotated back into the wall's frame lies 1/16 pixel inside
@@ -614,7 +621,7 @@ TEST(DepthRaster, TessellatedWallIsNearEverywhereInsideItsSilhouette) {
 
 // Flags leave the boundary alone: the margin still holds on an outer edge of a quad whose
 // diagonal is shared (the test above for one triangle, now for a flagged pair).
-TEST(DepthRaster, BoundaryEdgesKeepTheMarginWithSharedEdges) {
+TEST_F(DepthRaster, BoundaryEdgesKeepTheMarginWithSharedEdges) {
     const Camera c = identityCamera(8, 8);
     auto columnTwoCovered = [&](float inset) {
         // left edge at x = 2.5 - inset from y = -16 to 24, the rest far off screen
@@ -641,7 +648,7 @@ TEST(DepthRaster, BoundaryEdgesKeepTheMarginWithSharedEdges) {
     EXPECT_TRUE(columnTwoCovered(1.0f / 64));    // exactly the margin
 }
 
-TEST(DepthRaster, CornerOutsideGuardBandOrTooDeepSkipsTriangle) {
+TEST_F(DepthRaster, CornerOutsideGuardBandOrTooDeepSkipsTriangle) {
     const Camera c = identityCamera(8, 8);
     Mesh wide, deep, control;
     wide.add(atWindow(c, -8, -8, 0.5f), atWindow(c, 2 * kDepthRasterGuardBand, -8, 0.5f), atWindow(c, -8, 24, 0.5f));
@@ -652,7 +659,7 @@ TEST(DepthRaster, CornerOutsideGuardBandOrTooDeepSkipsTriangle) {
     EXPECT_EQ(coveredCount(rasterize(control, c)), 64);
 }
 
-TEST(DepthRaster, NoTrianglesClearsToFar) {
+TEST_F(DepthRaster, NoTrianglesClearsToFar) {
     const Camera c = identityCamera(40, 33);
     const std::vector<float> depth = rasterize(Mesh{}, c);
     EXPECT_TRUE(std::all_of(depth.begin(), depth.end(), [](float d) { return d == 1.0f; }));
@@ -660,7 +667,7 @@ TEST(DepthRaster, NoTrianglesClearsToFar) {
 
 // One small triangle around each pixel centre of a 128 x 128 viewport, each at its own depth:
 // 16384 triangles, so several binning chunks, and losing any one triangle leaves a pixel far.
-TEST(DepthRaster, EveryTriangleOfALargeSceneLands) {
+TEST_F(DepthRaster, EveryTriangleOfALargeSceneLands) {
     const Camera c = identityCamera(128, 128);
     Mesh mesh;
     std::vector<float> expected;
@@ -676,7 +683,7 @@ TEST(DepthRaster, EveryTriangleOfALargeSceneLands) {
         ASSERT_NEAR(depth[i], pushed(expected[i], expected[i]), 0.3f * kEps) << i;
 }
 
-TEST(DepthRaster, ViewportBeyondLimitIsRejected) {
+TEST_F(DepthRaster, ViewportBeyondLimitIsRejected) {
     DepthRasterScratch scratch;
     EXPECT_THROW(depthRaster(nullptr, nullptr, 0, nullptr, nullptr, identityCamera(32769, 1), nullptr, scratch),
                  std::invalid_argument);
@@ -685,7 +692,7 @@ TEST(DepthRaster, ViewportBeyondLimitIsRejected) {
 // The push must outweigh the rounding of the float plane evaluation for every triangle, the
 // steep ones especially: one random triangle at a time (corners on the 1/256 grid, so snapping
 // changes nothing), every covered centre at least kEps behind the exact plane through them.
-TEST(DepthRaster, PushedDepthIsNeverNearerThanTheTriangle) {
+TEST_F(DepthRaster, PushedDepthIsNeverNearerThanTheTriangle) {
     const Camera c = identityCamera(64, 64);
     std::mt19937 rng(11);
     std::uniform_int_distribution<int> units(-64 * 256, 128 * 256);
@@ -847,7 +854,7 @@ Mesh gridOnHalfPixels(std::mt19937& rng, const Camera& c, uint32_t piece_count) 
     return scene;
 }
 
-TEST(DepthRaster, RandomMeshesWithSharedEdgesMatchScalarReferenceBitForBit) {
+TEST_F(DepthRaster, RandomMeshesWithSharedEdgesMatchScalarReferenceBitForBit) {
     std::mt19937 rng(17);
     DepthRasterScratch scratch;
     const uint32_t sizes[][3] = {{77, 45, 60}, {256, 256, 400}, {31, 97, 90}, {512, 384, 150}};
@@ -873,7 +880,7 @@ TEST(DepthRaster, RandomMeshesWithSharedEdgesMatchScalarReferenceBitForBit) {
     }
 }
 
-TEST(DepthRaster, RandomScenesMatchScalarReferenceBitForBit) {
+TEST_F(DepthRaster, RandomScenesMatchScalarReferenceBitForBit) {
     std::mt19937 rng(7);
     DepthRasterScratch scratch;  // one scratch across sizes: reuse and growth
     const uint32_t sizes[][3] = {{77, 45, 3000}, {256, 256, 20000}, {31, 97, 4097}, {512, 512, 5000}, {1, 1, 100}};

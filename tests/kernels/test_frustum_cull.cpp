@@ -1,10 +1,12 @@
 // SPDX-License-Identifier: MIT
 #include "frustum_cull.h"
-#include "kernel_memory.h"
+
+#include "device_test_support.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <numbers>
@@ -13,6 +15,12 @@
 
 namespace occ::k {
 namespace {
+
+using test::filledDevice;
+using test::toDevice;
+using test::toHost;
+
+using FrustumCull = test::DeviceTest;
 
 // Eye at the origin looking down -z, 90 degrees both ways, near 1, far 100: at distance d in
 // front of the eye the frustum is |x| <= d, |y| <= d, so every expectation below is checked by eye.
@@ -26,14 +34,31 @@ ObjectInfo boxObject(const glm::vec3& lo, const glm::vec3& hi) {
     return o;
 }
 
-// Runs frustumCull over the boxes in kernel memory; returns the flags and checks the count.
+// Runs frustumCull over the boxes on the device, once without and once with the ids output;
+// returns the flags and checks that both runs agree, that the count is the number of 1s and
+// that the ids are exactly the indices of the 1s, ascending.
 std::vector<uint8_t> cull(const std::vector<ObjectInfo>& boxes, const glm::mat4& view_proj) {
-    KernelArray<ObjectInfo> objects(boxes.size());
-    std::copy(boxes.begin(), boxes.end(), objects.begin());
-    KernelArray<uint8_t> in_frustum(boxes.size());
-    const uint32_t n = frustumCull(objects.data(), uint32_t(boxes.size()), frustumFromViewProj(view_proj), in_frustum.data());
-    std::vector<uint8_t> flags(in_frustum.begin(), in_frustum.end());
+    const auto count = uint32_t(boxes.size());
+    const Frustum frustum = frustumFromViewProj(view_proj);
+    const DeviceArray<ObjectInfo> objects = toDevice(boxes);
+    DeviceArray<uint8_t> in_frustum = filledDevice<uint8_t>(count, 7);  // every byte must be written
+    const uint32_t n = frustumCull(objects.ptr(), count, frustum, in_frustum.ptr());
+    const std::vector<uint8_t> flags = toHost(in_frustum);
     EXPECT_EQ(n, uint32_t(std::count(flags.begin(), flags.end(), uint8_t(1))));
+
+    DeviceArray<uint8_t> again = filledDevice<uint8_t>(count, 7);
+    DeviceArray<uint32_t> ids = filledDevice<uint32_t>(count, UINT32_MAX);
+    const uint32_t n_ids = frustumCull(objects.ptr(), count, frustum, again.ptr(), ids.ptr());
+    EXPECT_EQ(toHost(again), flags);
+    EXPECT_EQ(n_ids, n);
+    std::vector<uint32_t> expected_ids;
+    for (uint32_t i = 0; i < count; ++i)
+        if (flags[i] == 1) expected_ids.push_back(i);
+    std::vector<uint32_t> got = toHost(ids);
+    EXPECT_TRUE(std::all_of(got.begin() + std::min(n_ids, count), got.end(), [](uint32_t id) { return id == UINT32_MAX; }))
+        << "ids written past the count";
+    got.resize(std::min(n_ids, count));
+    EXPECT_EQ(got, expected_ids);
     return flags;
 }
 
@@ -68,9 +93,9 @@ TEST(FrustumFromViewProj, FollowsTheView) {
     EXPECT_FALSE(inside({200, 0, 0}));
 }
 
-TEST(FrustumCull, BoxInsideIsKept) { EXPECT_EQ(cullOne({-1, -1, -11}, {1, 1, -9}), 1); }
+TEST_F(FrustumCull, BoxInsideIsKept) { EXPECT_EQ(cullOne({-1, -1, -11}, {1, 1, -9}), 1); }
 
-TEST(FrustumCull, BoxOutsideEachPlaneIsCulled) {
+TEST_F(FrustumCull, BoxOutsideEachPlaneIsCulled) {
     EXPECT_EQ(cullOne({-30, -1, -11}, {-25, 1, -9}), 0) << "left";
     EXPECT_EQ(cullOne({25, -1, -11}, {30, 1, -9}), 0) << "right";
     EXPECT_EQ(cullOne({-1, -30, -11}, {1, -25, -9}), 0) << "bottom";
@@ -80,38 +105,58 @@ TEST(FrustumCull, BoxOutsideEachPlaneIsCulled) {
     EXPECT_EQ(cullOne({-1, -1, -120}, {1, 1, -110}), 0) << "beyond far";
 }
 
-TEST(FrustumCull, BoxStraddlingAPlaneIsKept) {
+TEST_F(FrustumCull, BoxStraddlingAPlaneIsKept) {
     EXPECT_EQ(cullOne({-12, -1, -11}, {-8, 1, -9}), 1) << "left";
     EXPECT_EQ(cullOne({-1, 8, -11}, {1, 12, -9}), 1) << "top";
     EXPECT_EQ(cullOne({-0.1f, -0.1f, -2}, {0.1f, 0.1f, 0.5f}), 1) << "near";
     EXPECT_EQ(cullOne({-1, -1, -105}, {1, 1, -95}), 1) << "far";
 }
 
-TEST(FrustumCull, BoxTouchingAPlaneIsKept) {
+TEST_F(FrustumCull, BoxTouchingAPlaneIsKept) {
     // The face x = -10 lies in the left plane at z = -10; rounding must not drop it.
     EXPECT_EQ(cullOne({-12, -1, -10}, {-10, 1, -9}), 1);
     EXPECT_EQ(cullOne({-1, -1, -102}, {1, 1, -100}), 1);
 }
 
-TEST(FrustumCull, HugeBoxContainingEyeAndFrustumIsKept) { EXPECT_EQ(cullOne(glm::vec3(-1000), glm::vec3(1000)), 1); }
+TEST_F(FrustumCull, HugeBoxContainingEyeAndFrustumIsKept) { EXPECT_EQ(cullOne(glm::vec3(-1000), glm::vec3(1000)), 1); }
 
-TEST(FrustumCull, CameraInsideBoxIsKept) {
+TEST_F(FrustumCull, CameraInsideBoxIsKept) {
     EXPECT_EQ(cullOne(glm::vec3(-2), glm::vec3(2)), 1);
     // A box around the eye that ends before the near plane is not in the view volume.
     EXPECT_EQ(cullOne(glm::vec3(-0.5f), glm::vec3(0.5f)), 0);
 }
 
-TEST(FrustumCull, BoxOutsideNearAnEdgeMayBeKept) {
+TEST_F(FrustumCull, BoxOutsideNearAnEdgeMayBeKept) {
     // Beyond the edge where the left and far planes meet: every point of it with z >= -100 has
     // x < z, yet it reaches the inner side of each plane on its own, so the p-vertex test keeps it
     // (the documented false positive).
     EXPECT_EQ(cullOne({-101.5f, -1, -101}, {-100.5f, 1, -99}), 1);
 }
 
-TEST(FrustumCull, NaNBoxIsKept) { EXPECT_EQ(cullOne({NAN, 0, -10}, {1, 1, -9}), 1); }
+TEST_F(FrustumCull, NaNBoxIsKept) { EXPECT_EQ(cullOne({NAN, 0, -10}, {1, 1, -9}), 1); }
 
-TEST(FrustumCull, EmptyInput) {
+TEST_F(FrustumCull, EmptyInput) {
     EXPECT_EQ(frustumCull(nullptr, 0, frustumFromViewProj(straightAhead()), nullptr), 0u);
+    EXPECT_EQ(frustumCull(nullptr, 0, frustumFromViewProj(straightAhead()), nullptr, nullptr), 0u);
+    EXPECT_TRUE(cull({}, straightAhead()).empty());
+}
+
+// The ids output on a hand-checked row: boxes 1 and 3 are in front of the eye, 0 behind it, 2
+// far to the left and 4 beyond the far plane.
+TEST_F(FrustumCull, IdsOfTheKeptBoxesAreCompactedInOrder) {
+    const std::vector<ObjectInfo> boxes = {
+        boxObject({-1, -1, 1}, {1, 1, 2}),        boxObject({-1, -1, -11}, {1, 1, -9}),
+        boxObject({-30, -1, -11}, {-25, 1, -9}),  boxObject({3, 3, -21}, {4, 4, -20}),
+        boxObject({-1, -1, -120}, {1, 1, -110}),
+    };
+    const DeviceArray<ObjectInfo> objects = toDevice(boxes);
+    DeviceArray<uint8_t> in_frustum(boxes.size());
+    DeviceArray<uint32_t> ids = filledDevice<uint32_t>(boxes.size(), UINT32_MAX);
+    const uint32_t n = frustumCull(objects.ptr(), uint32_t(boxes.size()), frustumFromViewProj(straightAhead()),
+                                   in_frustum.ptr(), ids.ptr());
+    EXPECT_EQ(toHost(in_frustum), (std::vector<uint8_t>{0, 1, 0, 1, 0}));
+    ASSERT_EQ(n, 2u);
+    EXPECT_EQ(toHost(ids), (std::vector<uint32_t>{1, 3, UINT32_MAX, UINT32_MAX, UINT32_MAX}));
 }
 
 // A plain loop over the 8 corners: a box is out when all its corners are outside one plane.
@@ -127,7 +172,7 @@ uint8_t referenceCull(const Aabb& box, const Frustum& f) {
     return 1;
 }
 
-TEST(FrustumCull, RandomBoxesMatchCornerLoopAndKeepEveryVisiblePoint) {
+TEST_F(FrustumCull, RandomBoxesMatchCornerLoopAndKeepEveryVisiblePoint) {
     std::mt19937 rng(20240611);
     std::uniform_real_distribution<float> coord(-60, 60), size(0.01f, 15), unit(0, 1);
     for (int view = 0; view < 8; ++view) {

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "hzm_build.h"
-#include "kernel_memory.h"
+
+#include "device_test_support.h"
 
 #include <gtest/gtest.h>
 
@@ -11,21 +12,23 @@
 namespace occ::k {
 namespace {
 
-// A kernel-memory pyramid whose level 0 is `base`, with one sentinel float after the last level
-// so that a write past hzmTotalTexels shows.
+using test::toDevice;
+using test::toHost;
+
+using HzmBuild = test::DeviceTest;
+
+// A device pyramid whose level 0 is `base`, with one sentinel float after the last level so
+// that a write past hzmTotalTexels shows (the other levels start as sentinels too).
 constexpr float kSentinel = -7.0f;
 
-KernelArray<float> pyramidOf(const std::vector<float>& base, uint32_t width, uint32_t height) {
-    const uint64_t total = hzmTotalTexels(width, height);
-    KernelArray<float> levels(total + 1);
-    std::fill(levels.begin(), levels.end(), kSentinel);
+DeviceArray<float> pyramidOf(const std::vector<float>& base, uint32_t width, uint32_t height) {
+    std::vector<float> levels(hzmTotalTexels(width, height) + 1, kSentinel);
     std::copy(base.begin(), base.end(), levels.begin());
-    return levels;
+    return toDevice(levels);
 }
 
-std::vector<float> level(const KernelArray<float>& levels, const HzmLevels& layout, uint32_t l) {
-    const float* first = levels.data() + layout.offset[l];
-    return std::vector<float>(first, first + uint64_t(layout.width[l]) * layout.height[l]);
+std::vector<float> level(const DeviceArray<float>& levels, const HzmLevels& layout, uint32_t l) {
+    return toHost(levels.ptr() + layout.offset[l], uint64_t(layout.width[l]) * layout.height[l]);
 }
 
 // Plain scalar pyramid: every texel of level l+1 the max over its 2x2 block, clamped at the edge.
@@ -87,27 +90,27 @@ TEST(HzmLayout, CountsLevelsOfSquareThinAndLimitSizes) {
 }
 
 // 5x3: the last odd column and row fold in as single-texel columns and rows.
-TEST(HzmBuild, FiveByThreeTakesMaxOverPartialBlocks) {
+TEST_F(HzmBuild, FiveByThreeTakesMaxOverPartialBlocks) {
     // rows bottom (y = 0) to top
     const std::vector<float> base = {
         0.10f, 0.20f, 0.30f, 0.40f, 0.50f,
         0.60f, 0.15f, 0.25f, 0.35f, 0.05f,
         0.90f, 0.11f, 0.12f, 0.13f, 0.95f,
     };
-    KernelArray<float> levels = pyramidOf(base, 5, 3);
-    hzmBuild(levels.data(), 5, 3);
+    DeviceArray<float> levels = pyramidOf(base, 5, 3);
+    hzmBuild(levels.ptr(), 5, 3);
     HzmLevels layout;
     hzmLayout(5, 3, layout);
     EXPECT_EQ(level(levels, layout, 0), base);
     EXPECT_EQ(level(levels, layout, 1), (std::vector<float>{0.60f, 0.40f, 0.50f, 0.90f, 0.13f, 0.95f}));
     EXPECT_EQ(level(levels, layout, 2), (std::vector<float>{0.90f, 0.95f}));
     EXPECT_EQ(level(levels, layout, 3), (std::vector<float>{0.95f}));
-    EXPECT_EQ(levels[24], kSentinel);
+    EXPECT_EQ(toHost(levels)[24], kSentinel);
 }
 
 // 8x8 at 0.25 with one 0.75 spike in some 2x2 blocks, in a different corner each time, and
 // one 1.0: max (not mean, not a fixed corner) must carry each spike up.
-TEST(HzmBuild, EightByEightCarriesEverySpikeUp) {
+TEST_F(HzmBuild, EightByEightCarriesEverySpikeUp) {
     std::vector<float> base(64, 0.25f);
     auto at = [&](uint32_t x, uint32_t y) -> float& { return base[y * 8 + x]; };
     at(0, 0) = 0.75f;  // block (0,0), bottom-left
@@ -115,8 +118,8 @@ TEST(HzmBuild, EightByEightCarriesEverySpikeUp) {
     at(4, 3) = 0.75f;  // block (2,1), top-left
     at(7, 7) = 0.75f;  // block (3,3), top-right
     at(5, 6) = 1.00f;  // block (2,3)
-    KernelArray<float> levels = pyramidOf(base, 8, 8);
-    hzmBuild(levels.data(), 8, 8);
+    DeviceArray<float> levels = pyramidOf(base, 8, 8);
+    hzmBuild(levels.ptr(), 8, 8);
     HzmLevels layout;
     hzmLayout(8, 8, layout);
     const float q = 0.25f, s = 0.75f;
@@ -128,17 +131,16 @@ TEST(HzmBuild, EightByEightCarriesEverySpikeUp) {
                                         }));
     EXPECT_EQ(level(levels, layout, 2), (std::vector<float>{s, s, q, 1}));
     EXPECT_EQ(level(levels, layout, 3), (std::vector<float>{1}));
-    EXPECT_EQ(levels[85], kSentinel);
+    EXPECT_EQ(toHost(levels)[85], kSentinel);
 }
 
-TEST(HzmBuild, OneTexelBufferIsLeftAlone) {
-    KernelArray<float> levels = pyramidOf({0.5f}, 1, 1);
-    hzmBuild(levels.data(), 1, 1);
-    EXPECT_EQ(levels[0], 0.5f);
-    EXPECT_EQ(levels[1], kSentinel);
+TEST_F(HzmBuild, OneTexelBufferIsLeftAlone) {
+    DeviceArray<float> levels = pyramidOf({0.5f}, 1, 1);
+    hzmBuild(levels.ptr(), 1, 1);
+    EXPECT_EQ(toHost(levels), (std::vector<float>{0.5f, kSentinel}));
 }
 
-TEST(HzmBuild, RandomBuffersMatchScalarReference) {
+TEST_F(HzmBuild, RandomBuffersMatchScalarReference) {
     std::mt19937 rng(20240611);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
     const uint32_t sizes[][2] = {{1, 2}, {2, 1}, {7, 1}, {1, 9}, {3, 3}, {33, 17}, {64, 64}, {100, 37}, {513, 511}};
@@ -146,12 +148,13 @@ TEST(HzmBuild, RandomBuffersMatchScalarReference) {
         const uint32_t w = size[0], h = size[1];
         std::vector<float> base(uint64_t(w) * h);
         for (float& d : base) d = unit(rng);
-        KernelArray<float> levels = pyramidOf(base, w, h);
-        hzmBuild(levels.data(), w, h);
+        DeviceArray<float> levels = pyramidOf(base, w, h);
+        hzmBuild(levels.ptr(), w, h);
         const std::vector<float> expected = referencePyramid(base, w, h);
         ASSERT_EQ(expected.size(), hzmTotalTexels(w, h)) << w << "x" << h;
-        EXPECT_TRUE(std::equal(expected.begin(), expected.end(), levels.begin())) << w << "x" << h;
-        EXPECT_EQ(levels[expected.size()], kSentinel) << w << "x" << h;
+        const std::vector<float> built = toHost(levels);
+        EXPECT_TRUE(std::equal(expected.begin(), expected.end(), built.begin())) << w << "x" << h;
+        EXPECT_EQ(built[expected.size()], kSentinel) << w << "x" << h;
     }
 }
 

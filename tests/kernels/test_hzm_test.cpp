@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "hzm_test.h"
-#include "kernel_memory.h"
+
+#include "device_test_support.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
@@ -14,6 +15,11 @@
 
 namespace occ::k {
 namespace {
+
+using test::toDevice;
+using test::toHost;
+
+using HzmTest = test::DeviceTest;
 
 constexpr float kEpsilon = 1e-6f;  // what hzmTest adds to every stored depth
 
@@ -39,9 +45,11 @@ float windowDepth(const Camera& camera, float distance) {
     return clip.z / clip.w * 0.5f + 0.5f;
 }
 
-// The max-depth pyramid of a level-0 buffer, built by a plain loop (hzmBuild is tested on its own).
+// The max-depth pyramid of a level-0 buffer, built by a plain loop on the host (hzmBuild is
+// tested on its own) and uploaded; levels.data points at the device copy.
 struct Pyramid {
-    KernelArray<float> texels;
+    std::vector<float> texels;
+    DeviceArray<float> device_texels;
     HzmLevels levels{};
 };
 
@@ -60,7 +68,8 @@ Pyramid buildPyramid(const std::vector<float>& depth, uint32_t width, uint32_t h
                         m = std::max(m, p.texels[l.offset[k - 1] + cy * l.width[k - 1] + cx]);
                 p.texels[l.offset[k] + y * l.width[k] + x] = m;
             }
-    p.levels.data = p.texels.data();
+    p.device_texels = toDevice(p.texels);
+    p.levels.data = p.device_texels.ptr();
     return p;
 }
 
@@ -71,13 +80,14 @@ ObjectInfo boxObject(const glm::vec3& lo, const glm::vec3& hi) {
 }
 
 std::vector<uint8_t> runTest(const std::vector<ObjectInfo>& boxes, const Camera& camera, const HzmLevels& hzm) {
-    KernelArray<ObjectInfo> objects(boxes.size());
-    std::copy(boxes.begin(), boxes.end(), objects.begin());
+    const DeviceArray<ObjectInfo> objects = toDevice(boxes);
     // Test the boxes in reverse order, so the ids are not just 0..n-1.
-    KernelArray<uint32_t> ids(boxes.size());
+    std::vector<uint32_t> ids(boxes.size());
     for (size_t j = 0; j < boxes.size(); ++j) ids[j] = uint32_t(boxes.size() - 1 - j);
-    KernelArray<uint8_t> occluded(boxes.size());
-    hzmTest(objects.data(), ids.data(), uint32_t(boxes.size()), camera, hzm, occluded.data());
+    const DeviceArray<uint32_t> ids_d = toDevice(ids);
+    DeviceArray<uint8_t> occluded_d = test::filledDevice<uint8_t>(boxes.size(), 7);  // every byte must be written
+    hzmTest(objects.ptr(), ids_d.ptr(), uint32_t(boxes.size()), camera, hzm, occluded_d.ptr());
+    const std::vector<uint8_t> occluded = toHost(occluded_d);
     std::vector<uint8_t> by_object(boxes.size());
     for (size_t j = 0; j < boxes.size(); ++j) by_object[ids[j]] = occluded[j];
     return by_object;
@@ -85,9 +95,11 @@ std::vector<uint8_t> runTest(const std::vector<ObjectInfo>& boxes, const Camera&
 
 // 64 x 64 pixels; a wall 5 in front of the eye covers the left half (x < 32), the rest is clear
 // (far). At distance d the viewport spans |x|, |y| <= d, and pixel column 32 starts at x = 0.
-class NearWallLeftHalf : public ::testing::Test {
+class NearWallLeftHalf : public test::DeviceTest {
 protected:
     void SetUp() override {
+        test::DeviceTest::SetUp();
+        if (IsSkipped()) return;
         std::vector<float> depth(64 * 64, 1.0f);
         for (uint32_t y = 0; y < 64; ++y)
             for (uint32_t x = 0; x < 32; ++x) depth[y * 64 + x] = windowDepth(camera, 5);
@@ -141,7 +153,7 @@ TEST_F(NearWallLeftHalf, EmptyPyramidOrInput) {
     hzmTest(nullptr, nullptr, 0, camera, pyramid.levels, nullptr);
 }
 
-TEST(HzmTest, SixteenByOneViewportAnswersAsLevel0Does) {
+TEST_F(HzmTest, SixteenByOneViewportAnswersAsLevel0Does) {
     // A 16 x 1 buffer (levels 16, 8, 4, 2, 1 wide): a near wall everywhere but pixel 13.
     const Camera camera = straightAhead(16, 1);
     std::vector<float> depth(16, windowDepth(camera, 5));
@@ -206,7 +218,7 @@ uint8_t referenceAtLevel0(const Footprint& f, const std::vector<float>& depth, u
     return 1;
 }
 
-TEST(HzmTest, RandomScenesAnswerExactlyAsLevel0Does) {
+TEST_F(HzmTest, RandomScenesAnswerExactlyAsLevel0Does) {
     std::mt19937 rng(4242);
     std::uniform_real_distribution<float> unit(0, 1);
     uint64_t total = 0, occluded_by_kernel = 0, occluded_at_level0 = 0;

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
-#include "kernel_memory.h"
 #include "lod_select.h"
+
+#include "device_test_support.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
@@ -11,6 +12,9 @@
 #include <vector>
 
 using namespace occ::k;
+using namespace occ::k::test;
+
+using LodSelect = DeviceTest;
 
 namespace {
 
@@ -53,26 +57,29 @@ struct Selection {
 };
 
 // Every mesh m has map[k] = (m + 2) * k, so tc = (mesh + 2) * vc identifies the mesh used.
-Selection select(const std::vector<ObjectInfo>& objects, const std::vector<uint32_t>& ids, LodParams params) {
+// shares: the caller's scratch, or null for a fresh one.
+Selection select(const std::vector<ObjectInfo>& objects, const std::vector<uint32_t>& ids, LodParams params,
+                 DeviceArray<float>* shares = nullptr) {
     uint32_t mesh_count = 0;
     for (const ObjectInfo& o : objects) mesh_count = std::max(mesh_count, o.mesh + 1);
     std::vector<uint32_t> mesh_vertices(mesh_count, 0);
     for (const ObjectInfo& o : objects) mesh_vertices[o.mesh] = o.vertex_count;
-    KernelArray<uint64_t> map_first(mesh_count);
+    std::vector<uint64_t> map_first(mesh_count);
     std::vector<uint32_t> maps;
     for (uint32_t m = 0; m < mesh_count; ++m) {
         map_first[m] = maps.size();
         for (uint32_t k = 0; k <= mesh_vertices[m]; ++k) maps.push_back((m + 2) * k);
     }
-    KernelArray<uint32_t> maps_k(maps.size());
-    std::copy(maps.begin(), maps.end(), maps_k.begin());
-    KernelArray<ObjectInfo> objects_k(objects.size());
-    std::copy(objects.begin(), objects.end(), objects_k.begin());
-    KernelArray<uint32_t> ids_k(ids.size()), vc(ids.size()), tc(ids.size());
-    std::copy(ids.begin(), ids.end(), ids_k.begin());
-    const uint64_t total = lodSelect(objects_k.data(), ids_k.data(), uint32_t(ids.size()), testCamera(), params,
-                                     map_first.data(), maps_k.data(), vc.data(), tc.data());
-    return {std::vector<uint32_t>(vc.begin(), vc.end()), std::vector<uint32_t>(tc.begin(), tc.end()), total};
+    const DeviceArray<uint64_t> map_first_d = toDevice(map_first);
+    const DeviceArray<uint32_t> maps_d = toDevice(maps);
+    const DeviceArray<ObjectInfo> objects_d = toDevice(objects);
+    const DeviceArray<uint32_t> ids_d = toDevice(ids);
+    // Filled with a value no level takes, so that an entry the kernel forgets shows.
+    DeviceArray<uint32_t> vc = filledDevice<uint32_t>(ids.size(), 0xDEADBEEF), tc = filledDevice<uint32_t>(ids.size(), 0xDEADBEEF);
+    DeviceArray<float> fresh;
+    const uint64_t total = lodSelect(objects_d.ptr(), ids_d.ptr(), uint32_t(ids.size()), testCamera(), params,
+                                     map_first_d.ptr(), maps_d.ptr(), vc.ptr(), tc.ptr(), shares ? *shares : fresh);
+    return {toHost(vc), toHost(tc), total};
 }
 
 // Two objects on the same box, 1000 and 125 vertices: A P / D is 1.25e6 and 1.5625e5, a ratio of
@@ -83,49 +90,49 @@ std::vector<ObjectInfo> twoObjects(uint32_t q0 = 4, uint32_t q1 = 4) {
 
 }  // namespace
 
-TEST(LodSelect, SplitsTheBudgetByEquationOneShares) {
+TEST_F(LodSelect, SplitsTheBudgetByEquationOneShares) {
     const Selection s = select(twoObjects(), {0, 1}, {500, 3, 1});
     EXPECT_EQ(s.vc, (std::vector<uint32_t>{400, 100}));
     EXPECT_EQ(s.total, 500u);
 }
 
-TEST(LodSelect, TriangleCountsComeFromEachObjectsMeshMap) {
+TEST_F(LodSelect, TriangleCountsComeFromEachObjectsMeshMap) {
     const Selection s = select(twoObjects(), {0, 1}, {500, 3, 1});
     EXPECT_EQ(s.tc, (std::vector<uint32_t>{2 * 400, 3 * 100}));
 }
 
-TEST(LodSelect, IdsAreUsedInTheGivenOrder) {
+TEST_F(LodSelect, IdsAreUsedInTheGivenOrder) {
     const Selection s = select(twoObjects(), {1, 0}, {500, 3, 1});
     EXPECT_EQ(s.vc, (std::vector<uint32_t>{100, 400}));
 }
 
-TEST(LodSelect, WhatACappedObjectLeavesGoesToTheOthers) {
+TEST_F(LodSelect, WhatACappedObjectLeavesGoesToTheOthers) {
     // Shares alone give 560 / 140; the second object has only 125 vertices.
     const Selection s = select(twoObjects(), {0, 1}, {700, 3, 1});
     EXPECT_EQ(s.vc, (std::vector<uint32_t>{575, 125}));
     EXPECT_EQ(s.total, 700u);
 }
 
-TEST(LodSelect, FloorsAreTakenFromTheOthersWhileTheBudgetAllows) {
+TEST_F(LodSelect, FloorsAreTakenFromTheOthersWhileTheBudgetAllows) {
     const Selection s = select(twoObjects(4, 120), {0, 1}, {500, 3, 1});
     EXPECT_EQ(s.vc, (std::vector<uint32_t>{380, 120}));
     EXPECT_EQ(s.total, 500u);
 }
 
-TEST(LodSelect, FloorsAboveTheBudgetAreKeptAndReported) {
+TEST_F(LodSelect, FloorsAboveTheBudgetAreKeptAndReported) {
     const Selection s = select(twoObjects(300, 120), {0, 1}, {400, 3, 1});
     EXPECT_EQ(s.vc, (std::vector<uint32_t>{300, 120}));
     EXPECT_EQ(s.total, 420u);
 }
 
-TEST(LodSelect, AmpleBudgetGivesFullDetail) {
+TEST_F(LodSelect, AmpleBudgetGivesFullDetail) {
     const Selection s = select(twoObjects(), {0, 1}, {1e6f, 3, 1});
     EXPECT_EQ(s.vc, (std::vector<uint32_t>{1000, 125}));
     EXPECT_EQ(s.tc, (std::vector<uint32_t>{2000, 375}));
     EXPECT_EQ(s.total, 1125u);
 }
 
-TEST(LodSelect, ObjectsBelowThePixelErrorThresholdAreNotDrawnAndTakeNothing) {
+TEST_F(LodSelect, ObjectsBelowThePixelErrorThresholdAreNotDrawnAndTakeNothing) {
     std::vector<ObjectInfo> objects = twoObjects();
     objects.push_back(object(kSpeck, 2, 50, 10));
     const Selection s = select(objects, {0, 1, 2}, {500, 3, 1});
@@ -133,21 +140,35 @@ TEST(LodSelect, ObjectsBelowThePixelErrorThresholdAreNotDrawnAndTakeNothing) {
     EXPECT_EQ(s.tc[2], 0u);
 }
 
-TEST(LodSelect, AnObjectCrossingTheNearPlaneCountsAsTheWholeViewportAtTheNearPlane) {
+TEST_F(LodSelect, AnObjectCrossingTheNearPlaneCountsAsTheWholeViewportAtTheNearPlane) {
     // 10000 px * 1000 / 1 against 2500 px * 125 / 2: ratio 64, shares 16 : 1.
     const std::vector<ObjectInfo> objects{object(kAroundEye, 0, 1000, 4), object(kNearBox, 1, 125, 4)};
     const Selection s = select(objects, {0, 1}, {170, 3, 1});
     EXPECT_EQ(s.vc, (std::vector<uint32_t>{160, 10}));
 }
 
-TEST(LodSelect, ZeroBudgetLeavesEveryDrawnObjectAtItsFloor) {
+TEST_F(LodSelect, ZeroBudgetLeavesEveryDrawnObjectAtItsFloor) {
     const Selection s = select(twoObjects(7, 9), {0, 1}, {0, 3, 1});
     EXPECT_EQ(s.vc, (std::vector<uint32_t>{7, 9}));
 }
 
-TEST(LodSelect, AnEmptyListSelectsNothing) {
+TEST_F(LodSelect, AnEmptyListSelectsNothing) {
     const Selection s = select(twoObjects(), {}, {500, 3, 1});
     EXPECT_EQ(s.total, 0u);
+}
+
+TEST_F(LodSelect, OneSharesScratchServesLargerAndSmallerCalls) {
+    // The scratch keeps the larger call's shares; the smaller call after it must not read them.
+    DeviceArray<float> shares;
+    std::vector<ObjectInfo> many;
+    for (uint32_t i = 0; i < 50; ++i) many.push_back(object(kNearBox, i, 100 + i, 4));
+    std::vector<uint32_t> all(50);
+    for (uint32_t i = 0; i < 50; ++i) all[i] = i;
+    const Selection large = select(many, all, {2000, 3, 1}, &shares);
+    EXPECT_EQ(large.total, select(many, all, {2000, 3, 1}).total);
+    const Selection small = select(twoObjects(), {0, 1}, {500, 3, 1}, &shares);
+    EXPECT_EQ(small.vc, (std::vector<uint32_t>{400, 100}));
+    EXPECT_EQ(small.total, 500u);
 }
 
 namespace {
@@ -211,7 +232,7 @@ Reference referenceSelect(const std::vector<ObjectInfo>& objects, const std::vec
 
 }  // namespace
 
-TEST(LodSelect, MatchesTheScalarReferenceOnRandomScenes) {
+TEST_F(LodSelect, MatchesTheScalarReferenceOnRandomScenes) {
     std::mt19937 rng(7);
     const Camera camera = testCamera();
     for (int round = 0; round < 40; ++round) {

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
-#include "kernel_memory.h"
 #include "occluder_weight.h"
+
+#include "device_test_support.h"
 
 #include <gtest/gtest.h>
 
@@ -13,12 +14,13 @@
 namespace occ::k {
 namespace {
 
-template <class T>
-KernelArray<T> toKernel(const std::vector<T>& v) {
-    KernelArray<T> a(v.size());
-    std::copy(v.begin(), v.end(), a.begin());
-    return a;
-}
+using test::filledDevice;
+using test::toDevice;
+using test::toHost;
+
+using OccluderWeight = test::DeviceTest;
+using SelectTopK = test::DeviceTest;
+using SelectPvsOccluders = test::DeviceTest;
 
 ObjectInfo occluder(const glm::vec3& lo, const glm::vec3& hi, const glm::vec3& normal) {
     ObjectInfo o{};
@@ -38,15 +40,15 @@ Camera eyeAtOrigin() {
 
 std::vector<float> weights(const std::vector<ObjectInfo>& objects, const std::vector<uint32_t>& cos,
                            const std::vector<uint8_t>& in_frustum, const Camera& camera) {
-    const KernelArray<ObjectInfo> o = toKernel(objects);
-    const KernelArray<uint32_t> c = toKernel(cos);
-    const KernelArray<uint8_t> f = toKernel(in_frustum);
-    KernelArray<float> w(cos.size());
-    occluderWeight(o.data(), c.data(), uint32_t(cos.size()), f.data(), camera, w.data());
-    return {w.begin(), w.end()};
+    const DeviceArray<ObjectInfo> o = toDevice(objects);
+    const DeviceArray<uint32_t> c = toDevice(cos);
+    const DeviceArray<uint8_t> f = toDevice(in_frustum);
+    DeviceArray<float> w(cos.size());
+    occluderWeight(o.ptr(), c.ptr(), uint32_t(cos.size()), f.ptr(), camera, w.ptr());
+    return toHost(w);
 }
 
-TEST(OccluderWeight, HandComputedEq3) {
+TEST_F(OccluderWeight, HandComputedEq3) {
     const std::vector<ObjectInfo> objects = {
         // 2x2x2 box 10 ahead, facing the eye: 8 * 1 / 10.
         occluder({-1, -1, -12}, {1, 1, -10}, {0, 0, 1}),
@@ -72,7 +74,7 @@ TEST(OccluderWeight, HandComputedEq3) {
     for (size_t j = 0; j < w.size(); ++j) EXPECT_NEAR(w[j], expected[j], 1e-5f * expected[j]) << "candidate " << j;
 }
 
-TEST(OccluderWeight, CloserAndLargerWins) {
+TEST_F(OccluderWeight, CloserAndLargerWins) {
     const std::vector<ObjectInfo> objects = {
         occluder({-1, -1, -12}, {1, 1, -10}, {0, 0, 1}),
         occluder({-1, -1, -22}, {1, 1, -20}, {0, 0, 1}),
@@ -87,42 +89,44 @@ TEST(OccluderWeight, CloserAndLargerWins) {
     EXPECT_GT(w[3], w[2]);
 }
 
-TEST(OccluderWeight, EmptyInput) { occluderWeight(nullptr, nullptr, 0, nullptr, eyeAtOrigin(), nullptr); }
+TEST_F(OccluderWeight, EmptyInput) { occluderWeight(nullptr, nullptr, 0, nullptr, eyeAtOrigin(), nullptr); }
 
 std::vector<uint32_t> topK(const std::vector<uint32_t>& cos, const std::vector<float>& weight, uint32_t k) {
-    const KernelArray<uint32_t> c = toKernel(cos);
-    const KernelArray<float> w = toKernel(weight);
-    KernelArray<uint32_t> aos(k);
-    const uint32_t n = selectTopK(c.data(), w.data(), uint32_t(cos.size()), k, aos.data());
+    const DeviceArray<uint32_t> c = toDevice(cos);
+    const DeviceArray<float> w = toDevice(weight);
+    DeviceArray<uint32_t> aos(k);
+    DeviceArray<uint64_t> keys;
+    const uint32_t n = selectTopK(c.ptr(), w.ptr(), uint32_t(cos.size()), k, aos.ptr(), keys);
     EXPECT_LE(n, k);
-    return {aos.begin(), aos.begin() + n};
+    return toHost(aos, n);
 }
 
-TEST(SelectTopK, DecreasingWeightTiesByLowerId) {
+TEST_F(SelectTopK, DecreasingWeightTiesByLowerId) {
     const std::vector<uint32_t> cos = {7, 3, 5, 1, 9, 2};
     const std::vector<float> weight = {2, 5, 2, 0, 5, 4};
     EXPECT_EQ(topK(cos, weight, 3), (std::vector<uint32_t>{3, 9, 2}));
     EXPECT_EQ(topK(cos, weight, 5), (std::vector<uint32_t>{3, 9, 2, 5, 7}));
 }
 
-TEST(SelectTopK, ZeroWeightsAreNeverChosen) {
+TEST_F(SelectTopK, ZeroWeightsAreNeverChosen) {
     const std::vector<uint32_t> cos = {4, 8, 6, 2};
     EXPECT_EQ(topK(cos, {0, 1.5f, 0, 0}, 3), (std::vector<uint32_t>{8}));
     EXPECT_EQ(topK(cos, {0, 0, 0, 0}, 3), (std::vector<uint32_t>{}));
     EXPECT_EQ(topK(cos, {-1, NAN, 3, 0}, 4), (std::vector<uint32_t>{6}));
 }
 
-TEST(SelectTopK, HugeAndTinyWeightsKeepTheirOrder) {
+TEST_F(SelectTopK, HugeAndTinyWeightsKeepTheirOrder) {
     const std::vector<uint32_t> cos = {0, 1, 2, 3};
     EXPECT_EQ(topK(cos, {1e-30f, INFINITY, 3e30f, 1e-45f}, 4), (std::vector<uint32_t>{1, 2, 0, 3}));
 }
 
-TEST(SelectTopK, EmptyInputOrZeroK) {
-    EXPECT_EQ(selectTopK(nullptr, nullptr, 0, 8, nullptr), 0u);
+TEST_F(SelectTopK, EmptyInputOrZeroK) {
+    DeviceArray<uint64_t> keys;
+    EXPECT_EQ(selectTopK(nullptr, nullptr, 0, 8, nullptr, keys), 0u);
     EXPECT_EQ(topK({1, 2}, {1, 2}, 0), (std::vector<uint32_t>{}));
 }
 
-TEST(SelectTopK, RandomCandidatesMatchStdSort) {
+TEST_F(SelectTopK, RandomCandidatesMatchStdSort) {
     std::mt19937 rng(7);
     for (const uint32_t count : {1u, 5u, 300u, 100000u}) {
         std::vector<uint32_t> cos(count);
@@ -143,6 +147,102 @@ TEST(SelectTopK, RandomCandidatesMatchStdSort) {
             EXPECT_EQ(topK(cos, weight, k), expected) << count << " candidates, k = " << k;
         }
     }
+}
+
+TEST_F(SelectTopK, KeysScratchIsReusedAcrossCalls) {
+    // One scratch for a large call and then a small one: the small call must not read the
+    // large call's leftover keys.
+    DeviceArray<uint64_t> keys;
+    std::vector<uint32_t> cos(1000);
+    std::vector<float> weight(1000);
+    for (uint32_t j = 0; j < 1000; ++j) cos[j] = j, weight[j] = float(j + 1);
+    const DeviceArray<uint32_t> c = toDevice(cos);
+    const DeviceArray<float> w = toDevice(weight);
+    DeviceArray<uint32_t> aos(4);
+    EXPECT_EQ(selectTopK(c.ptr(), w.ptr(), 1000, 4, aos.ptr(), keys), 4u);
+    EXPECT_EQ(toHost(aos), (std::vector<uint32_t>{999, 998, 997, 996}));
+    EXPECT_EQ(selectTopK(c.ptr(), w.ptr(), 3, 4, aos.ptr(), keys), 3u);
+    EXPECT_EQ(toHost(aos, 3), (std::vector<uint32_t>{2, 1, 0}));
+}
+
+// selectPvsOccluders on seven hand-checked objects. With the eye at the origin and near plane 1,
+// a box [-1,1] x [-1,1] x [z-2, z] (z < 0) has diagonal sqrt(12) and is |z| away, so its
+// (diagonal / D)^2 is 3 at z = -2 and 0.75 at z = -4; score = that x compactness / triangles.
+//   id  z   compactness  triangles  score   note
+//   0   -2  1            100        0.03    ties with 3: the lower id ranks first
+//   1   -2  1            50         0.06
+//   2   -4  1            10         0.075
+//   3   -2  0.5          50         0.03
+//   4   -2  1            20         0.15    the AOS: excluded
+//   5   -2  1            5          0.6     out of the frustum
+//   6   -2  1            25         0.12
+// So the rank order of those that may be taken is 6, 2, 1, 0, 3.
+ObjectInfo pvsCandidate(float z, float compactness, uint32_t triangles) {
+    ObjectInfo o{};
+    o.aabb = {{-1, -1, z - 2}, {1, 1, z}};
+    o.compactness = compactness;
+    o.triangle_count = triangles;
+    return o;
+}
+
+struct PvsFixture {
+    std::vector<ObjectInfo> objects = {pvsCandidate(-2, 1, 100), pvsCandidate(-2, 1, 50), pvsCandidate(-4, 1, 10),
+                                       pvsCandidate(-2, 0.5f, 50), pvsCandidate(-2, 1, 20), pvsCandidate(-2, 1, 5),
+                                       pvsCandidate(-2, 1, 25)};
+    std::vector<uint8_t> in_frustum = {1, 1, 1, 1, 1, 0, 1};
+    std::vector<uint32_t> candidates = {3, 5, 0, 6, 4, 1, 2};  // any order
+    DeviceArray<ObjectInfo> objects_d = toDevice(objects);
+    DeviceArray<uint8_t> in_frustum_d = toDevice(in_frustum);
+    DeviceArray<uint32_t> candidates_d = toDevice(candidates);
+    PvsOccluderScratch scratch;
+
+    PvsFixture() { scratch.taken = filledDevice<uint8_t>(objects.size(), 0); }
+
+    std::vector<uint32_t> select(const std::vector<uint32_t>& exclude, uint64_t budget) {
+        Camera camera{};
+        camera.near_plane = 1;
+        camera.forward = {0, 0, -1};
+        const DeviceArray<uint32_t> exclude_d = toDevice(exclude);
+        DeviceArray<uint32_t> out = filledDevice<uint32_t>(candidates.size(), UINT32_MAX);
+        const uint32_t n = selectPvsOccluders(objects_d.ptr(), candidates_d.ptr(), uint32_t(candidates.size()),
+                                              in_frustum_d.ptr(), camera, exclude_d.ptr(), uint32_t(exclude.size()),
+                                              budget, scratch, out.ptr());
+        EXPECT_LE(n, candidates.size());
+        return toHost(out, n);
+    }
+};
+
+TEST_F(SelectPvsOccluders, RanksByScreenPerTriangleTiesByIdSkippingTheAosAndTheUnseen) {
+    PvsFixture f;
+    EXPECT_EQ(f.select({4}, 1000), (std::vector<uint32_t>{6, 2, 1, 0, 3}));
+}
+
+TEST_F(SelectPvsOccluders, GreedyBudgetSkipsACandidateTooLargeAndTakesALaterSmallerOne) {
+    // 6, 2 and 1 take 25 + 10 + 50 = 85 triangles; 0 (100) would make 185 > 150 and is
+    // skipped; 3 (50) makes 135 and is taken. The excluded 4 spends none of the budget (it would
+    // have left no room for 3).
+    PvsFixture f;
+    EXPECT_EQ(f.select({4}, 150), (std::vector<uint32_t>{6, 2, 1, 3}));
+    // A budget too small for every candidate takes none; a zero budget too.
+    EXPECT_EQ(f.select({4}, 9), (std::vector<uint32_t>{}));
+    EXPECT_EQ(f.select({4}, 0), (std::vector<uint32_t>{}));
+    // Exactly the first candidate's triangles is enough for it.
+    EXPECT_EQ(f.select({4}, 25), (std::vector<uint32_t>{6}));
+}
+
+TEST_F(SelectPvsOccluders, ExcludedIdsAreFreeAgainInTheNextCall) {
+    // The scratch's `taken` bytes must come back zeroed, so a call without exclusions takes 4.
+    PvsFixture f;
+    EXPECT_EQ(f.select({4, 6}, 1000), (std::vector<uint32_t>{2, 1, 0, 3}));
+    EXPECT_EQ(f.select({}, 1000), (std::vector<uint32_t>{4, 6, 2, 1, 0, 3}));
+    EXPECT_EQ(test::toHost(f.scratch.taken), std::vector<uint8_t>(f.objects.size(), 0));
+}
+
+TEST_F(SelectPvsOccluders, NoCandidatesTakesNothing) {
+    PvsFixture f;
+    f.candidates.clear();
+    f.candidates_d = toDevice(f.candidates);
+    EXPECT_EQ(f.select({4}, 1000), (std::vector<uint32_t>{}));
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
-#include "kernel_memory.h"
 #include "reform.h"
+
+#include "device_test_support.h"
 #include "scan.h"
 
 #include <gtest/gtest.h>
@@ -10,6 +11,9 @@
 #include <vector>
 
 using namespace occ::k;
+using namespace occ::k::test;
+
+using Reform = DeviceTest;
 
 namespace {
 
@@ -27,37 +31,25 @@ const std::vector<std::vector<uint32_t>> kFigureLods{
     {0, 5, 3, 6, 2, 3, 1, 2, 4, 0, 1, 6, 5, 6, 3, 0, 6, 5, 4, 2, 6, 1, 4, 6},  // k = 7: as stored
 };
 
-// A frame in kernel memory: per block its object, vc and tc, the active triangle array built
-// from each object's mesh, and the scans.
+// A frame on the device: per block its object, vc and tc, and the scans (the layout), the active
+// triangle array built from each object's mesh, and room for the indices.
 struct Frame {
-    KernelArray<uint32_t> ids, vc, tc, triangles, indices;
-    KernelArray<uint64_t> voff, toff;
+    LayoutPair blocks;
     ActiveLayout layout;
+    DeviceArray<uint32_t> triangles, indices;
 
     Frame(const std::vector<uint32_t>& objects, const std::vector<uint32_t>& vertex_counts,
           const std::vector<uint32_t>& triangle_counts, const std::vector<std::vector<uint32_t>>& object_triangles)
-        : ids(objects.size()), vc(objects.size()), tc(objects.size()), voff(objects.size()), toff(objects.size()) {
-        const uint32_t n = uint32_t(objects.size());
-        std::copy(objects.begin(), objects.end(), ids.begin());
-        std::copy(vertex_counts.begin(), vertex_counts.end(), vc.begin());
-        std::copy(triangle_counts.begin(), triangle_counts.end(), tc.begin());
-        const uint64_t vt = exclusiveScan(vc.data(), n, voff.data());
-        const uint64_t tt = exclusiveScan(tc.data(), n, toff.data());
-        layout = {ids.data(), vc.data(), tc.data(), voff.data(), toff.data(), n, vt, tt};
-        triangles.resize(3 * tt);
-        indices.resize(3 * tt);
-        uint32_t* out = triangles.data();
-        for (uint32_t j = 0; j < n; ++j) out = std::copy_n(object_triangles[j].begin(), 3 * triangle_counts[j], out);
+        : blocks(objects, vertex_counts, triangle_counts), layout(blocks.device()) {
+        std::vector<uint32_t> active;
+        for (size_t j = 0; j < objects.size(); ++j)
+            active.insert(active.end(), object_triangles[j].begin(), object_triangles[j].begin() + 3 * triangle_counts[j]);
+        triangles = toDevice(active);
+        // A sentinel no corner can be, so that an index the kernel does not write shows.
+        indices = filledDevice<uint32_t>(active.size(), UINT32_MAX);
     }
-    std::vector<uint32_t> indexVector() const { return {indices.begin(), indices.end()}; }
+    std::vector<uint32_t> indexVector() const { return toHost(indices); }
 };
-
-template <class T>
-KernelArray<T> toKernel(const std::vector<T>& v) {
-    KernelArray<T> k(v.size());
-    std::copy(v.begin(), v.end(), k.begin());
-    return k;
-}
 
 std::vector<uint32_t> shifted(std::vector<uint32_t> v, uint32_t offset) {
     for (uint32_t& x : v) x += offset;
@@ -66,37 +58,37 @@ std::vector<uint32_t> shifted(std::vector<uint32_t> v, uint32_t offset) {
 
 }  // namespace
 
-TEST(Reform, TheFigureMeshAtEveryLevelMatchesTheHandWalk) {
-    const KernelArray<int32_t> ecol = toKernel(kFigureEcol);
-    const KernelArray<uint64_t> vertex_first = toKernel(std::vector<uint64_t>{0});
-    KernelArray<ObjectInfo> objects(1);
-    objects[0] = ObjectInfo{};
-    objects[0].vertex_count = 7;
+TEST_F(Reform, TheFigureMeshAtEveryLevelMatchesTheHandWalk) {
+    const DeviceArray<int32_t> ecol = toDevice(kFigureEcol);
+    const DeviceArray<uint64_t> vertex_first = toDevice(std::vector<uint64_t>{0});
+    std::vector<ObjectInfo> object(1, ObjectInfo{});
+    object[0].vertex_count = 7;
+    const DeviceArray<ObjectInfo> objects = toDevice(object);
     for (uint32_t k = 4; k <= 7; ++k) {
         SCOPED_TRACE(testing::Message() << "k = " << k);
         Frame f({0}, {k}, {kFigureMap[k]}, {kFigureTriangles});
-        reform(f.layout, objects.data(), vertex_first.data(), ecol.data(), f.triangles.data(), f.indices.data());
+        reform(f.layout, objects.ptr(), vertex_first.ptr(), ecol.ptr(), f.triangles.ptr(), f.indices.ptr());
         EXPECT_EQ(f.indexVector(), kFigureLods[k - 4]);
     }
 }
 
-TEST(Reform, InstancesAtDifferentLevelsGetTheirOwnOffsetsAndMeshes) {
+TEST_F(Reform, InstancesAtDifferentLevelsGetTheirOwnOffsetsAndMeshes) {
     // Mesh 0 is a 3-vertex triangle that never collapses; mesh 1 is the figure mesh, after it
     // in ecol. Objects 0 and 2 instance the figure at k = 4 and k = 6, object 1 is mesh 0 and
     // object 3 is listed but not drawn.
     std::vector<int32_t> ecol{-1, -1, -1};
     ecol.insert(ecol.end(), kFigureEcol.begin(), kFigureEcol.end());
-    const KernelArray<int32_t> ecol_k = toKernel(ecol);
-    const KernelArray<uint64_t> vertex_first = toKernel(std::vector<uint64_t>{0, 3});
-    KernelArray<ObjectInfo> objects(4);
+    const DeviceArray<int32_t> ecol_d = toDevice(ecol);
+    const DeviceArray<uint64_t> vertex_first = toDevice(std::vector<uint64_t>{0, 3});
+    std::vector<ObjectInfo> object(4, ObjectInfo{});
     for (uint32_t i = 0; i < 4; ++i) {
-        objects[i] = ObjectInfo{};
-        objects[i].mesh = i == 1 ? 0 : 1;
-        objects[i].vertex_count = i == 1 ? 3 : 7;
+        object[i].mesh = i == 1 ? 0 : 1;
+        object[i].vertex_count = i == 1 ? 3 : 7;
     }
+    const DeviceArray<ObjectInfo> objects = toDevice(object);
     const std::vector<uint32_t> triangle{2, 0, 1};
     Frame f({0, 1, 2, 3}, {4, 3, 6, 0}, {2, 1, 6, 0}, {kFigureTriangles, triangle, kFigureTriangles, {}});
-    reform(f.layout, objects.data(), vertex_first.data(), ecol_k.data(), f.triangles.data(), f.indices.data());
+    reform(f.layout, objects.ptr(), vertex_first.ptr(), ecol_d.ptr(), f.triangles.ptr(), f.indices.ptr());
     std::vector<uint32_t> expected = kFigureLods[0];                       // vertices 0..3
     const std::vector<uint32_t> second = shifted(triangle, 4);             // vertices 4..6
     const std::vector<uint32_t> third = shifted(kFigureLods[2], 4 + 3);    // vertices 7..12
@@ -105,13 +97,13 @@ TEST(Reform, InstancesAtDifferentLevelsGetTheirOwnOffsetsAndMeshes) {
     EXPECT_EQ(f.indexVector(), expected);
 }
 
-TEST(Reform, AnEmptyFrameWritesNothing) {
+TEST_F(Reform, AnEmptyFrameWritesNothing) {
     Frame f({}, {}, {}, {});
-    reform(f.layout, nullptr, nullptr, nullptr, f.triangles.data(), f.indices.data());
+    reform(f.layout, nullptr, nullptr, nullptr, f.triangles.ptr(), f.indices.ptr());
     EXPECT_TRUE(f.indexVector().empty());
 }
 
-TEST(Reform, MatchesTheScalarWalkOnRandomMeshesAndLayouts) {
+TEST_F(Reform, MatchesTheScalarWalkOnRandomMeshesAndLayouts) {
     std::mt19937 rng(5);
     for (int round = 0; round < 4; ++round) {
         // Random progressive meshes: ecol[v] is any earlier vertex for v >= q (a chain like
@@ -133,7 +125,7 @@ TEST(Reform, MatchesTheScalarWalkOnRandomMeshesAndLayouts) {
             mesh_vertices.push_back(n), mesh_q.push_back(q), mesh_triangles.push_back(std::move(t));
         }
         const uint32_t object_count = 200;
-        KernelArray<ObjectInfo> objects(object_count);
+        std::vector<ObjectInfo> objects(object_count);
         std::vector<uint32_t> ids, vc, tc;
         std::vector<std::vector<uint32_t>> tris;
         for (uint32_t o = 0; o < object_count; ++o) {
@@ -149,10 +141,11 @@ TEST(Reform, MatchesTheScalarWalkOnRandomMeshesAndLayouts) {
             tc.push_back(drawn ? std::uniform_int_distribution<uint32_t>(0, all)(rng) : 0);
             tris.push_back(mesh_triangles[m]);
         }
-        const KernelArray<int32_t> ecol_k = toKernel(ecol);
-        const KernelArray<uint64_t> first_k = toKernel(first);
+        const DeviceArray<ObjectInfo> objects_d = toDevice(objects);
+        const DeviceArray<int32_t> ecol_d = toDevice(ecol);
+        const DeviceArray<uint64_t> first_d = toDevice(first);
         Frame f(ids, vc, tc, tris);
-        reform(f.layout, objects.data(), first_k.data(), ecol_k.data(), f.triangles.data(), f.indices.data());
+        reform(f.layout, objects_d.ptr(), first_d.ptr(), ecol_d.ptr(), f.triangles.ptr(), f.indices.ptr());
 
         std::vector<uint32_t> expected;
         uint64_t vertex_offset = 0;

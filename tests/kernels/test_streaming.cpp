@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
 #include "defragment.h"
-#include "kernel_memory.h"
 #include "scan.h"
 #include "stream_collect.h"
+
+#include "device_test_support.h"
 
 #include <gtest/gtest.h>
 
@@ -14,6 +15,9 @@
 #include <vector>
 
 using namespace occ::k;
+using namespace occ::k::test;
+
+using Streaming = DeviceTest;
 
 namespace {
 
@@ -26,7 +30,7 @@ struct Scene {
     std::vector<uint32_t> triangles;
     std::vector<uint64_t> vertex_first, triangle_first;
     std::vector<uint32_t> mesh_vertices, mesh_triangles;
-    KernelArray<ObjectInfo> objects;
+    std::vector<ObjectInfo> objects;  // the host's copy, as DeviceScene::host_objects
 
     Scene(const std::vector<uint32_t>& vertices_per_mesh, const std::vector<uint32_t>& mesh_of_object) {
         for (uint32_t m = 0; m < vertices_per_mesh.size(); ++m) {
@@ -38,9 +42,8 @@ struct Scene {
             mesh_vertices.push_back(nv);
             mesh_triangles.push_back(nt);
         }
-        objects.resize(mesh_of_object.size());
+        objects.resize(mesh_of_object.size(), ObjectInfo{});
         for (size_t i = 0; i < mesh_of_object.size(); ++i) {
-            objects[i] = ObjectInfo{};
             objects[i].mesh = mesh_of_object[i];
             objects[i].vertex_count = vertices_per_mesh[mesh_of_object[i]];
         }
@@ -52,27 +55,16 @@ struct Scene {
     static uint32_t trianglesFor(uint32_t vc) { return vc ? 2 * vc - 1 : 0; }
 };
 
-// One frame's layout in kernel memory.
-struct Layout {
-    KernelArray<uint32_t> ids, vc, tc;
-    KernelArray<uint64_t> voff, toff;
-    ActiveLayout layout;
-
-    explicit Layout(const Blocks& blocks)
-        : ids(blocks.size()), vc(blocks.size()), tc(blocks.size()), voff(blocks.size()), toff(blocks.size()) {
-        uint32_t j = 0;
-        for (const auto& [object, vertices] : blocks) {
-            ids[j] = object;
-            vc[j] = vertices;
-            tc[j] = Scene::trianglesFor(vertices);
-            ++j;
-        }
-        const uint32_t n = uint32_t(blocks.size());
-        const uint64_t vt = exclusiveScan(vc.data(), n, voff.data());
-        const uint64_t tt = exclusiveScan(tc.data(), n, toff.data());
-        layout = {ids.data(), vc.data(), tc.data(), voff.data(), toff.data(), n, vt, tt};
+// One frame's layout, the host's copy and the device's, from the same blocks.
+LayoutPair layoutOf(const Blocks& blocks) {
+    std::vector<uint32_t> ids, vc, tc;
+    for (const auto& [object, vertices] : blocks) {
+        ids.push_back(object);
+        vc.push_back(vertices);
+        tc.push_back(Scene::trianglesFor(vertices));
     }
-};
+    return LayoutPair(std::move(ids), std::move(vc), std::move(tc));
+}
 
 // The active arrays built from scratch, by a plain loop.
 struct Expected {
@@ -94,9 +86,8 @@ Expected fromScratch(const Scene& scene, const Blocks& blocks) {
 void expectHolds(const ActiveArrays& active, const Expected& e) {
     ASSERT_EQ(active.vertices.count, e.vertices.size());
     ASSERT_EQ(active.triangles.count * 3, e.triangles.size());
-    EXPECT_EQ(std::vector<glm::vec3>(active.vertices.data(), active.vertices.data() + e.vertices.size()), e.vertices);
-    EXPECT_EQ(std::vector<uint32_t>(active.triangles.data(), active.triangles.data() + e.triangles.size()),
-              e.triangles);
+    EXPECT_EQ(toHost(active.vertices.data(), e.vertices.size()), e.vertices);
+    EXPECT_EQ(toHost(active.triangles.data(), e.triangles.size()), e.triangles);
 }
 
 // Drives one pipeline across frames the way the renderer does: previous layout kept, active
@@ -106,17 +97,23 @@ struct Streamer {
 
     const Scene& scene;
     bool coherent;
-    std::unique_ptr<Layout> previous;
+    std::unique_ptr<LayoutPair> previous;
     ActiveArrays active;
     StagingBuffers staging;
     StreamCounts sent;
     DefragmentCounts written;
 
     void frame(const Blocks& blocks) {
-        auto current = std::make_unique<Layout>(blocks);
-        const ActiveLayout prev = previous && coherent ? previous->layout : ActiveLayout{};
-        sent = streamCollect(prev, current->layout, scene.host(), staging);
-        written = defragment(prev, current->layout, staging, active);
+        auto current = std::make_unique<LayoutPair>(layoutOf(blocks));
+        const bool keep = previous && coherent;
+        const BusCounters before = busCounters();
+        sent = streamCollect(keep ? previous->host() : HostLayout{}, current->host(), scene.host(), staging);
+        // What was gathered crosses the bus in the one transfer, and nothing else does.
+        const BusCounters collected = busCounters();
+        EXPECT_EQ(collected.h2d_bytes - before.h2d_bytes, sent.bytes());
+        EXPECT_EQ(collected.d2h_bytes, before.d2h_bytes);
+        written = defragment(keep ? previous->device() : ActiveLayout{}, current->device(), staging, active);
+        EXPECT_EQ(busCounters().h2d_bytes, collected.h2d_bytes) << "defragment works on the device only";
         previous = std::move(current);
     }
 };
@@ -143,7 +140,7 @@ const Scene& smallScene() {
 
 }  // namespace
 
-TEST(Streaming, FramesGrowShrinkAppearDisappearAndStayEqualToAFreshBuild) {
+TEST_F(Streaming, FramesGrowShrinkAppearDisappearAndStayEqualToAFreshBuild) {
     const Scene& scene = smallScene();
     const std::vector<Blocks> frames{
         {{0, 3}, {2, 5}},                   // first frame: everything streamed
@@ -179,7 +176,7 @@ TEST(Streaming, FramesGrowShrinkAppearDisappearAndStayEqualToAFreshBuild) {
               0u);
 }
 
-TEST(Streaming, AGrowingLastBlockIsExtendedInPlace) {
+TEST_F(Streaming, AGrowingLastBlockIsExtendedInPlace) {
     Streamer s(smallScene());
     s.frame({{0, 3}, {1, 2}, {4, 3}});
     s.frame({{0, 3}, {1, 2}, {4, 6}});
@@ -190,7 +187,7 @@ TEST(Streaming, AGrowingLastBlockIsExtendedInPlace) {
     EXPECT_EQ(s.written.triangles_moved, 0u);
 }
 
-TEST(Streaming, AFewMovedBlocksAreBouncedInPlace) {
+TEST_F(Streaming, AFewMovedBlocksAreBouncedInPlace) {
     Streamer s(smallScene());
     s.frame({{0, 6}, {1, 8}, {2, 5}, {4, 1}});
     s.frame({{0, 6}, {1, 8}, {2, 4}, {4, 1}});  // the last block moves one to the left
@@ -200,7 +197,7 @@ TEST(Streaming, AFewMovedBlocksAreBouncedInPlace) {
     EXPECT_EQ(s.written.vertices_copied, 0u);
 }
 
-TEST(Streaming, WhenMostBlocksMoveTheOtherBufferIsWrittenOnce) {
+TEST_F(Streaming, WhenMostBlocksMoveTheOtherBufferIsWrittenOnce) {
     Streamer s(smallScene());
     s.frame({{0, 2}, {1, 8}, {2, 5}, {4, 7}});
     s.frame({{0, 3}, {1, 8}, {2, 5}, {4, 7}});  // every later block moves one to the right
@@ -210,7 +207,7 @@ TEST(Streaming, WhenMostBlocksMoveTheOtherBufferIsWrittenOnce) {
     EXPECT_EQ(s.written.vertices_bounced, 0u);
 }
 
-TEST(Streaming, AnEmptyFrameEmptiesTheActiveArrays) {
+TEST_F(Streaming, AnEmptyFrameEmptiesTheActiveArrays) {
     Streamer s(smallScene());
     s.frame({{0, 2}, {3, 4}});
     s.frame({});
@@ -220,60 +217,64 @@ TEST(Streaming, AnEmptyFrameEmptiesTheActiveArrays) {
     EXPECT_EQ(s.sent.vertices, 4u);
 }
 
-TEST(Streaming, ObjectByObjectCopiesTheSameActiveArrays) {
+TEST_F(Streaming, ObjectByObjectCopiesTheSameActiveArrays) {
     const Scene& scene = smallScene();
     ActiveArrays active;
     for (const Blocks& blocks :
          {Blocks{{0, 3}, {2, 5}}, {{0, 6}, {1, 1}, {2, 5}, {3, 7}}, {{4, 2}}}) {
-        const Layout l(blocks);
-        const StreamCounts c = streamObjectByObject(l.layout, scene.host(), active);
+        const LayoutPair l = layoutOf(blocks);
+        const BusCounters before = busCounters();
+        const StreamCounts c = streamObjectByObject(l.host(), scene.host(), active);
+        // One copy per drawn object and array (every block here has vertices and triangles).
+        EXPECT_EQ(busCounters().h2d_bytes - before.h2d_bytes, c.bytes());
+        EXPECT_EQ(busCounters().h2d_copies - before.h2d_copies, 2 * blocks.size());
         const Expected e = fromScratch(scene, blocks);
         expectHolds(active, e);
         EXPECT_EQ(c.vertices, e.vertices.size());
     }
 }
 
-TEST(Streaming, ObjectByObjectAndDefragmentMayAlternate) {
+TEST_F(Streaming, ObjectByObjectAndDefragmentMayAlternate) {
     const Scene& scene = smallScene();
     ActiveArrays active;
     StagingBuffers staging;
-    const Layout a(Blocks{{0, 3}, {2, 5}}), b(Blocks{{0, 4}, {2, 2}, {4, 3}});
-    streamObjectByObject(a.layout, scene.host(), active);
-    streamCollect(a.layout, b.layout, scene.host(), staging);
-    defragment(a.layout, b.layout, staging, active);
+    const LayoutPair a = layoutOf({{0, 3}, {2, 5}}), b = layoutOf({{0, 4}, {2, 2}, {4, 3}});
+    streamObjectByObject(a.host(), scene.host(), active);
+    streamCollect(a.host(), b.host(), scene.host(), staging);
+    defragment(a.device(), b.device(), staging, active);
     expectHolds(active, fromScratch(scene, {{0, 4}, {2, 2}, {4, 3}}));
 }
 
-TEST(Streaming, DefragmentRejectsAPreviousLayoutTheActiveArraysDoNotHold) {
+TEST_F(Streaming, DefragmentRejectsAPreviousLayoutTheActiveArraysDoNotHold) {
     const Scene& scene = smallScene();
     Streamer s(scene);
     s.frame({{0, 3}, {2, 5}});
-    const Layout wrong(Blocks{{0, 4}, {2, 5}}), next(Blocks{{0, 5}});
-    streamCollect(wrong.layout, next.layout, scene.host(), s.staging);
-    EXPECT_THROW(defragment(wrong.layout, next.layout, s.staging, s.active), std::invalid_argument);
+    const LayoutPair wrong = layoutOf({{0, 4}, {2, 5}}), next = layoutOf({{0, 5}});
+    streamCollect(wrong.host(), next.host(), scene.host(), s.staging);
+    EXPECT_THROW(defragment(wrong.device(), next.device(), s.staging, s.active), std::invalid_argument);
 }
 
-TEST(Streaming, DefragmentRejectsStagingCollectedForOtherLayouts) {
+TEST_F(Streaming, DefragmentRejectsStagingCollectedForOtherLayouts) {
     const Scene& scene = smallScene();
     Streamer s(scene);
     s.frame({{0, 3}, {2, 5}});
-    const Layout other(Blocks{{0, 6}}), next(Blocks{{0, 5}, {2, 5}});
-    streamCollect(s.previous->layout, other.layout, scene.host(), s.staging);
-    EXPECT_THROW(defragment(s.previous->layout, next.layout, s.staging, s.active), std::invalid_argument);
+    const LayoutPair other = layoutOf({{0, 6}}), next = layoutOf({{0, 5}, {2, 5}});
+    streamCollect(s.previous->host(), other.host(), scene.host(), s.staging);
+    EXPECT_THROW(defragment(s.previous->device(), next.device(), s.staging, s.active), std::invalid_argument);
     expectHolds(s.active, fromScratch(scene, {{0, 3}, {2, 5}}));  // untouched
 }
 
-TEST(Streaming, LayoutsWhoseIdsAreNotAscendingAreRejected) {
+TEST_F(Streaming, LayoutsWhoseIdsAreNotAscendingAreRejected) {
     const Scene& scene = smallScene();
     Streamer s(scene);
     s.frame({{0, 3}, {2, 5}});
-    Layout unsorted(Blocks{{0, 3}, {2, 5}});
-    std::swap(unsorted.ids[0], unsorted.ids[1]);
-    EXPECT_THROW(streamCollect(s.previous->layout, unsorted.layout, scene.host(), s.staging), std::invalid_argument);
-    EXPECT_THROW(defragment(s.previous->layout, unsorted.layout, s.staging, s.active), std::invalid_argument);
+    LayoutPair unsorted = layoutOf({{0, 3}, {2, 5}});
+    unsorted.setObjects({2, 0});
+    EXPECT_THROW(streamCollect(s.previous->host(), unsorted.host(), scene.host(), s.staging), std::invalid_argument);
+    EXPECT_THROW(defragment(s.previous->device(), unsorted.device(), s.staging, s.active), std::invalid_argument);
 }
 
-TEST(Streaming, RandomFrameSequencesMatchAFreshBuild) {
+TEST_F(Streaming, RandomFrameSequencesMatchAFreshBuild) {
     // Mostly coherent frames (a few LODs change by a little, an object now and then appears or
     // disappears), with now and then a cut to an unrelated view.
     std::mt19937 rng(11);
@@ -308,8 +309,8 @@ TEST(Streaming, RandomFrameSequencesMatchAFreshBuild) {
         coherent.frame(blocks);
         const Expected e = fromScratch(scene, blocks);
         expectHolds(coherent.active, e);
-        const Layout l(blocks);
-        streamObjectByObject(l.layout, scene.host(), by_object);
+        const LayoutPair l = layoutOf(blocks);
+        streamObjectByObject(l.host(), scene.host(), by_object);
         expectHolds(by_object, e);
         (coherent.written.vertices_bounced > 0 ? in_place : double_buffered) += coherent.written.vertices_moved > 0;
     }

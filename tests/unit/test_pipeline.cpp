@@ -48,6 +48,18 @@ PipelineOptions smallOptions(StreamMode stream) {
     return o;
 }
 
+// The active arrays and the index buffer, read back from the device.
+std::vector<glm::vec3> activeVertices(const Pipeline& p) {
+    std::vector<glm::vec3> v(p.layout().vertex_total);
+    k::copyToHost(v.data(), p.activeVertices(), v.size());
+    return v;
+}
+std::vector<uint32_t> indices(const Pipeline& p) {
+    std::vector<uint32_t> i(3 * p.layout().triangle_total);
+    k::copyToHost(i.data(), p.indices(), i.size());
+    return i;
+}
+
 // Invariant: every drawn block of the index buffer is the object's LOD prefix computed straight
 // from the .oss (first tc triangles, corners walked through ecol below vc, plus the block's
 // vertex offset), and the active vertices are the mesh's first vc positions.
@@ -56,7 +68,9 @@ TEST(Pipeline, ReformedTrianglesEqualTheLodPrefixOfTheOss) {
     Pipeline pipeline(*f.file, smallOptions(StreamMode::Coherent));
     for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
         const FrameStats s = pipeline.runFrame(f.cameras[frame], frame);
-        const k::ActiveLayout& l = pipeline.layout();
+        const k::HostLayout& l = pipeline.layout();
+        const std::vector<glm::vec3> active = activeVertices(pipeline);
+        const std::vector<uint32_t> index = indices(pipeline);
         uint64_t checked = 0;
         for (uint32_t j = 0; j < l.count; ++j) {
             const uint32_t vc = pipeline.drawVertices()[j], tc = pipeline.drawTriangles()[j];
@@ -65,11 +79,11 @@ TEST(Pipeline, ReformedTrianglesEqualTheLodPrefixOfTheOss) {
             ASSERT_LE(vc, l.vertex_count[j]);  // what is drawn is a prefix of what is resident
             ASSERT_EQ(l.triangle_count[j], mesh.map[l.vertex_count[j]]);
             for (uint32_t v = 0; v < l.vertex_count[j]; ++v)
-                ASSERT_EQ(pipeline.activeVertices()[l.vertex_offset[j] + v], mesh.positions[v]);
+                ASSERT_EQ(active[l.vertex_offset[j] + v], mesh.positions[v]);
             for (uint32_t c = 0; c < 3 * tc; ++c) {
                 uint32_t v = mesh.triangles[c];
                 while (v >= vc) v = uint32_t(mesh.ecol[v]);
-                ASSERT_EQ(pipeline.indices()[3 * l.triangle_offset[j] + c], l.vertex_offset[j] + v)
+                ASSERT_EQ(index[3 * l.triangle_offset[j] + c], l.vertex_offset[j] + v)
                     << "frame " << frame << " object " << l.objects[j];
             }
             checked += tc;
@@ -82,14 +96,16 @@ TEST(Pipeline, ReformedTrianglesEqualTheLodPrefixOfTheOss) {
 // drawn vertices and the reformed triangles with block offsets taken off.
 std::map<uint32_t, std::pair<std::vector<glm::vec3>, std::vector<uint32_t>>> drawnGeometry(const Pipeline& p) {
     std::map<uint32_t, std::pair<std::vector<glm::vec3>, std::vector<uint32_t>>> out;
-    const k::ActiveLayout& l = p.layout();
+    const k::HostLayout& l = p.layout();
+    const std::vector<glm::vec3> active = activeVertices(p);
+    const std::vector<uint32_t> index = indices(p);
     for (uint32_t j = 0; j < l.count; ++j) {
         const uint32_t vc = p.drawVertices()[j], tc = p.drawTriangles()[j];
         if (vc == 0) continue;
         auto& [vertices, triangles] = out[l.objects[j]];
-        vertices.assign(p.activeVertices() + l.vertex_offset[j], p.activeVertices() + l.vertex_offset[j] + vc);
+        vertices.assign(active.begin() + l.vertex_offset[j], active.begin() + l.vertex_offset[j] + vc);
         for (uint64_t c = 0; c < 3ull * tc; ++c)
-            triangles.push_back(p.indices()[3 * l.triangle_offset[j] + c] - uint32_t(l.vertex_offset[j]));
+            triangles.push_back(index[3 * l.triangle_offset[j] + c] - uint32_t(l.vertex_offset[j]));
     }
     return out;
 }
@@ -130,13 +146,17 @@ TEST(Pipeline, OcclusionCullsOnlyWhatTheFullResolutionDepthHides) {
         const k::Frustum frustum = k::frustumFromViewProj(camera.view_proj);
         std::vector<uint8_t> visible(f.file->objectCount(), 0);
         for (uint32_t id : pipeline.visibleObjects()) visible[id] = 1;
-        const float* depth = pipeline.occluderDepth();
-        for (uint32_t id = 0; id < f.file->objectCount(); ++id) {
-            if (visible[id]) continue;
-            const k::ObjectInfo& o = pipeline.scene().objects[id];
-            uint8_t in_frustum = 0;
-            k::frustumCull(&o, 1, frustum, &in_frustum);
-            if (!in_frustum) continue;
+        std::vector<float> depth(size_t(options.width) * options.height);
+        k::copyToHost(depth.data(), pipeline.occluderDepth(), depth.size());
+        // The frustum test on its own arrays, not the pipeline's.
+        const uint32_t n = f.file->objectCount();
+        k::DeviceArray<uint8_t> flags(n);
+        k::frustumCull(pipeline.scene().objects.ptr(), n, frustum, flags.ptr());
+        std::vector<uint8_t> in_frustum(n);
+        k::copyToHost(in_frustum.data(), flags.ptr(), n);
+        for (uint32_t id = 0; id < n; ++id) {
+            if (visible[id] || !in_frustum[id]) continue;
+            const k::ObjectInfo& o = pipeline.scene().host_objects[id];
             ++culled;
             float xmin = INFINITY, ymin = INFINITY, xmax = -INFINITY, ymax = -INFINITY, zmin = INFINITY;
             for (int c = 0; c < 8; ++c) {
@@ -171,12 +191,12 @@ TEST(Pipeline, VertexBudgetIsRespectedUpToTheFloors) {
     Pipeline pipeline(*f.file, options);
     for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
         const FrameStats s = pipeline.runFrame(f.cameras[frame], frame);
-        const k::ActiveLayout& l = pipeline.layout();
+        const k::HostLayout& l = pipeline.layout();
         uint64_t floors = 0;
         for (uint32_t j = 0; j < l.count; ++j)
             if (pipeline.drawVertices()[j] > 0) {
-                floors += pipeline.scene().objects[l.objects[j]].q;
-                ASSERT_GE(pipeline.drawVertices()[j], pipeline.scene().objects[l.objects[j]].q);
+                floors += pipeline.scene().host_objects[l.objects[j]].q;
+                ASSERT_GE(pipeline.drawVertices()[j], pipeline.scene().host_objects[l.objects[j]].q);
             }
         EXPECT_LE(s.active_vertices, std::max<uint64_t>(uint64_t(options.budget), floors)) << "frame " << frame;
     }
@@ -210,9 +230,25 @@ TEST(Pipeline, FullModeDrawsEveryFrustumObjectAtFullDetail) {
     Pipeline pipeline(*f.file, options);
     const FrameStats s = pipeline.runFrame(f.cameras.back(), 0);
     EXPECT_EQ(s.objects_occluded, 0u);
-    const k::ActiveLayout& l = pipeline.layout();
+    const k::HostLayout& l = pipeline.layout();
     for (uint32_t j = 0; j < l.count; ++j)
-        EXPECT_EQ(pipeline.drawVertices()[j], pipeline.scene().objects[l.objects[j]].vertex_count);
+        EXPECT_EQ(pipeline.drawVertices()[j], pipeline.scene().host_objects[l.objects[j]].vertex_count);
+}
+
+// Issue 12's target without a display: after the first frame, what crosses between host and
+// device is the streamed geometry plus at most 64 bytes per visible object plus 64 KiB, and at
+// least the streamed geometry (the transfer cannot be skipped).
+TEST(Pipeline, TheBusCarriesTheStreamedGeometryAndLittleMore) {
+    const PipelineFixture& f = fixture();
+    Pipeline pipeline(*f.file, smallOptions(StreamMode::Coherent));
+    for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
+        const FrameStats s = pipeline.runFrame(f.cameras[frame], frame);
+        EXPECT_GE(s.bus_h2d_bytes, s.streamed_bytes) << "frame " << frame;
+        if (frame == 0) continue;
+        EXPECT_LE(s.bus_h2d_bytes + s.bus_d2h_bytes, s.streamed_bytes + 64 * s.objects_visible + 65536)
+            << "frame " << frame << ": " << s.bus_h2d_bytes << " + " << s.bus_d2h_bytes << " bytes for "
+            << s.streamed_bytes << " streamed and " << s.objects_visible << " visible objects";
+    }
 }
 
 TEST(Pipeline, ImpossibleOptionsAreRefused) {

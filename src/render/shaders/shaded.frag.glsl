@@ -4,14 +4,14 @@
 in vec3 world_position;
 flat in vec3 base_colour;
 flat in uint item;
-
-layout(location = 1) uniform vec3 eye;
-
-// Per object, the window depth of its box's nearest point (0 when the box reaches the near
+// The window depth of the object's box's nearest point (0 when the box reaches the near
 // plane). No surface of the object is nearer, but a rasteriser interpolating depth at a pixel
 // centre just outside a thin sliver triangle extrapolates its plane (llvmpipe was seen 1e-3
 // nearer than every vertex, at depth 0.998): such a fragment is put back at the box's depth.
-layout(std430, binding = 3) readonly buffer ObjectDepthFloor { float depth_floor[]; };
+flat in float depth_floor;
+
+layout(location = 1) uniform vec3 eye;
+
 layout(depth_greater) out float gl_FragDepth;
 
 layout(location = 0) out vec4 frag_colour;
@@ -23,5 +23,5 @@ void main() {
     float lambert = abs(dot(n, to_eye));
     frag_colour = vec4(base_colour * (0.2 + 0.8 * lambert), 1.0);
     frag_item = item;
-    gl_FragDepth = max(gl_FragCoord.z, depth_floor[item - 1u]);
+    gl_FragDepth = max(gl_FragCoord.z, depth_floor);
 }

@@ -1,0 +1,279 @@
+// SPDX-License-Identifier: MIT
+#include "device_access.h"
+#include "scene/errors.h"
+
+#include <cstdlib>
+#include <cstring>
+#include <new>
+#include <string>
+
+#if defined(__CUDACC__)
+#include <cuda_gl_interop.h>
+#include <cuda_runtime.h>
+
+// Every CUDA runtime call goes through this: a failure becomes one SystemError naming the call,
+// where it was made and CUDA's own words (e.g. "no CUDA-capable device is detected").
+#define OCC_CUDA_CHECK(call)                                                                              \
+    do {                                                                                                  \
+        const cudaError_t occ_cuda_status = (call);                                                       \
+        if (occ_cuda_status != cudaSuccess)                                                               \
+            throw occ::SystemError(std::string("CUDA: ") + #call + " failed at " + __FILE__ + ":" +        \
+                                   std::to_string(__LINE__) + ": " + cudaGetErrorString(occ_cuda_status)); \
+    } while (0)
+#endif
+
+namespace occ::k {
+
+namespace {
+
+thread_local BusCounters t_frame_bus, t_measurement_bus;
+thread_local int t_measuring = 0;
+
+BusCounters& bus() { return t_measuring ? t_measurement_bus : t_frame_bus; }
+
+void countToDevice(size_t bytes) {
+    bus().h2d_bytes += bytes;
+    ++bus().h2d_copies;
+}
+
+void countToHost(size_t bytes) {
+    bus().d2h_bytes += bytes;
+    ++bus().d2h_copies;
+}
+
+}  // namespace
+
+const BusCounters& busCounters() { return t_frame_bus; }
+const BusCounters& measurementBusCounters() { return t_measurement_bus; }
+BusMeasurementScope::BusMeasurementScope() { ++t_measuring; }
+BusMeasurementScope::~BusMeasurementScope() { --t_measuring; }
+
+void countReadback(size_t bytes) { countToHost(bytes); }
+
+namespace {
+
+#if defined(__CUDACC__)
+int nodeLocalRank() {
+    for (const char* name : {"OMPI_COMM_WORLD_LOCAL_RANK", "MPI_LOCALRANKID", "SLURM_LOCALID"})
+        if (const char* v = std::getenv(name)) {
+            char* end = nullptr;
+            const long rank = std::strtol(v, &end, 10);
+            if (end != v && *end == '\0' && rank >= 0 && rank < (1 << 20)) return int(rank);
+        }
+    return 0;
+}
+
+std::string mib(uint64_t bytes) { return std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB"; }
+#endif
+
+bool g_selected = false;
+int g_requested = -1;
+DeviceInfo g_device;
+
+}  // namespace
+
+const DeviceInfo& currentDevice() {
+    if (!g_selected) selectDevice(-1);
+    return g_device;
+}
+
+#if defined(__CUDACC__)
+
+void* deviceAlloc(size_t bytes) {
+    void* p = nullptr;
+    const cudaError_t status = cudaMalloc(&p, bytes ? bytes : 1);
+    if (status == cudaErrorMemoryAllocation) {
+        cudaGetLastError();  // clears the sticky error so that later calls work
+        throw std::bad_alloc();
+    }
+    OCC_CUDA_CHECK(status);
+    return p;
+}
+void deviceFree(void* p) {
+    if (p) cudaFree(p);  // in destructors: a failure here has nowhere to go
+}
+void* pinnedAlloc(size_t bytes) {
+    void* p = nullptr;
+    const cudaError_t status = cudaMallocHost(&p, bytes ? bytes : 1);
+    if (status == cudaErrorMemoryAllocation) {
+        cudaGetLastError();
+        throw std::bad_alloc();
+    }
+    OCC_CUDA_CHECK(status);
+    return p;
+}
+void pinnedFree(void* p) {
+    if (p) cudaFreeHost(p);
+}
+void deviceSynchronize() { OCC_CUDA_CHECK(cudaDeviceSynchronize()); }
+const char* deviceBackend() { return "cuda"; }
+
+DeviceInfo selectDevice(int requested) {
+    if (g_selected && requested == g_requested) return g_device;
+    int count = 0;
+    const cudaError_t status = cudaGetDeviceCount(&count);
+    if (status != cudaSuccess || count == 0) {
+        cudaGetLastError();
+        throw occ::SystemError(std::string("CUDA: no usable CUDA device (") +
+                               (status != cudaSuccess ? cudaGetErrorString(status) : "none found") +
+                               "); occswitch-cuda needs an NVIDIA GPU and its driver, occswitch runs on the CPU");
+    }
+    if (requested >= count)
+        throw occ::UsageError("--device " + std::to_string(requested) + ": this machine has " + std::to_string(count) +
+                              " CUDA device" + (count > 1 ? "s" : "") + " (0 to " + std::to_string(count - 1) + ")");
+    const int ordinal = requested >= 0 ? requested : nodeLocalRank() % count;
+    OCC_CUDA_CHECK(cudaSetDevice(ordinal));
+    cudaDeviceProp prop{};
+    OCC_CUDA_CHECK(cudaGetDeviceProperties(&prop, ordinal));
+    DeviceInfo d;
+    d.ordinal = ordinal;
+    d.name = prop.name;
+    d.total_bytes = prop.totalGlobalMem;
+    static const char* hex = "0123456789abcdef";
+    for (int i = 0; i < 16; ++i) {
+        const auto b = static_cast<unsigned char>(prop.uuid.bytes[i]);
+        d.uuid += hex[b >> 4];
+        d.uuid += hex[b & 15];
+    }
+    g_device = d;
+    g_requested = requested;
+    g_selected = true;
+    return d;
+}
+
+void requireDeviceMemory(uint64_t bytes, const std::string& what) {
+    const DeviceInfo& d = currentDevice();
+    size_t free_bytes = 0, total = 0;
+    OCC_CUDA_CHECK(cudaMemGetInfo(&free_bytes, &total));
+    if (bytes > free_bytes)
+        throw occ::SystemError("CUDA device " + std::to_string(d.ordinal) + " (" + d.name + ", " + mib(total) +
+                               ") has " + mib(free_bytes) + " free; " + what + " needs " + mib(bytes));
+}
+bool deviceAvailable(std::string* why) {
+    int count = 0;
+    const cudaError_t status = cudaGetDeviceCount(&count);
+    if (status != cudaSuccess || count == 0) {
+        if (why) *why = status != cudaSuccess ? cudaGetErrorString(status) : "no CUDA device";
+        cudaGetLastError();
+        return false;
+    }
+    return true;
+}
+
+void busToDevice(DevicePtr<void> dst, const void* src, size_t bytes) {
+    if (bytes == 0) return;
+    OCC_CUDA_CHECK(cudaMemcpy(raw(dst), src, bytes, cudaMemcpyHostToDevice));
+    countToDevice(bytes);
+}
+void busToHost(void* dst, DevicePtr<const void> src, size_t bytes) {
+    if (bytes == 0) return;
+    OCC_CUDA_CHECK(cudaMemcpy(dst, raw(src), bytes, cudaMemcpyDeviceToHost));
+    countToHost(bytes);
+}
+void deviceToDevice(DevicePtr<void> dst, DevicePtr<const void> src, size_t bytes) {
+    if (bytes == 0) return;
+    OCC_CUDA_CHECK(cudaMemcpy(raw(dst), raw(src), bytes, cudaMemcpyDeviceToDevice));
+    bus().d2d_bytes += bytes;
+}
+void deviceMemset(DevicePtr<void> dst, int value, size_t bytes) {
+    if (bytes == 0) return;
+    OCC_CUDA_CHECK(cudaMemset(raw(dst), value, bytes));
+}
+
+GlBufferView::GlBufferView(uint32_t gl_buffer, void*) {
+    cudaGraphicsResource_t resource = nullptr;
+    const cudaError_t status = cudaGraphicsGLRegisterBuffer(&resource, gl_buffer, cudaGraphicsRegisterFlagsNone);
+    if (status != cudaSuccess) {
+        cudaGetLastError();
+        throw occ::SystemError(std::string("CUDA: cannot register OpenGL buffer ") + std::to_string(gl_buffer) +
+                               " for interop (is the GL context on this CUDA device?): " +
+                               cudaGetErrorString(status));
+    }
+    resource_ = resource;
+}
+GlBufferView::~GlBufferView() {
+    auto resource = static_cast<cudaGraphicsResource_t>(resource_);
+    if (mapped_) cudaGraphicsUnmapResources(1, &resource, 0);
+    cudaGraphicsUnregisterResource(resource);
+}
+void GlBufferView::map() {
+    if (mapped_) return;
+    auto resource = static_cast<cudaGraphicsResource_t>(resource_);
+    OCC_CUDA_CHECK(cudaGraphicsMapResources(1, &resource, 0));
+    void* p = nullptr;
+    size_t bytes = 0;
+    OCC_CUDA_CHECK(cudaGraphicsResourceGetMappedPointer(&p, &bytes, resource));
+    ptr_ = DeviceAccess::wrap(p);
+    mapped_ = true;
+}
+void GlBufferView::unmap() {
+    if (!mapped_) return;
+    auto resource = static_cast<cudaGraphicsResource_t>(resource_);
+    OCC_CUDA_CHECK(cudaGraphicsUnmapResources(1, &resource, 0));
+    ptr_ = nullptr;
+    mapped_ = false;
+}
+bool GlBufferView::usesInterop() { return true; }
+
+#else
+
+namespace {
+
+void* alignedAlloc(size_t bytes) {
+    // 64-byte alignment: cache lines, and what the GPU's allocator gives too.
+    void* p = std::aligned_alloc(64, ((bytes ? bytes : 1) + 63) / 64 * 64);
+    if (!p) throw std::bad_alloc();
+    return p;
+}
+
+}  // namespace
+
+void* deviceAlloc(size_t bytes) { return alignedAlloc(bytes); }
+void deviceFree(void* p) { std::free(p); }
+void* pinnedAlloc(size_t bytes) { return alignedAlloc(bytes); }
+void pinnedFree(void* p) { std::free(p); }
+void deviceSynchronize() {}
+const char* deviceBackend() { return "cpu-tbb"; }
+
+DeviceInfo selectDevice(int requested) {
+    if (requested > 0)
+        throw occ::UsageError("--device " + std::to_string(requested) +
+                              ": this build runs its kernels on the CPU, device 0 (occswitch-cuda uses GPUs)");
+    g_device = DeviceInfo{-1, "CPU (host memory, TBB)", "", 0};
+    g_requested = requested;
+    g_selected = true;
+    return g_device;
+}
+
+void requireDeviceMemory(uint64_t, const std::string&) {}
+bool deviceAvailable(std::string*) { return true; }
+
+void busToDevice(DevicePtr<void> dst, const void* src, size_t bytes) {
+    if (bytes == 0) return;
+    std::memcpy(raw(dst), src, bytes);
+    countToDevice(bytes);
+}
+void busToHost(void* dst, DevicePtr<const void> src, size_t bytes) {
+    if (bytes == 0) return;
+    std::memcpy(dst, raw(src), bytes);
+    countToHost(bytes);
+}
+void deviceToDevice(DevicePtr<void> dst, DevicePtr<const void> src, size_t bytes) {
+    if (bytes == 0) return;
+    std::memmove(raw(dst), raw(src), bytes);
+    bus().d2d_bytes += bytes;
+}
+void deviceMemset(DevicePtr<void> dst, int value, size_t bytes) {
+    if (bytes == 0) return;
+    std::memset(raw(dst), value, bytes);
+}
+
+GlBufferView::GlBufferView(uint32_t, void* mapped) : ptr_(DeviceAccess::wrap(mapped)), mapped_(true) {}
+GlBufferView::~GlBufferView() = default;
+void GlBufferView::map() {}
+void GlBufferView::unmap() {}
+bool GlBufferView::usesInterop() { return false; }
+
+#endif
+
+}  // namespace occ::k

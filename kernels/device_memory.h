@@ -1,0 +1,325 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <atomic>
+#include <cstddef>
+#include <algorithm>
+#include <cstdint>
+#include <string>
+#include <type_traits>
+#include <utility>
+
+// The three kinds of memory of a frame (DESIGN.md, "Memory and the bus"), kept apart by type:
+//   DeviceArray<T> / DevicePtr<T>  device memory the kernels work on: cudaMalloc under CUDA,
+//                                  64-byte-aligned host memory in the CPU build, which stands for
+//                                  it. Host code can hold, offset and pass a DevicePtr, but not
+//                                  read or write through it: that takes device_access.h, which
+//                                  only kernel sources include.
+//   PinnedArray<T>                 host memory the bus copies from and to at full speed
+//                                  (cudaMallocHost under CUDA), indexable by the host.
+//   the mapped .oss                plain host memory, read by the host only.
+// Every byte between host and device goes through the bus below, which counts it per calling
+// thread, so the CPU build measures exactly what a GPU build would move.
+
+namespace occ::k {
+
+struct DeviceAccess;  // kernels/device_access.h: how kernel sources reach the memory
+template <class T>
+class DevicePtr;
+// The pointer static_cast: typed views of untyped device memory (a BufferProvider's slots).
+template <class T, class U>
+DevicePtr<T> devicePtrCast(DevicePtr<U> p);
+
+// A typed pointer into device memory. Null by default.
+template <class T>
+class DevicePtr {
+public:
+    DevicePtr() = default;
+    DevicePtr(std::nullptr_t) {}
+    template <class U, class = std::enable_if_t<std::is_convertible_v<U*, T*>>>
+    DevicePtr(DevicePtr<U> other) : p_(other.p_) {}
+
+    DevicePtr operator+(size_t i) const { return DevicePtr(p_ + i); }
+    explicit operator bool() const { return p_ != nullptr; }
+    friend bool operator==(DevicePtr a, DevicePtr b) { return a.p_ == b.p_; }
+
+private:
+    explicit DevicePtr(T* p) : p_(p) {}
+    T* p_ = nullptr;
+    template <class>
+    friend class DevicePtr;
+    template <class>
+    friend class DeviceArray;
+    friend struct DeviceAccess;
+    template <class A, class B>
+    friend DevicePtr<A> devicePtrCast(DevicePtr<B> p);
+};
+
+template <class T, class U>
+DevicePtr<T> devicePtrCast(DevicePtr<U> p) {
+    return DevicePtr<T>(static_cast<T*>(p.p_));
+}
+
+// Raw allocation of device memory (bytes may be 0). Never returns null: throws std::bad_alloc
+// when the device has no room, SystemError for any other CUDA failure. deviceFree(nullptr) is
+// a no-op.
+void* deviceAlloc(size_t bytes);
+void deviceFree(void* p);
+// Pinned host memory, the same contract.
+void* pinnedAlloc(size_t bytes);
+void pinnedFree(void* p);
+
+// The device this process works on.
+struct DeviceInfo {
+    int ordinal = -1;          // CUDA device number; -1 in the CPU build
+    std::string name;          // "NVIDIA H200", or "CPU (host memory, TBB)"
+    std::string uuid;          // CUDA's device UUID as hex, empty in the CPU build
+    uint64_t total_bytes = 0;  // device memory (0 in the CPU build: host memory)
+};
+// Binds the calling process to its device, once, before any other device call. requested:
+// a CUDA device number, or -1 for the node-local rank of an MPI job (OMPI_COMM_WORLD_LOCAL_RANK,
+// MPI_LOCALRANKID or SLURM_LOCALID; 0 outside one) modulo the device count, so that each rank
+// on a node takes its own GPU. Throws SystemError when there is no CUDA device (with CUDA's
+// reason) and UsageError for a requested number that does not exist. The CPU build has one
+// device, 0. Calling it again with the same request returns the same device.
+DeviceInfo selectDevice(int requested = -1);
+// The device selectDevice bound (selecting the default one if none was).
+const DeviceInfo& currentDevice();
+// Throws SystemError naming the device when it has less than `bytes` of memory free for `what`
+// (a no-op in the CPU build, whose memory is the host's).
+void requireDeviceMemory(uint64_t bytes, const std::string& what);
+
+// Waits until every kernel launched so far has finished (a no-op on the CPU).
+void deviceSynchronize();
+// "cpu-tbb" or "cuda".
+const char* deviceBackend();
+// Whether this build's device can run kernels here: always in the CPU build; under CUDA, when
+// a CUDA device is visible (else false, with CUDA's reason in *why when why is not null).
+bool deviceAvailable(std::string* why = nullptr);
+
+// What crossed between host and device memory on the calling thread since it started, all
+// purposes: the bus's explicit copies and the scalars kernels return (reductions, counts).
+// Device-to-device copies do not cross the bus; they are counted apart.
+struct BusCounters {
+    uint64_t h2d_bytes = 0, d2h_bytes = 0, d2d_bytes = 0;
+    uint64_t h2d_copies = 0, d2h_copies = 0;
+};
+const BusCounters& busCounters();
+// While one is alive on a thread, that thread's bus traffic is a measurement's (the exact and
+// reference passes of the display, debug pictures), counted in measurementBusCounters() instead
+// of busCounters(). Scopes nest.
+class BusMeasurementScope {
+public:
+    BusMeasurementScope();
+    ~BusMeasurementScope();
+    BusMeasurementScope(const BusMeasurementScope&) = delete;
+    BusMeasurementScope& operator=(const BusMeasurementScope&) = delete;
+};
+const BusCounters& measurementBusCounters();
+
+// The bus: the one copy path between host and device. Sizes are in bytes; 0 copies nothing.
+// Pointers must be valid for `bytes` (host memory on the host side, device memory on the
+// other); ranges must not overlap. Throws SystemError on a CUDA failure.
+void busToDevice(DevicePtr<void> dst, const void* src, size_t bytes);
+void busToHost(void* dst, DevicePtr<const void> src, size_t bytes);
+void deviceToDevice(DevicePtr<void> dst, DevicePtr<const void> src, size_t bytes);
+// Sets `bytes` bytes of device memory to `value` (no bus traffic).
+void deviceMemset(DevicePtr<void> dst, int value, size_t bytes);
+
+// Typed copies of n elements. The source may be const or not.
+template <class T>
+void copyToDevice(DevicePtr<T> dst, const T* src, size_t n) {
+    busToDevice(DevicePtr<void>(dst), src, n * sizeof(T));
+}
+template <class T, class U, class = std::enable_if_t<std::is_same_v<std::remove_const_t<U>, T>>>
+void copyToHost(T* dst, DevicePtr<U> src, size_t n) {
+    busToHost(dst, DevicePtr<const void>(src), n * sizeof(T));
+}
+template <class T, class U, class = std::enable_if_t<std::is_same_v<std::remove_const_t<U>, T>>>
+void copyOnDevice(DevicePtr<T> dst, DevicePtr<U> src, size_t n) {
+    deviceToDevice(DevicePtr<void>(dst), DevicePtr<const void>(src), n * sizeof(T));
+}
+// One element back to the host.
+template <class U>
+std::remove_const_t<U> readBack(DevicePtr<U> src) {
+    std::remove_const_t<U> value;
+    copyToHost(&value, src, 1);
+    return value;
+}
+
+// A growable array in device memory. Contents are uninitialised after construction and after
+// resize; resizeKeep keeps them (a device-to-device copy when it grows). Capacity never shrinks.
+template <class T>
+class DeviceArray {
+public:
+    DeviceArray() = default;
+    explicit DeviceArray(size_t n) { resize(n); }
+    ~DeviceArray() { deviceFree(data_); }
+    DeviceArray(DeviceArray&& o) noexcept
+        : data_(std::exchange(o.data_, nullptr)), size_(std::exchange(o.size_, 0)),
+          capacity_(std::exchange(o.capacity_, 0)) {}
+    DeviceArray& operator=(DeviceArray&& o) noexcept {
+        std::swap(data_, o.data_);
+        std::swap(size_, o.size_);
+        std::swap(capacity_, o.capacity_);
+        return *this;
+    }
+    DeviceArray(const DeviceArray&) = delete;
+    DeviceArray& operator=(const DeviceArray&) = delete;
+
+    void resize(size_t n) {
+        if (n > capacity_) {
+            T* fresh = static_cast<T*>(deviceAlloc(n * sizeof(T)));
+            deviceFree(data_);
+            data_ = fresh;
+            capacity_ = n;
+        }
+        size_ = n;
+    }
+    void resizeKeep(size_t n) {
+        if (n > capacity_) {
+            T* fresh = static_cast<T*>(deviceAlloc(n * sizeof(T)));
+            deviceToDevice(DevicePtr<void>(DevicePtr<T>(fresh)), DevicePtr<const void>(DevicePtr<const T>(data_)),
+                           size_ * sizeof(T));
+            deviceFree(data_);
+            data_ = fresh;
+            capacity_ = n;
+        }
+        size_ = n;
+    }
+    DevicePtr<T> ptr() { return DevicePtr<T>(data_); }
+    DevicePtr<const T> ptr() const { return DevicePtr<const T>(data_); }
+    size_t size() const { return size_; }
+    size_t capacity() const { return capacity_; }
+    bool empty() const { return size_ == 0; }
+
+private:
+    T* data_ = nullptr;
+    size_t size_ = 0, capacity_ = 0;
+};
+
+// A growable array of pinned host memory, what the bus moves at full speed. Contents are
+// uninitialised after construction and resize (resize keeps nothing when it grows).
+template <class T>
+class PinnedArray {
+public:
+    PinnedArray() = default;
+    explicit PinnedArray(size_t n) { resize(n); }
+    ~PinnedArray() { pinnedFree(data_); }
+    PinnedArray(PinnedArray&& o) noexcept
+        : data_(std::exchange(o.data_, nullptr)), size_(std::exchange(o.size_, 0)),
+          capacity_(std::exchange(o.capacity_, 0)) {}
+    PinnedArray& operator=(PinnedArray&& o) noexcept {
+        std::swap(data_, o.data_);
+        std::swap(size_, o.size_);
+        std::swap(capacity_, o.capacity_);
+        return *this;
+    }
+    PinnedArray(const PinnedArray&) = delete;
+    PinnedArray& operator=(const PinnedArray&) = delete;
+
+    void resize(size_t n) {
+        if (n > capacity_) {
+            T* fresh = static_cast<T*>(pinnedAlloc(n * sizeof(T)));
+            pinnedFree(data_);
+            data_ = fresh;
+            capacity_ = n;
+        }
+        size_ = n;
+    }
+    T* data() { return data_; }
+    const T* data() const { return data_; }
+    size_t size() const { return size_; }
+    T& operator[](size_t i) { return data_[i]; }
+    const T& operator[](size_t i) const { return data_[i]; }
+    T* begin() { return data_; }
+    T* end() { return data_ + size_; }
+    const T* begin() const { return data_; }
+    const T* end() const { return data_ + size_; }
+
+private:
+    T* data_ = nullptr;
+    size_t size_ = 0, capacity_ = 0;
+};
+
+// Memory someone else owns and lends the kernels: the display's OpenGL buffers, which hold the
+// active arrays themselves so that nothing is mirrored and re-uploaded (DESIGN.md, "Memory and
+// the bus"). Slots are the lender's names for its buffers.
+class BufferProvider {
+public:
+    virtual ~BufferProvider() = default;
+    // Makes slot `slot` hold at least `bytes` (its contents are not kept when it has to grow).
+    virtual void reserve(uint32_t slot, size_t bytes) = 0;
+    virtual size_t capacity(uint32_t slot) const = 0;
+    // Where slot `slot` is now: valid between beginDeviceWrites and endDeviceWrites (CUDA-OpenGL
+    // interop maps the buffers for that time; in the CPU build they stay mapped).
+    virtual DevicePtr<void> pointer(uint32_t slot) const = 0;
+    // Bracket the kernels' writes of a frame: waits until the lender no longer reads what the
+    // last frame wrote, then maps; unmaps so that the lender may read.
+    virtual void beginDeviceWrites() = 0;
+    virtual void endDeviceWrites() = 0;
+};
+
+// A growable device buffer in memory of its own (a DeviceArray) or in a BufferProvider's slot.
+// reserve grows it by half again when short; contents are not kept when it grows.
+template <class T>
+class ProvidedBuffer {
+public:
+    void reserve(size_t n) {
+        if (n <= capacity()) return;
+        const size_t grown = n + n / 2;
+        if (provider_)
+            provider_->reserve(slot_, grown * sizeof(T));
+        else
+            owned_.resize(grown);
+    }
+    size_t capacity() const { return provider_ ? provider_->capacity(slot_) / sizeof(T) : owned_.size(); }
+    DevicePtr<T> ptr() const {
+        if (provider_) return devicePtrCast<T>(provider_->pointer(slot_));
+        return owned_.ptr();
+    }
+    bool provided() const { return provider_ != nullptr; }
+    // From now on the memory is provider's slot (within its write bracket); the first `keep`
+    // elements are copied there from the buffer's own memory, which is then freed. Call inside
+    // the provider's write bracket.
+    void lendFrom(BufferProvider* provider, uint32_t slot, size_t keep) {
+        provider->reserve(slot, std::max<size_t>(1, std::max(keep, owned_.size())) * sizeof(T));
+        copyOnDevice(devicePtrCast<T>(provider->pointer(slot)), owned_.ptr(), keep);
+        provider_ = provider;
+        slot_ = slot;
+        owned_ = DeviceArray<T>();
+    }
+
+private:
+    // Its own memory: a DeviceArray whose whole size is capacity.
+    mutable DeviceArray<T> owned_;
+    BufferProvider* provider_ = nullptr;
+    uint32_t slot_ = 0;
+};
+
+// An OpenGL buffer object as device memory the kernels write. CPU build: `mapped`, the buffer's
+// persistent, coherent mapping (GL 4.4 buffer storage), is this build's device memory. CUDA
+// build: the buffer is registered once with CUDA-OpenGL interop (cudaGraphicsGLRegisterBuffer)
+// and mapped between map() and unmap(); `mapped` is unused (pass null). Construct it with the
+// buffer's GL context current. Throws SystemError when CUDA cannot register the buffer (its GL
+// context is not on this CUDA device).
+class GlBufferView {
+public:
+    GlBufferView(uint32_t gl_buffer, void* mapped);
+    ~GlBufferView();
+    GlBufferView(const GlBufferView&) = delete;
+    GlBufferView& operator=(const GlBufferView&) = delete;
+    void map();
+    void unmap();
+    DevicePtr<void> ptr() const { return ptr_; }  // valid while mapped (always, in the CPU build)
+    // Whether the device writes GL buffers through interop (CUDA) rather than GL's own
+    // mapping of them (CPU).
+    static bool usesInterop();
+
+private:
+    void* resource_ = nullptr;  // cudaGraphicsResource_t under CUDA
+    DevicePtr<void> ptr_;
+    bool mapped_ = false;
+};
+
+}  // namespace occ::k

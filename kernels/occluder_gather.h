@@ -1,0 +1,43 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "device_memory.h"
+#include "kernel_types.h"
+
+namespace occ::k {
+
+// Every mesh of a scene at full detail, resident on the device once (instanced meshes once):
+// the .oss POSITIONS and TRIANGLES sections with their per-mesh starts, and per triangle the
+// edges it shares within its mesh (sharedEdgeFlags) and the triangle across each, mesh-local.
+struct MeshGeometry {
+    DevicePtr<const glm::vec3> positions;       // mesh after mesh, object space
+    DevicePtr<const uint32_t> triangles;        // 3 corners each, the mesh's own vertex numbering
+    DevicePtr<const uint8_t> edge_flags;        // per triangle
+    DevicePtr<const uint32_t> edge_neighbours;  // 3 per triangle, UINT32_MAX across unshared edges
+    DevicePtr<const uint64_t> vertex_first;     // per mesh, into positions
+    DevicePtr<const uint64_t> triangle_first;   // per mesh, in triangles
+};
+
+// The occluders of a frame as depthRaster takes them: their full-detail meshes transformed to
+// world space and put back to back. Kept by the caller from frame to frame (arrays grow, never
+// shrink); vertex_total and triangle_total say what the last gatherOccluders wrote.
+struct OccluderGeometry {
+    DeviceArray<glm::vec3> positions;
+    DeviceArray<uint32_t> triangles;        // 3 per triangle, into positions
+    DeviceArray<uint8_t> edge_flags;        // per triangle
+    DeviceArray<uint32_t> edge_neighbours;  // 3 per triangle, into this list
+    uint64_t vertex_total = 0, triangle_total = 0;
+    DeviceArray<uint32_t> sizes;            // scratch: per occluder, vertex then triangle counts
+    DeviceArray<uint64_t> offsets;          // scratch: their exclusive scans
+};
+
+// Gathers objects ids[0, count) (device memory, any order, count may be 0): occluder j's
+// vertices go after those of occluders 0..j-1, each multiplied by world[id] (as
+// glm::vec3(world * vec4(p, 1))), its triangles likewise with corners offset by its first
+// vertex, its edge flags copied and its edge neighbours offset by its first triangle (UINT32_MAX
+// kept). objects and world have one entry per object. Everything runs on the device; the
+// host reads back only the two totals (24 bytes).
+void gatherOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const glm::mat4> world, const MeshGeometry& meshes,
+                     DevicePtr<const uint32_t> ids, uint32_t count, OccluderGeometry& out);
+
+}  // namespace occ::k

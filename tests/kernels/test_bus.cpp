@@ -1,0 +1,102 @@
+// SPDX-License-Identifier: MIT
+#include "device_memory.h"
+
+#include "device_test_support.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <numeric>
+#include <vector>
+
+namespace occ::k {
+namespace {
+
+using Bus = test::DeviceTest;
+using DeviceArrays = test::DeviceTest;
+
+// The bus counts exactly the bytes it moves between host and device, since the experiments
+// report host <-> device traffic from these counters (BusCounters, device_memory.h).
+TEST_F(Bus, CopiesCountTheirBytesInTheirDirection) {
+    constexpr size_t n = 1000;  // 4000 bytes of uint32_t
+    std::vector<uint32_t> host(n);
+    std::iota(host.begin(), host.end(), 0u);
+    DeviceArray<uint32_t> device(n);
+
+    const BusCounters start = busCounters();
+    copyToDevice(device.ptr(), host.data(), n);
+    const BusCounters uploaded = busCounters();
+    EXPECT_EQ(uploaded.h2d_bytes - start.h2d_bytes, n * sizeof(uint32_t));
+    EXPECT_EQ(uploaded.h2d_copies - start.h2d_copies, 1u);
+    EXPECT_EQ(uploaded.d2h_bytes, start.d2h_bytes);
+    EXPECT_EQ(uploaded.d2h_copies, start.d2h_copies);
+
+    std::vector<uint32_t> back(n);
+    copyToHost(back.data(), DevicePtr<const uint32_t>(device.ptr()), n);
+    const BusCounters downloaded = busCounters();
+    EXPECT_EQ(downloaded.d2h_bytes - uploaded.d2h_bytes, n * sizeof(uint32_t));
+    EXPECT_EQ(downloaded.d2h_copies - uploaded.d2h_copies, 1u);
+    EXPECT_EQ(downloaded.h2d_bytes, uploaded.h2d_bytes);
+    EXPECT_EQ(back, host);
+}
+
+TEST_F(Bus, ReadBackCountsOneElement) {
+    const DeviceArray<uint64_t> device = test::toDevice(std::vector<uint64_t>{7, 8, 9});
+    const BusCounters start = busCounters();
+    EXPECT_EQ(readBack(device.ptr() + 2), 9u);
+    EXPECT_EQ(busCounters().d2h_bytes - start.d2h_bytes, sizeof(uint64_t));
+    EXPECT_EQ(busCounters().d2h_copies - start.d2h_copies, 1u);
+}
+
+TEST_F(Bus, DeviceToDeviceCopiesDoNotCrossTheBus) {
+    constexpr size_t n = 513;
+    const DeviceArray<uint8_t> from = test::filledDevice<uint8_t>(n, 0x5a);
+    DeviceArray<uint8_t> to(n);
+    const BusCounters start = busCounters();
+    copyOnDevice(to.ptr(), from.ptr(), n);
+    deviceToDevice(DevicePtr<void>(to.ptr()), DevicePtr<const void>(from.ptr()), n);
+    deviceMemset(DevicePtr<void>(to.ptr()), 0x33, n);
+    const BusCounters after = busCounters();
+    EXPECT_EQ(after.h2d_bytes, start.h2d_bytes);
+    EXPECT_EQ(after.d2h_bytes, start.d2h_bytes);
+    EXPECT_EQ(after.h2d_copies, start.h2d_copies);
+    EXPECT_EQ(after.d2h_copies, start.d2h_copies);
+    EXPECT_EQ(after.d2d_bytes - start.d2d_bytes, 2 * n);  // the memset is no copy
+    EXPECT_EQ(test::toHost(to), std::vector<uint8_t>(n, 0x33));
+}
+
+TEST_F(Bus, ZeroBytesCopyNothingAndCountNothing) {
+    DeviceArray<uint32_t> device(1);
+    const BusCounters start = busCounters();
+    copyToDevice(device.ptr(), static_cast<const uint32_t*>(nullptr), 0);
+    copyToHost(static_cast<uint32_t*>(nullptr), DevicePtr<const uint32_t>(device.ptr()), 0);
+    const BusCounters after = busCounters();
+    EXPECT_EQ(after.h2d_copies, start.h2d_copies);
+    EXPECT_EQ(after.d2h_copies, start.d2h_copies);
+    EXPECT_EQ(after.h2d_bytes, start.h2d_bytes);
+}
+
+TEST_F(DeviceArrays, ResizeKeepKeepsTheContentsOnTheDevice) {
+    DeviceArray<uint32_t> a = test::toDevice(std::vector<uint32_t>{1, 2, 3});
+    const BusCounters start = busCounters();
+    a.resizeKeep(1000);
+    EXPECT_EQ(busCounters().h2d_bytes, start.h2d_bytes) << "growing moves nothing over the bus";
+    EXPECT_EQ(busCounters().d2h_bytes, start.d2h_bytes);
+    EXPECT_EQ(busCounters().d2d_bytes - start.d2d_bytes, 3 * sizeof(uint32_t));
+    EXPECT_EQ(a.size(), 1000u);
+    EXPECT_EQ(test::toHost(a, 3), (std::vector<uint32_t>{1, 2, 3}));
+}
+
+TEST_F(DeviceArrays, CapacityNeverShrinks) {
+    DeviceArray<float> a(100);
+    const DevicePtr<float> before = a.ptr();
+    a.resize(10);
+    EXPECT_EQ(a.size(), 10u);
+    EXPECT_EQ(a.capacity(), 100u);
+    EXPECT_TRUE(a.ptr() == before) << "shrinking reallocates nothing";
+    a.resize(100);
+    EXPECT_TRUE(a.ptr() == before);
+}
+
+}  // namespace
+}  // namespace occ::k
