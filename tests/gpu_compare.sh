@@ -5,8 +5,29 @@
 # (visible_hash), the drawn and streamed triangles, and the picture's bytes (which the reformed
 # triangles decide). Prints what the bus carried and the stage times of both.
 #   gpu_compare.sh OCCSWITCH OCCSWITCH_CUDA SCENE.oss PATH.cam OUT_DIR
+#   gpu_compare.sh OCCSWITCH OCCSWITCH_CUDA --generated OUT_DIR   (a 4x1x4 engine grid and a
+#                                                                   2000-object plant, walked)
 # Exit 0: identical; 1: a difference or a failed run; 77: no usable GPU (CTest's skip).
 set -u
+if [ "${3:-}" = "--generated" ]; then
+  cpu=$1 gpu=$2 out=$4
+  mkdir -p "$out"
+  engine=/usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb
+  "$cpu" gen grid --model "$engine" --nx 4 --ny 1 --nz 4 -o "$out/grid.glb" >/dev/null &&
+    "$cpu" prep "$out/grid.glb" -o "$out/grid.oss" >/dev/null &&
+    "$cpu" path walk "$out/grid.oss" --frames 40 -o "$out/grid.cam" >/dev/null &&
+    "$cpu" gen plant --objects 2000 -o "$out/plant.glb" >/dev/null &&
+    "$cpu" prep "$out/plant.glb" -o "$out/plant.oss" >/dev/null &&
+    "$cpu" path walk "$out/plant.oss" --frames 40 -o "$out/plant.cam" >/dev/null ||
+    { echo "FAIL: preparing the scenes"; exit 1; }
+  status=0
+  for scene in grid plant; do
+    bash "$0" "$cpu" "$gpu" "$out/$scene.oss" "$out/$scene.cam" "$out"; s=$?
+    [ $s -eq 77 ] && exit 77
+    [ $s -ne 0 ] && status=1
+  done
+  exit $status
+fi
 cpu=$1 gpu=$2 scene=$3 path=$4 out=$5
 mkdir -p "$out"
 name=$(basename "$scene" .oss)

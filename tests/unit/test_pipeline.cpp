@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: MIT
+#include "../kernels/device_test_support.h"
 #include "frustum_cull.h"
 #include "import/plant.h"
 #include "pipeline/pipeline.h"
@@ -39,6 +40,10 @@ const PipelineFixture& fixture() {
     return f;
 }
 
+// Every test runs frames on the build's device: skipped where it cannot run kernels (the CUDA
+// test binary on a machine without a GPU).
+using PipelineFrames = k::test::DeviceTest;
+
 PipelineOptions smallOptions(StreamMode stream) {
     PipelineOptions o;
     o.width = 160;
@@ -63,7 +68,7 @@ std::vector<uint32_t> indices(const Pipeline& p) {
 // Invariant: every drawn block of the index buffer is the object's LOD prefix computed straight
 // from the .oss (first tc triangles, corners walked through ecol below vc, plus the block's
 // vertex offset), and the active vertices are the mesh's first vc positions.
-TEST(Pipeline, ReformedTrianglesEqualTheLodPrefixOfTheOss) {
+TEST_F(PipelineFrames, ReformedTrianglesEqualTheLodPrefixOfTheOss) {
     const PipelineFixture& f = fixture();
     Pipeline pipeline(*f.file, smallOptions(StreamMode::Coherent));
     for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
@@ -112,7 +117,7 @@ std::map<uint32_t, std::pair<std::vector<glm::vec3>, std::vector<uint32_t>>> dra
 
 // Invariant: with coherent streaming (and residency) what each frame draws is what a
 // from-scratch build (no coherence) and object-by-object copies draw for the same frame.
-TEST(Pipeline, CoherentStreamingMatchesAFreshBuildEveryFrame) {
+TEST_F(PipelineFrames, CoherentStreamingMatchesAFreshBuildEveryFrame) {
     const PipelineFixture& f = fixture();
     Pipeline coherent(*f.file, smallOptions(StreamMode::Coherent));
     Pipeline scratch(*f.file, smallOptions(StreamMode::NonCoherent));
@@ -135,7 +140,7 @@ TEST(Pipeline, CoherentStreamingMatchesAFreshBuildEveryFrame) {
 // Invariant: the PVS never lacks an object that is in the frustum and not behind the occluders'
 // depth. Reference: a plain scalar test of each culled object's projected AABB against every
 // pixel of the full-resolution depth buffer it touches (the HZM may only be less aggressive).
-TEST(Pipeline, OcclusionCullsOnlyWhatTheFullResolutionDepthHides) {
+TEST_F(PipelineFrames, OcclusionCullsOnlyWhatTheFullResolutionDepthHides) {
     const PipelineFixture& f = fixture();
     const PipelineOptions options = smallOptions(StreamMode::Coherent);
     Pipeline pipeline(*f.file, options);
@@ -184,7 +189,7 @@ TEST(Pipeline, OcclusionCullsOnlyWhatTheFullResolutionDepthHides) {
 }
 
 // Invariant: the frame's vertices stay within the budget N except where the floors q force more.
-TEST(Pipeline, VertexBudgetIsRespectedUpToTheFloors) {
+TEST_F(PipelineFrames, VertexBudgetIsRespectedUpToTheFloors) {
     const PipelineFixture& f = fixture();
     PipelineOptions options = smallOptions(StreamMode::Coherent);
     options.budget = 20000;
@@ -204,7 +209,7 @@ TEST(Pipeline, VertexBudgetIsRespectedUpToTheFloors) {
 
 // Beyond the paper: a frame whose view (so complexities and drawn set) did not change streams,
 // moves and reforms nothing, and still draws the right thing.
-TEST(Pipeline, AnUnchangedFrameStreamsMovesAndReformsNothing) {
+TEST_F(PipelineFrames, AnUnchangedFrameStreamsMovesAndReformsNothing) {
     const PipelineFixture& f = fixture();
     // Occluders from Eq. 3 only, so that what a frame culls depends on its camera alone.
     PipelineOptions options = smallOptions(StreamMode::Coherent);
@@ -223,7 +228,7 @@ TEST(Pipeline, AnUnchangedFrameStreamsMovesAndReformsNothing) {
     EXPECT_EQ(drawnGeometry(pipeline), drawnGeometry(fresh));
 }
 
-TEST(Pipeline, FullModeDrawsEveryFrustumObjectAtFullDetail) {
+TEST_F(PipelineFrames, FullModeDrawsEveryFrustumObjectAtFullDetail) {
     const PipelineFixture& f = fixture();
     PipelineOptions options = smallOptions(StreamMode::Coherent);
     options.mode = CullMode::Full;
@@ -238,7 +243,7 @@ TEST(Pipeline, FullModeDrawsEveryFrustumObjectAtFullDetail) {
 // Issue 12's target without a display: after the first frame, what crosses between host and
 // device is the streamed geometry plus at most 64 bytes per visible object plus 64 KiB, and at
 // least the streamed geometry (the transfer cannot be skipped).
-TEST(Pipeline, TheBusCarriesTheStreamedGeometryAndLittleMore) {
+TEST_F(PipelineFrames, TheBusCarriesTheStreamedGeometryAndLittleMore) {
     const PipelineFixture& f = fixture();
     Pipeline pipeline(*f.file, smallOptions(StreamMode::Coherent));
     for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
@@ -251,7 +256,7 @@ TEST(Pipeline, TheBusCarriesTheStreamedGeometryAndLittleMore) {
     }
 }
 
-TEST(Pipeline, ImpossibleOptionsAreRefused) {
+TEST_F(PipelineFrames, ImpossibleOptionsAreRefused) {
     const PipelineFixture& f = fixture();
     PipelineOptions o = smallOptions(StreamMode::Coherent);
     o.width = 0;
