@@ -2,74 +2,71 @@
 #pragma once
 
 #include "device_memory.h"
-#include "scan.h"
 #include "stream_collect.h"
 
 // Streaming with frame-to-frame coherence (SC, Algorithm 3 of Peng & Cao 2012), part 2 of 2:
-// the new active arrays from the old ones plus the staging buffer. The per-frame sequence and
-// which buffers live across frames are in stream_collect.h.
+// the blocks of the active arrays that changed this frame are updated in place. The layout is
+// stable (src/pipeline/block_allocator.h places the blocks): a block that keeps its place keeps
+// its bytes and is not touched; a block that grew past its room moved to a new place, where its
+// kept prefix is copied device to device; every block's streamed part comes from the staging
+// buffer that streamCollect filled. Compaction (all blocks into a fresh buffer) is the same call
+// with src != dst.
 
 namespace occ::k {
 
-// One active array, double-buffered: buffers[current] holds `count` elements (times 3 uint32
-// for triangles) of the layout defragment last built; the other buffer is its workspace.
-// Read it through data(); only defragment and streamObjectByObject change it. A buffer's size()
-// is its capacity: they grow by half again when short and never shrink.
-// The two buffers live in device memory of their own, or in a display's GL buffers
+// One active array, double-buffered so that compaction has somewhere to go: buffers[current]
+// holds the blocks; the other is empty until a compaction fills it and it becomes current. The
+// buffers live in device memory of their own or in a display's GL buffers
 // (ProvidedBuffer::lendFrom), which OpenGL then draws from.
 template <class T>
 struct ActiveBuffer {
     ProvidedBuffer<T> buffers[2];
     uint32_t current = 0;
-    uint64_t count = 0;
 
     DevicePtr<const T> data() const { return buffers[current].ptr(); }
 };
 
-// Peng & Cao's active vertex array (glm::vec3, object space, each drawn object's first vc
-// vertices at its vertex offset) and active triangle array (3 uint32 corners per triangle in the
-// object's own numbering, before reformation: its first tc triangles at its triangle offset).
-// Owned by the caller and kept from frame to frame: the first frame starts from a default one.
+// Peng & Cao's active vertex array (glm::vec3, object space, each resident object's first vc
+// vertices at its block's vertex offset) and active triangle array (3 uint32 corners per
+// triangle in the object's own numbering, before reformation: its first tc triangles at its
+// block's triangle offset). Owned by the caller and kept from frame to frame.
 struct ActiveArrays {
     ActiveBuffer<glm::vec3> vertices;
     ActiveBuffer<uint32_t> triangles;
-    DeviceArray<uint32_t> lengths;  // per-block bookkeeping of defragment; no meaning outside it
+    DeviceArray<uint32_t> lengths;  // defragment's per-block bookkeeping; no meaning outside it
     DeviceArray<uint64_t> offsets;
 };
 
-// What one defragment wrote, per array. Elements are vertices or triangles.
-struct DefragmentCounts {
-    uint64_t vertices_copied = 0;   // from staging: the streamed parts
-    uint64_t triangles_copied = 0;
-    uint64_t vertices_moved = 0;    // kept prefixes written to the new layout's place
-    uint64_t triangles_moved = 0;
-    uint64_t vertices_bounced = 0;  // moved elements that went through the workspace first
-    uint64_t triangles_bounced = 0;
+// What one block of one array (vertices, or triangles) does in a frame, in elements. The block
+// is at `to` now; its first `kept` elements are there already (moved = 0) or are copied from
+// `from` (moved = kept); after them come `staged` elements from staging[staged_offset, ...).
+// Blocks with nothing to do are not listed.
+struct BlockMove {
+    uint64_t from;
+    uint64_t to;
+    uint64_t staged_offset;
+    uint32_t kept;
+    uint32_t moved;   // 0 or kept
+    uint32_t staged;
+    uint32_t pad;     // keeps the struct 8-byte aligned on both compilers
 };
+static_assert(sizeof(BlockMove) == 40);
 
-// Turns `active` from holding `previous` into holding `current`, block by block: the prefix both
-// frames share stays or moves, the rest comes from `staging`, which must be what
-// streamCollect(previous, current, ...) left there. Per array it takes the cheaper of
-//   - in place (the extension of Algorithm 3): blocks whose offset did not change are not
-//     touched beyond appending their streamed part; blocks that move are first copied to the
-//     workspace, then to their new place (2 writes per moved element), because a block's new
-//     place may overlap another's old one;
-//   - double buffering (Peng & Cao): every block is written into the other buffer, which then
-//     becomes current (1 write per kept element);
-// in place whenever 2 x moved <= kept and the current buffer is large enough, so a frame whose
-// drawn set and LODs did not change writes nothing at all.
-// previous must be the layout `active` holds (or ActiveLayout{}: nothing is kept, the SNC
-// baseline). Throws std::invalid_argument, leaving `active` as it was, if its totals differ from
-// what `active` holds, if current's ids are not strictly ascending, or if staging's counts are
-// not what the two layouts need. Layouts are read only and may share arrays.
-DefragmentCounts defragment(const ActiveLayout& previous, const ActiveLayout& current, const StagingBuffers& staging,
-                            ActiveArrays& active);
+// Applies `count` moves (device memory) to one array: reads src, writes dst (the same buffer,
+// except when compacting into a fresh one), staging as streamCollect left it (device side).
+// Within one call the ranges read by moves must not overlap the ranges written (the allocator
+// frees a block's old place only after the frame). Elements are vertices (W = 1 glm::vec3) or
+// triangles (W = 3 uint32 corners). Returns the elements written: moved + staged.
+uint64_t defragmentVertices(DevicePtr<const BlockMove> moves, uint32_t count, DevicePtr<const glm::vec3> src,
+                            DevicePtr<glm::vec3> dst, DevicePtr<const glm::vec3> staging, ActiveArrays& scratch);
+uint64_t defragmentTriangles(DevicePtr<const BlockMove> moves, uint32_t count, DevicePtr<const uint32_t> src,
+                             DevicePtr<uint32_t> dst, DevicePtr<const uint32_t> staging, ActiveArrays& scratch);
 
-// The NS baseline of Peng & Cao's Table 1, no streaming batch: every drawn block of `current` is
-// copied whole from `host` straight into `active`, one bus copy per object and array (2 x drawn
-// objects copies), with no staging and no reuse of the previous frame. `current` is the host's
-// copy of the layout. Leaves `active` holding `current`, so it may be mixed with defragment from
-// frame to frame. Returns the counts copied.
-StreamCounts streamObjectByObject(const HostLayout& current, const HostGeometry& host, ActiveArrays& active);
+// The NS baseline of Peng & Cao's Table 1, no streaming batch: every block of `current` (the
+// host's placed layout) copied whole from `host` straight to its place in `vertices` and
+// `triangles` (device memory with room for the layout's offsets plus sizes), one bus copy per
+// object and array, with no staging and no reuse of the previous frame. Returns the counts.
+StreamCounts streamObjectByObject(const HostLayout& current, const HostGeometry& host, DevicePtr<glm::vec3> vertices,
+                                  DevicePtr<uint32_t> triangles);
 
 }  // namespace occ::k

@@ -4,7 +4,6 @@
 #include "device_memory.h"
 #include "host_device.h"
 #include "kernel_types.h"
-#include "scan.h"
 
 // GPU-driven drawing: the device writes the frame's indirect draw commands and per-draw
 // attributes straight into the display's GL buffers, so that drawing costs the bus nothing.
@@ -46,15 +45,20 @@ OCC_HD inline float objectDepthFloor(const Aabb& box, const glm::mat4& view_proj
     return floor > 0.0f ? floor : 0.0f;
 }
 
-// For every block j of `layout` (device memory) with draw_vertices[j] > 0, in layout order, the
-// k-th such block gets commands[k] = {3 tc, 1, 3 layout.triangle_offset[j], 0, k}, tc being
-// maps[map_first[mesh] + draw_vertices[j]] (the drawn LOD's triangles), and attributes[k] =
-// {object id, objectDepthFloor(its box, camera)}. Indices are taken as absolute (base vertex 0).
-// commands and attributes have room for layout.count entries; blocks is scratch kept by the
-// caller. Returns the number of draws (a 4-byte readback).
-uint32_t writeDrawCommands(const ActiveLayout& layout, DevicePtr<const uint32_t> draw_vertices,
-                           DevicePtr<const ObjectInfo> objects, DevicePtr<const uint64_t> map_first,
-                           DevicePtr<const uint32_t> maps, const Camera& camera, DevicePtr<DrawCommand> commands,
-                           DevicePtr<DrawAttributes> attributes, DeviceArray<uint32_t>& blocks);
+// One block the frame draws: object `object`'s first triangle_count triangles, whose block-local
+// indices start at first_triangle in the index buffer and whose vertices start at base_vertex.
+struct DrawBlock {
+    uint32_t object;
+    uint32_t triangle_count;
+    uint32_t first_triangle;
+    uint32_t base_vertex;
+};
+static_assert(sizeof(DrawBlock) == 16);
+
+// For each of blocks[0, count) (device memory): commands[k] = {3 triangle_count, 1,
+// 3 first_triangle, base_vertex, k} and attributes[k] = {object, objectDepthFloor(its box,
+// camera)}. commands and attributes have room for count entries.
+void writeDrawCommands(DevicePtr<const DrawBlock> blocks, uint32_t count, DevicePtr<const ObjectInfo> objects,
+                       const Camera& camera, DevicePtr<DrawCommand> commands, DevicePtr<DrawAttributes> attributes);
 
 }  // namespace occ::k

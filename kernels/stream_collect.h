@@ -8,30 +8,22 @@
 #include <vector>
 
 // Streaming with frame-to-frame coherence (SC, Algorithm 3 of Peng & Cao 2012), part 1 of 2:
-// gather on the host what the device's active arrays lack. Part 2, defragment.h, builds the new
-// active arrays from the old ones plus what was gathered.
+// gather on the host what the device's active arrays lack and send it over the bus. Part 2,
+// defragment.h, writes it, and moves the blocks that changed place, in the active arrays.
 //
-// One frame, as the pipeline drives it. The caller keeps two sets of five layout arrays in
-// kernel memory, prev_* (last frame's) and cur_* (this frame's): ids, vc, tc (uint32) and voff,
-// toff (uint64), n entries each; cur_ids holds this frame's PVS, ascending.
-//
-//   lodSelect(objects, cur_ids, n, camera, params, map_first, maps, cur_vc, cur_tc);
-//   const ActiveLayout cur{cur_ids, cur_vc, cur_tc, cur_voff, cur_toff, n,
-//                          exclusiveScan(cur_vc, n, cur_voff), exclusiveScan(cur_tc, n, cur_toff)};
-//   streamCollect(prev, cur, host, staging);  // host side: what prev lacks, into staging
-//   defragment(prev, cur, staging, active);   // device side: active now holds cur
-//   reform(cur, objects, vertex_first, ecol, active.triangles.data(), indices);
-//   draw active.vertices.data() (cur.vertex_total vertices) with indices (3 * cur.triangle_total)
-//   prev = cur; swap the prev_* and cur_* array sets
-//
-// The first frame passes ActiveLayout{} as prev. Buffers that live from frame to frame:
-//   - the previous layout's five arrays, read by both calls (so not overwritten before them);
-//   - ActiveArrays active (defragment.h): the active vertex and triangle arrays;
-//   - StagingBuffers staging: reused to avoid reallocating; its contents matter only between
-//     streamCollect and defragment of one frame.
-// Baselines of Peng & Cao's Table 1: SNC (streaming without coherence) is the same two calls with
-// ActiveLayout{} as prev, so every drawn block is gathered and copied whole; NS (no streaming
-// batch: one copy per object) is streamObjectByObject in defragment.h.
+// One frame, as src/pipeline/pipeline.cpp drives it. The host keeps the layout (HostLayout:
+// per resident block its object, vertex and triangle counts and its place, which a stable
+// allocator chooses) of the last frame and of this one:
+//   streamCollect(prev, cur, host, staging);   // what prev lacks, gathered and sent to the device
+//   defragmentVertices(moves, ..., staging.device_vertices, ...);   // the changed blocks only
+//   defragmentTriangles(moves, ..., staging.device_triangles, ...);
+//   reformBlocks(...);                         // indices of the blocks whose drawn LOD changed
+//   prev = cur
+// The first frame passes HostLayout{} as prev. StagingBuffers is reused from frame to frame; its
+// contents matter only between streamCollect and defragment of one frame. Baselines of Peng &
+// Cao's Table 1: SnC (streaming without coherence) passes HostLayout{} as prev every frame, so
+// every block is gathered and copied whole; NS (no streaming batch: one copy per object) is
+// streamObjectByObject in defragment.h.
 
 namespace occ::k {
 

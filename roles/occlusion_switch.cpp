@@ -119,13 +119,7 @@ public:
         pose_ = packet.pose;
         pose_frame_ = f;
         or_stats_ = FrameStats{};
-        // The PVS `lag` frames back, if this rank culled that frame (else none yet: the start).
-        const uint64_t lag = pipeline_.options().pvs_occluder_lag;
-        static const std::vector<uint32_t> none;
-        const std::vector<uint32_t>* source = &none;
-        for (const auto& [frame, pvs] : history_)
-            if (f >= lag && frame == f - lag) source = &pvs;
-        pipeline_.occluderPass(pose_, *source, or_stats_);
+        pipeline_.occluderPass(pose_, f, or_stats_);
     }
 
     // HC of frame f (after occluders(f)): returns the frame's OR + HC stats; the delta is sent.
@@ -143,9 +137,7 @@ public:
         }
         FrameStats stats = or_stats_;
         stats.frame = f;
-        pipeline_.cullPass(pose_, stats, known_.entries());
-        history_[1] = std::move(history_[0]);
-        history_[0] = {f, pipeline_.visibleObjects()};
+        pipeline_.cullPass(pose_, f, stats, known_.entries());
         VisibleSet current = visibleSetOf(pipeline_);
         const VisibleSetDelta delta =
             run_.deltas && f > 0 ? makeDelta(known_, current, f) : makeFullDelta(current, f);
@@ -200,8 +192,6 @@ private:
     CameraPose pose_;
     uint64_t pose_frame_ = UINT64_MAX;
     FrameStats or_stats_;
-    // The last two PVS this rank computed, with their frames (none yet: UINT64_MAX).
-    std::pair<uint64_t, std::vector<uint32_t>> history_[2] = {{UINT64_MAX, {}}, {UINT64_MAX, {}}};
     VisibleSet known_;       // V of the last frame this rank knows
     uint64_t eof_seen_ = 0;  // end-of-frames received: frames 0 .. eof_seen_ - 1
 };

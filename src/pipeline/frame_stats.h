@@ -42,6 +42,7 @@ struct FrameStats {
     uint64_t streamed_vertices = 0;
     uint64_t streamed_bytes = 0;
     uint64_t moved_bytes = 0;         // device -> device by defragmentation
+    uint64_t reformed_triangles = 0;  // reformed this frame (only blocks whose drawn LOD changed or that moved)
     // Every byte that crossed between host and device memory for this frame's work on this
     // rank, all purposes (streaming, layouts, results read back, the display's copies), counted
     // by the bus (kernels/device_memory.h); measurement passes (--exact, --reference) excluded.

@@ -75,11 +75,7 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
         l.voff.resize(room);
         l.toff.resize(room);
     }
-    for (DeviceLayoutArrays& l : device_layouts_) {
-        for (k::DeviceArray<uint32_t>* a : {&l.ids, &l.vc, &l.tc, &l.draw_vc}) a->resize(room);
-        l.voff.resize(room);
-        l.toff.resize(room);
-    }
+    places_.resize(n);
     pvs_vc_.resize(n);
     pvs_tc_.resize(n);
     resident_vc_.assign(n, 0);
@@ -90,10 +86,12 @@ void Pipeline::lendActiveArrays(k::BufferProvider& lender) {
     lender.beginDeviceWrites();
     for (uint32_t b = 0; b < 2; ++b)
         active_.vertices.buffers[b].lendFrom(&lender, kActiveVertexSlot + b,
-                                             b == active_.vertices.current ? active_.vertices.count : 0);
-    indices_.lendFrom(&lender, kIndexSlot, index_count_);
+                                             b == active_.vertices.current ? vertex_heap_.extent() : 0);
+    indices_.lendFrom(&lender, kIndexSlot, 3 * triangle_heap_.extent());
     lender.endDeviceWrites();
     lender_ = &lender;
+    draw_blocks_device_.resize(std::max<size_t>(1, draw_count_));
+    k::copyToDevice(draw_blocks_device_.ptr(), draw_blocks_.data(), draw_count_);
 }
 
 std::vector<uint32_t> Pipeline::downloadFrustumObjects() const {
@@ -247,8 +245,11 @@ bool Pipeline::frustumIsFor(const CameraPose& pose) const {
     return has_frustum_pose_ && std::memcmp(&frustum_pose_, &pose, sizeof pose) == 0;
 }
 
-void Pipeline::occluderPass(const CameraPose& pose, std::span<const uint32_t> occluder_source, FrameStats& stats) {
+void Pipeline::occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& stats) {
     if (options_.mode != CullMode::OcLod) return;
+    std::span<const uint32_t> occluder_source;
+    for (const CulledFrame& h : history_)
+        if (frame >= options_.pvs_occluder_lag && h.frame == frame - options_.pvs_occluder_lag) occluder_source = h.pvs;
     if (!frustumIsFor(pose)) frustumPass(pose, stats);
     StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
@@ -260,7 +261,7 @@ void Pipeline::occluderPass(const CameraPose& pose, std::span<const uint32_t> oc
     clock.lap(Stage::HzmBuild);
 }
 
-void Pipeline::cullPass(const CameraPose& pose, FrameStats& stats,
+void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stats,
                         std::span<const std::pair<uint32_t, uint32_t>> previous_lod) {
     if (!frustumIsFor(pose)) frustumPass(pose, stats);
     StageClock clock(stats);
@@ -294,6 +295,12 @@ void Pipeline::cullPass(const CameraPose& pose, FrameStats& stats,
         k::copyToHost(pvs_tc_.data(), pvs_tc_device_.ptr(), count);
         if (options_.lod_hysteresis > 0) keepSimilarLods(previous_lod);
     }
+    std::swap(history_[0], history_[1]);
+    CulledFrame& h = history_[0];
+    h.frame = frame;
+    h.pvs.assign(pvs_.begin(), pvs_.end());
+    h.lod.resize(pvs_.size());
+    for (size_t j = 0; j < pvs_.size(); ++j) h.lod[j] = {pvs_[j], pvs_vc_[j]};
     clock.lap(Stage::LodSelect);
 }
 
@@ -350,6 +357,144 @@ void Pipeline::setVisible(std::span<const uint32_t> ids, std::span<const uint32_
     }
 }
 
+namespace {
+
+// A block's room: its LOD plus a quarter for growth (at least 32 vertices), never more than the
+// full mesh, so that LOD changes within it (Eq. 1 and the hysteresis move by a few percent a
+// frame) write only the new vertices and triangles where the block already is.
+uint32_t roomFor(uint32_t vertices, uint32_t full) {
+    const uint64_t room = uint64_t(vertices) + std::max<uint32_t>(vertices / 4, 32);
+    return uint32_t(std::min<uint64_t>(room, full));
+}
+
+// Heaps are compacted when more than half of what they span is holes (and they are not small).
+bool fragmented(const RangeAllocator& heap) {
+    const uint64_t extent = heap.extent();
+    return extent > (uint64_t(1) << 16) && extent - heap.used() > extent / 2;
+}
+
+template <class T>
+void reserveList(k::PinnedArray<T>& list, size_t n) {
+    if (list.size() < n) list.resize(n + n / 2);
+}
+
+}  // namespace
+
+bool Pipeline::placeBlocks(HostLayoutArrays& l, uint32_t blocks, FrameStats& stats) {
+    const bool coherent = options_.stream == StreamMode::Coherent;
+    reserveList(vertex_moves_, std::max<uint32_t>(1, blocks));
+    reserveList(triangle_moves_, std::max<uint32_t>(1, blocks));
+    reserveList(reforms_, std::max<uint32_t>(1, blocks));
+    reserveList(draw_blocks_, std::max<uint32_t>(1, blocks));
+    vertex_move_count_ = triangle_move_count_ = reform_count_ = draw_count_ = 0;
+
+    // Without coherence nothing of the last frame is reused (SnC and NS): every block is new.
+    if (!coherent)
+        for (uint32_t j = 0; j < prev_host_.count; ++j) places_[prev_host_.objects[j]] = BlockPlace{};
+
+    // Each block keeps its place while its LOD fits its room; a block that outgrew it, or is new,
+    // gets a new range. Old ranges are given back after the frame, so that no move of this frame
+    // writes where another reads. When the heaps are full or mostly holes, everything is
+    // compacted into the other buffers instead.
+    std::vector<std::pair<uint64_t, uint64_t>> vertex_frees, triangle_frees;
+    std::vector<uint32_t> next_vcap(blocks), next_tcap(blocks);
+    std::vector<uint64_t> next_voff(blocks), next_toff(blocks);
+    bool compact = !coherent || fragmented(vertex_heap_) || fragmented(triangle_heap_);
+    for (uint32_t j = 0; j < blocks && !compact; ++j) {
+        const uint32_t id = l.ids[j];
+        const BlockPlace& p = places_[id];
+        if (p.resident && l.vc[j] <= p.vcap && l.tc[j] <= p.tcap) {
+            next_vcap[j] = p.vcap, next_tcap[j] = p.tcap, next_voff[j] = p.voff, next_toff[j] = p.toff;
+            continue;
+        }
+        const k::ObjectInfo& o = scene_.host_objects[id];
+        next_vcap[j] = roomFor(l.vc[j], o.vertex_count);
+        next_tcap[j] = scene_.lodTriangles(o.mesh, next_vcap[j]);
+        next_voff[j] = next_vcap[j] ? vertex_heap_.allocate(next_vcap[j]) : 0;
+        next_toff[j] = next_tcap[j] ? triangle_heap_.allocate(next_tcap[j]) : 0;
+        if (next_voff[j] == RangeAllocator::kNone || next_toff[j] == RangeAllocator::kNone) compact = true;
+        if (p.resident) {
+            vertex_frees.emplace_back(p.voff, p.vcap);
+            triangle_frees.emplace_back(p.toff, p.tcap);
+        }
+    }
+    if (compact) {
+        // Every block afresh, back to back, with room to grow and heaps half as large again.
+        uint64_t vertices = 0, triangles = 0;
+        for (uint32_t j = 0; j < blocks; ++j) {
+            const k::ObjectInfo& o = scene_.host_objects[l.ids[j]];
+            next_vcap[j] = roomFor(l.vc[j], o.vertex_count);
+            next_tcap[j] = scene_.lodTriangles(o.mesh, next_vcap[j]);
+            next_voff[j] = vertices, next_toff[j] = triangles;
+            vertices += next_vcap[j];
+            triangles += next_tcap[j];
+        }
+        vertex_heap_.reset(std::max<uint64_t>(4096, vertices + vertices / 2));
+        triangle_heap_.reset(std::max<uint64_t>(4096, triangles + triangles / 2));
+        for (uint32_t j = 0; j < blocks; ++j) {
+            if (next_vcap[j]) vertex_heap_.allocate(next_vcap[j]);
+            if (next_tcap[j]) triangle_heap_.allocate(next_tcap[j]);
+        }
+        // The display draws with 32-bit first indices and base vertices.
+        if (vertex_heap_.capacity() > uint64_t(INT32_MAX) || 3 * triangle_heap_.capacity() > uint64_t(UINT32_MAX))
+            throw SystemError("the active arrays would hold " + std::to_string(vertices) + " vertices and " +
+                              std::to_string(triangles) + " triangles, more than 32-bit indices reach: lower --budget");
+    } else {
+        // Blocks that left the layout give their ranges back too.
+        uint32_t b = 0;
+        for (uint32_t a = 0; a < prev_host_.count; ++a) {
+            const uint32_t id = prev_host_.objects[a];
+            while (b < blocks && l.ids[b] < id) ++b;
+            if (b < blocks && l.ids[b] == id) continue;
+            vertex_frees.emplace_back(places_[id].voff, places_[id].vcap);
+            triangle_frees.emplace_back(places_[id].toff, places_[id].tcap);
+        }
+        for (const auto& [offset, n] : vertex_frees) vertex_heap_.release(offset, n);
+        for (const auto& [offset, n] : triangle_frees) triangle_heap_.release(offset, n);
+    }
+
+    // The moves and reforms of the frame, block by block in layout order, which is also the order
+    // streamCollect stages the blocks' new parts in.
+    uint64_t staged_vertices = 0, staged_triangles = 0, moved = 0;
+    for (uint32_t j = 0; j < blocks; ++j) {
+        const uint32_t id = l.ids[j];
+        BlockPlace& p = places_[id];
+        const uint32_t kept_v = p.resident ? std::min(p.vc, l.vc[j]) : 0;
+        const uint32_t kept_t = p.resident ? std::min(p.tc, l.tc[j]) : 0;
+        const bool placed = !p.resident || next_voff[j] != p.voff || next_toff[j] != p.toff || compact;
+        const uint32_t staged_v = l.vc[j] - kept_v, staged_t = l.tc[j] - kept_t;
+        const uint32_t moved_v = placed ? kept_v : 0, moved_t = placed ? kept_t : 0;
+        if (moved_v + staged_v > 0)
+            vertex_moves_[vertex_move_count_++] = {p.voff, next_voff[j], staged_vertices, kept_v, moved_v, staged_v, 0};
+        if (moved_t + staged_t > 0)
+            triangle_moves_[triangle_move_count_++] = {p.toff, next_toff[j], staged_triangles, kept_t, moved_t,
+                                                       staged_t, 0};
+        staged_vertices += staged_v;
+        staged_triangles += staged_t;
+        moved += moved_v * sizeof(glm::vec3) + moved_t * 3 * sizeof(uint32_t);
+        // Indices are local to the block: only a block whose drawn LOD or triangles changed, or
+        // that moved, is reformed.
+        if (l.draw_vc[j] > 0 && (placed || staged_t > 0 || p.draw_vc != l.draw_vc[j]))
+            reforms_[reform_count_++] = {next_toff[j], id, l.draw_vc[j], l.draw_tc[j], 0};
+        if (l.draw_vc[j] > 0)
+            draw_blocks_[draw_count_++] = {id, l.draw_tc[j], uint32_t(next_toff[j]), uint32_t(next_voff[j])};
+        p = {next_voff[j], next_toff[j], next_vcap[j], next_tcap[j], l.vc[j], l.tc[j], l.draw_vc[j], true};
+        l.voff[j] = next_voff[j];
+        l.toff[j] = next_toff[j];
+    }
+    // Blocks gone from the layout are no longer resident.
+    {
+        uint32_t b = 0;
+        for (uint32_t a = 0; a < prev_host_.count; ++a) {
+            const uint32_t id = prev_host_.objects[a];
+            while (b < blocks && l.ids[b] < id) ++b;
+            if (!(b < blocks && l.ids[b] == id)) places_[id] = BlockPlace{};
+        }
+    }
+    stats.moved_bytes = moved;
+    return compact;
+}
+
 void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
     StageClock clock(stats);
     stats.frame = frame;
@@ -357,71 +502,67 @@ void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
     stats.objects_visible = pvs_.size();
     buildLayout(frame, stats);
     HostLayoutArrays& l = host_layouts_[cur_index_];
-    DeviceLayoutArrays& d = device_layouts_[cur_index_];
     const uint32_t blocks = layout_count_;
-    // The host's copy of the layout, for the gather and the display.
+    const bool compacted = placeBlocks(l, blocks, stats);
     uint64_t vertex_total = 0, triangle_total = 0;
-    for (uint32_t j = 0; j < blocks; ++j) {
-        l.voff[j] = vertex_total;
-        l.toff[j] = triangle_total;
-        vertex_total += l.vc[j];
-        triangle_total += l.tc[j];
-    }
+    for (uint32_t j = 0; j < blocks; ++j) vertex_total += l.vc[j], triangle_total += l.tc[j];
     cur_host_ = {l.ids.data(), l.vc.data(), l.tc.data(), l.voff.data(), l.toff.data(), blocks, vertex_total, triangle_total};
-    // The device's: the per-block counts cross the bus, the offsets are scanned there.
-    k::copyToDevice(d.ids.ptr(), l.ids.data(), blocks);
-    k::copyToDevice(d.vc.ptr(), l.vc.data(), blocks);
-    k::copyToDevice(d.tc.ptr(), l.tc.data(), blocks);
-    k::copyToDevice(d.draw_vc.ptr(), l.draw_vc.data(), blocks);
-    k::exclusiveScan(d.vc.ptr(), blocks, d.voff.ptr());
-    k::exclusiveScan(d.tc.ptr(), blocks, d.toff.ptr());
-    cur_ = {d.ids.ptr(), d.vc.ptr(), d.tc.ptr(), d.voff.ptr(), d.toff.ptr(), blocks, vertex_total, triangle_total};
     stats.resident_vertices = vertex_total;
     stats.resident_triangles = triangle_total;
     clock.lap(Stage::Scan);
-    k::StreamCounts sent;
-    k::DefragmentCounts moved;
+
     // The active arrays may be the display's buffers: the kernels write them only in here.
     if (lender_) lender_->beginDeviceWrites();
+    // Compaction writes every block into the other buffers, which then become current.
+    k::ActiveBuffer<glm::vec3>& vertices = active_.vertices;
+    k::ActiveBuffer<uint32_t>& triangles = active_.triangles;
+    const uint32_t vertex_to = compacted ? vertices.current ^ 1 : vertices.current;
+    const uint32_t triangle_to = compacted ? triangles.current ^ 1 : triangles.current;
+    vertices.buffers[vertex_to].reserve(vertex_heap_.capacity());
+    triangles.buffers[triangle_to].reserve(3 * triangle_heap_.capacity());
+    indices_.reserve(3 * triangle_heap_.capacity());
+    k::StreamCounts sent;
     if (options_.stream == StreamMode::None) {
-        sent = k::streamObjectByObject(cur_host_, host_, active_);
+        sent = k::streamObjectByObject(cur_host_, host_, vertices.buffers[vertex_to].ptr(),
+                                       triangles.buffers[triangle_to].ptr());
         clock.lap(Stage::StreamCollect);
         clock.lap(Stage::Defragment);
     } else {
-        // Without coherence nothing of the last frame is reused: the previous layout is empty.
-        const bool coherent = options_.stream == StreamMode::Coherent;
-        sent = k::streamCollect(coherent ? prev_host_ : k::HostLayout{}, cur_host_, host_, staging_);
+        sent = k::streamCollect(options_.stream == StreamMode::Coherent ? prev_host_ : k::HostLayout{}, cur_host_,
+                                host_, staging_);
         clock.lap(Stage::StreamCollect);
-        moved = k::defragment(coherent ? prev_ : k::ActiveLayout{}, cur_, staging_, active_);
+        // Only the blocks that changed: their lists cross the bus, then their elements move.
+        const auto upload = [](k::DeviceArray<k::BlockMove>& device, const k::PinnedArray<k::BlockMove>& host,
+                               uint32_t count) {
+            if (device.size() < count) device.resize(count + count / 2);
+            k::copyToDevice(device.ptr(), host.data(), count);
+        };
+        upload(vertex_moves_device_, vertex_moves_, vertex_move_count_);
+        upload(triangle_moves_device_, triangle_moves_, triangle_move_count_);
+        k::defragmentVertices(vertex_moves_device_.ptr(), vertex_move_count_, vertices.buffers[vertices.current].ptr(),
+                              vertices.buffers[vertex_to].ptr(), staging_.device_vertices.ptr(), active_);
+        k::defragmentTriangles(triangle_moves_device_.ptr(), triangle_move_count_,
+                               triangles.buffers[triangles.current].ptr(), triangles.buffers[triangle_to].ptr(),
+                               staging_.device_triangles.ptr(), active_);
         clock.lap(Stage::Defragment);
     }
+    vertices.current = vertex_to;
+    triangles.current = triangle_to;
     stats.streamed_vertices = sent.vertices;
     stats.streamed_triangles = sent.triangles;
     stats.streamed_bytes = sent.bytes();
-    stats.moved_bytes = (moved.vertices_moved + moved.vertices_bounced) * sizeof(glm::vec3) +
-                        (moved.triangles_moved + moved.triangles_bounced) * 3 * sizeof(uint32_t);
 
-    // Beyond the paper: a frame that draws exactly what the last one drew, from blocks that did
-    // not move, has last frame's index buffer already; only the checks above cost anything.
-    const HostLayoutArrays& p = host_layouts_[cur_index_ ^ 1];
-    const auto same = [&](const auto& a, const auto& b) {
-        return std::memcmp(a.data(), b.data(), size_t(blocks) * sizeof(a[0])) == 0;
-    };
-    const bool unchanged = options_.stream == StreamMode::Coherent && moved.vertices_moved == 0 &&
-                           moved.vertices_bounced == 0 && moved.vertices_copied == 0 && moved.triangles_moved == 0 &&
-                           moved.triangles_bounced == 0 && moved.triangles_copied == 0 && prev_host_.count == blocks &&
-                           index_count_ == 3 * triangle_total && same(l.ids, p.ids) && same(l.vc, p.vc) &&
-                           same(l.draw_vc, p.draw_vc);
-    if (!unchanged) {
-        indices_.reserve(size_t(3 * triangle_total));
-        k::reform(cur_, scene_.objects.ptr(), scene_.vertex_first.ptr(), scene_.ecol.ptr(), active_.triangles.data(),
-                  indices_.ptr(), d.draw_vc.ptr());
-        index_count_ = 3 * triangle_total;
+    if (reforms_device_.size() < reform_count_) reforms_device_.resize(reform_count_ + reform_count_ / 2);
+    k::copyToDevice(reforms_device_.ptr(), reforms_.data(), reform_count_);
+    stats.reformed_triangles = k::reformBlocks(reforms_device_.ptr(), reform_count_, scene_.objects.ptr(), scene_.vertex_first.ptr(),
+                    scene_.ecol.ptr(), triangles.data(), indices_.ptr(), reform_scratch_);
+    if (lender_) {
+        draw_blocks_device_.resize(std::max<size_t>(1, draw_count_));
+        k::copyToDevice(draw_blocks_device_.ptr(), draw_blocks_.data(), draw_count_);
+        lender_->endDeviceWrites();
     }
-    if (lender_) lender_->endDeviceWrites();
     clock.lap(Stage::Reform);
 
-    prev_ = cur_;
     prev_host_ = cur_host_;
     cur_index_ ^= 1;
 }
@@ -431,12 +572,11 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
     stats.frame = frame;
     const k::BusCounters bus_before = k::busCounters();
     // The PVS `pvs_occluder_lag` frames back supplies this frame's extra occluders.
-    occluderPass(pose, pvs_history_[options_.pvs_occluder_lag - 1], stats);
-    cullPass(pose, stats, last_lod_);
-    last_lod_.resize(pvs_.size());
-    for (size_t j = 0; j < pvs_.size(); ++j) last_lod_[j] = {pvs_[j], pvs_vc_[j]};
-    pvs_history_[1].swap(pvs_history_[0]);
-    pvs_history_[0] = pvs_;
+    occluderPass(pose, frame, stats);
+    // The last frame's visible set, if this pipeline culled it, for the hysteresis.
+    const bool last = frame > 0 && history_[0].frame == frame - 1;
+    static const std::vector<std::pair<uint32_t, uint32_t>> none;
+    cullPass(pose, frame, stats, last ? history_[0].lod : none);
     streamPass(frame, stats);
     stats.bus_h2d_bytes = k::busCounters().h2d_bytes - bus_before.h2d_bytes;
     stats.bus_d2h_bytes = k::busCounters().d2h_bytes - bus_before.d2h_bytes;

@@ -2,6 +2,9 @@
 #pragma once
 
 #include "defragment.h"
+#include "draw_commands.h"
+#include "reform.h"
+#include "pipeline/block_allocator.h"
 #include "depth_raster.h"
 #include "device_memory.h"
 #include "occluder_gather.h"
@@ -79,21 +82,25 @@ public:
     // file must outlive the pipeline. Throws UsageError for impossible options.
     Pipeline(const OssFile& file, const PipelineOptions& options);
 
-    // Runs every stage for one camera (drawing is the display's job) and returns the counts and
-    // the time of each stage: occluderPass, cullPass and streamPass in a row.
+    // The one-rank schedule of the roles' steps (roles/occlusion_switch.h runs the same steps
+    // on 1, 2 or 3 ranks): occluderPass, cullPass with this pipeline's own last visible set for
+    // the hysteresis, and streamPass. Returns the frame's counts, stage times and bus bytes.
+    // Drawing is the display's job.
     FrameStats runFrame(const CameraPose& pose, uint64_t frame);
 
     // The stages in three groups, the occlusion-switch roles (roles/), each adding its counts
-    // and stage times to `stats`:
-    // OR: frustum culling for `pose`, the occluders (Eq. 3's AOS and the largest objects of
-    // occluder_source, a PVS of an earlier frame, ascending ids), their depth raster and the
-    // HZM. Nothing in modes full and lod.
-    void occluderPass(const CameraPose& pose, std::span<const uint32_t> occluder_source, FrameStats& stats);
-    // HC: frustum culling (reused when the last occluderPass had this pose), the HZM test
-    // against the HZM of the last occluderPass (oc+lod) and LOD selection: visibleObjects()
-    // and visibleLodVertices(). previous_lod: the last frame's visible set as (id, vertex
-    // count) pairs, ascending ids, for the LOD hysteresis (empty: none).
-    void cullPass(const CameraPose& pose, FrameStats& stats,
+    // and stage times to `stats`. The pipeline keeps one history of the visible sets its
+    // cullPass chose (the last two frames'), which both the one-rank schedule and the roles use.
+    // OR of `frame`: frustum culling for `pose`, the occluders (Eq. 3's AOS and the largest
+    // objects of the PVS this pipeline chose for frame - options().pvs_occluder_lag, if it
+    // culled that frame), their depth raster and the HZM. Nothing in modes full and lod.
+    void occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& stats);
+    // HC of `frame`: frustum culling (reused when the last occluderPass had this pose), the HZM
+    // test against the HZM of the last occluderPass (oc+lod) and LOD selection: visibleObjects()
+    // and visibleLodVertices(), recorded in the history. previous_lod: the last frame's visible
+    // set as (id, vertex count) pairs, ascending ids, for the LOD hysteresis (empty: none; in
+    // the switch it is the other rank's).
+    void cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stats,
                   std::span<const std::pair<uint32_t, uint32_t>> previous_lod = {});
     // RVG: the visible set a cullPass elsewhere chose (ascending ids with their Eq. 1 vertex
     // counts, 0 = not drawn); throws std::invalid_argument for an entry that is not a valid
@@ -115,22 +122,29 @@ public:
     const std::vector<uint32_t>& visibleObjects() const { return pvs_; }  // PVS, ascending ids
     // Eq. 1's vertex count for each PVS object, in visibleObjects() order (0 = below the PET).
     std::span<const uint32_t> visibleLodVertices() const { return {pvs_vc_.data(), pvs_.size()}; }
-    // The host's copy of the layout of the active arrays: resident vertex / triangle counts,
-    // offsets, ids (ascending), one block per object.
+    // The layout of the active arrays: resident vertex / triangle counts, where each block is
+    // (blocks keep their place from frame to frame; there may be gaps between them), ids
+    // (ascending), one block per object. vertex_total and triangle_total are the resident sums.
     const k::HostLayout& layout() const { return prev_host_; }
     // Per block of layout(): what this frame draws, a prefix of the resident block (0 = resident
-    // only). Block j's triangles to draw are indices()[3 * triangle_offset[j], + 3 * drawTriangles()[j]).
+    // only). Block j's triangles to draw are indices()[3 * triangle_offset[j], + 3 * drawTriangles()[j]),
+    // local to the block: vertex v of the block is activeVertices()[vertex_offset[j] + v].
     const uint32_t* drawVertices() const { return host_layouts_[cur_index_ ^ 1].draw_vc.data(); }
     const uint32_t* drawTriangles() const { return host_layouts_[cur_index_ ^ 1].draw_tc.data(); }
     uint32_t frustumCount() const { return frustum_count_; }
     const DeviceScene& scene() const { return scene_; }
     double budget() const { return budget_; }
     // Device memory:
-    const k::ActiveLayout& deviceLayout() const { return prev_; }
-    // Per block of deviceLayout(), drawVertices() on the device.
-    k::DevicePtr<const uint32_t> deviceDrawVertices() const { return device_layouts_[cur_index_ ^ 1].draw_vc.ptr(); }
-    k::DevicePtr<const glm::vec3> activeVertices() const { return active_.vertices.data(); }  // layout().vertex_total
-    k::DevicePtr<const uint32_t> indices() const { return indices_.ptr(); }  // 3 * layout().triangle_total
+    // The active vertex array (vertexExtent() elements hold blocks) and the index buffer (3 x
+    // triangleExtent() entries hold blocks).
+    k::DevicePtr<const glm::vec3> activeVertices() const { return active_.vertices.data(); }
+    k::DevicePtr<const uint32_t> indices() const { return indices_.ptr(); }
+    uint64_t vertexExtent() const { return vertex_heap_.extent(); }
+    uint64_t triangleExtent() const { return triangle_heap_.extent(); }
+    // The blocks the last frame draws, drawCount() of them, for the display's draw commands
+    // (uploaded only once the active arrays are lent to a display).
+    k::DevicePtr<const k::DrawBlock> drawBlocks() const { return draw_blocks_device_.ptr(); }
+    uint32_t drawCount() const { return draw_count_; }
     k::DevicePtr<const float> occluderDepth() const { return hzm_.ptr(); }  // W x H, level 0 of the HZM
     // Every level of the HZM (meaningful after an oc+lod frame).
     k::HzmLevels hzmLevels() const;
@@ -152,10 +166,17 @@ private:
         std::vector<uint32_t> ids, vc, tc, draw_vc, draw_tc;
         std::vector<uint64_t> voff, toff;
     };
-    struct DeviceLayoutArrays {
-        k::DeviceArray<uint32_t> ids, vc, tc, draw_vc;
-        k::DeviceArray<uint64_t> voff, toff;
+    // Where an object's block is, while it is resident.
+    struct BlockPlace {
+        uint64_t voff = 0, toff = 0;
+        uint32_t vcap = 0, tcap = 0;    // its room: vertices, and the triangles of that LOD
+        uint32_t vc = 0, tc = 0;        // what it holds
+        uint32_t draw_vc = 0;           // what its indices are reformed for
+        bool resident = false;
     };
+    // Places this frame's blocks (layout arrays l) and fills the move and reform lists.
+    // Returns true when it compacted (every block written into the other buffers).
+    bool placeBlocks(HostLayoutArrays& l, uint32_t blocks, FrameStats& stats);
     void keepSimilarLods(std::span<const std::pair<uint32_t, uint32_t>> previous);
     void chooseOccluders(const k::Camera& camera, std::span<const uint32_t> occluder_source);
     void rasterOccluders(const k::Camera& camera, FrameStats& stats);
@@ -187,21 +208,36 @@ private:
 
     // Host memory: the visible set and what the layout is built from.
     std::vector<uint32_t> pvs_, pvs_vc_, pvs_tc_;  // Eq. 1's choice for each PVS object
-    std::vector<uint32_t> pvs_history_[2];  // the PVS of the last frame and of the one before
-    std::vector<std::pair<uint32_t, uint32_t>> last_lod_;  // runFrame's last visible set with counts
+    // The visible sets of the last two frames this pipeline culled, newest first (frame
+    // UINT64_MAX: none yet): the PVS supplies a later frame's occluders, the counts the hysteresis.
+    struct CulledFrame {
+        uint64_t frame = UINT64_MAX;
+        std::vector<uint32_t> pvs;
+        std::vector<std::pair<uint32_t, uint32_t>> lod;
+    };
+    CulledFrame history_[2];
     std::vector<uint32_t> resident_vc_;         // per object, vertices in the active arrays
     std::vector<uint64_t> last_drawn_;          // per object, last frame it was drawn
 
     HostLayoutArrays host_layouts_[2];
-    DeviceLayoutArrays device_layouts_[2];
     uint32_t cur_index_ = 0;
     uint32_t layout_count_ = 0;
     k::HostLayout prev_host_{}, cur_host_{};
-    k::ActiveLayout prev_{}, cur_{};
+    // The stable layout: each resident object's block, and the free ranges around them.
+    std::vector<BlockPlace> places_;
+    RangeAllocator vertex_heap_, triangle_heap_;
+    // What changed this frame, built on the host and sent over the bus.
+    k::PinnedArray<k::BlockMove> vertex_moves_, triangle_moves_;
+    k::PinnedArray<k::ReformBlock> reforms_;
+    k::PinnedArray<k::DrawBlock> draw_blocks_;
+    uint32_t vertex_move_count_ = 0, triangle_move_count_ = 0, reform_count_ = 0, draw_count_ = 0;
+    k::DeviceArray<k::BlockMove> vertex_moves_device_, triangle_moves_device_;
+    k::DeviceArray<k::ReformBlock> reforms_device_;
+    k::DeviceArray<k::DrawBlock> draw_blocks_device_;
+    k::ReformScratch reform_scratch_;
     k::StagingBuffers staging_;
     k::ActiveArrays active_;
     k::ProvidedBuffer<uint32_t> indices_;
-    uint64_t index_count_ = 0;
     k::BufferProvider* lender_ = nullptr;  // what indices_ holds: 3 x the triangles of the last reform
 };
 

@@ -221,15 +221,14 @@ void SceneRenderer::setCamera(GLuint program, const k::Camera& camera) {
 DrawCounts SceneRenderer::drawFrame(const Pipeline& pipeline, const k::Camera& camera) {
     if (attached_ != &pipeline) throw std::logic_error("SceneRenderer::drawFrame: the pipeline is not attached");
     DrawCounts counts;
-    const k::ActiveLayout& layout = pipeline.deviceLayout();
+    const uint32_t draws = pipeline.drawCount();
     // The device writes the frame's commands into GL's buffers.
     beginDeviceWrites();
-    reserve(kCommandSlot, std::max<size_t>(1, layout.count) * sizeof(k::DrawCommand));
-    reserve(kDrawAttributeSlot, std::max<size_t>(1, layout.count) * sizeof(k::DrawAttributes));
-    const uint32_t draws = k::writeDrawCommands(
-        layout, pipeline.deviceDrawVertices(), scene_.objects.ptr(), scene_.map_first.ptr(), scene_.maps.ptr(), camera,
-        k::devicePtrCast<k::DrawCommand>(pointer(kCommandSlot)),
-        k::devicePtrCast<k::DrawAttributes>(pointer(kDrawAttributeSlot)), draw_blocks_);
+    reserve(kCommandSlot, std::max<size_t>(1, draws) * sizeof(k::DrawCommand));
+    reserve(kDrawAttributeSlot, std::max<size_t>(1, draws) * sizeof(k::DrawAttributes));
+    k::writeDrawCommands(pipeline.drawBlocks(), draws, scene_.objects.ptr(), camera,
+                         k::devicePtrCast<k::DrawCommand>(pointer(kCommandSlot)),
+                         k::devicePtrCast<k::DrawAttributes>(pointer(kDrawAttributeSlot)));
     endDeviceWrites();
     counts.blocks = draws;
     bindVertexArray(lod_vao_, slots_[pipeline.activeVertexSlot()].buffer, slots_[kDrawAttributeSlot].buffer,

@@ -112,7 +112,6 @@ private:
     GlSlot slots_[kSlotCount];
     GLsync drawn_ = nullptr;  // after the last frame's draw: the device may write again
     bool writing_ = false;    // between beginDeviceWrites and endDeviceWrites
-    k::DeviceArray<uint32_t> draw_blocks_;  // writeDrawCommands' scratch
     GLuint lod_vao_ = 0;
     // The full-detail model (measurements only): uploaded once, commands from the host.
     GLuint full_vao_ = 0, full_vertices_ = 0, full_indices_ = 0, full_attributes_ = 0, full_commands_ = 0;

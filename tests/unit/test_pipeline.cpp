@@ -55,19 +55,19 @@ PipelineOptions smallOptions(StreamMode stream) {
 
 // The active arrays and the index buffer, read back from the device.
 std::vector<glm::vec3> activeVertices(const Pipeline& p) {
-    std::vector<glm::vec3> v(p.layout().vertex_total);
+    std::vector<glm::vec3> v(p.vertexExtent());
     k::copyToHost(v.data(), p.activeVertices(), v.size());
     return v;
 }
 std::vector<uint32_t> indices(const Pipeline& p) {
-    std::vector<uint32_t> i(3 * p.layout().triangle_total);
+    std::vector<uint32_t> i(3 * p.triangleExtent());
     k::copyToHost(i.data(), p.indices(), i.size());
     return i;
 }
 
 // Invariant: every drawn block of the index buffer is the object's LOD prefix computed straight
-// from the .oss (first tc triangles, corners walked through ecol below vc, plus the block's
-// vertex offset), and the active vertices are the mesh's first vc positions.
+// from the .oss (first tc triangles, corners walked through ecol below vc, local to the block),
+// and the active vertices are the mesh's first vc positions.
 TEST_F(PipelineFrames, ReformedTrianglesEqualTheLodPrefixOfTheOss) {
     const PipelineFixture& f = fixture();
     Pipeline pipeline(*f.file, smallOptions(StreamMode::Coherent));
@@ -88,7 +88,7 @@ TEST_F(PipelineFrames, ReformedTrianglesEqualTheLodPrefixOfTheOss) {
             for (uint32_t c = 0; c < 3 * tc; ++c) {
                 uint32_t v = mesh.triangles[c];
                 while (v >= vc) v = uint32_t(mesh.ecol[v]);
-                ASSERT_EQ(index[3 * l.triangle_offset[j] + c], l.vertex_offset[j] + v)
+                ASSERT_EQ(index[3 * l.triangle_offset[j] + c], v)
                     << "frame " << frame << " object " << l.objects[j];
             }
             checked += tc;
@@ -98,7 +98,7 @@ TEST_F(PipelineFrames, ReformedTrianglesEqualTheLodPrefixOfTheOss) {
 }
 
 // What a frame draws, per object, in a form that does not depend on where blocks sit: the
-// drawn vertices and the reformed triangles with block offsets taken off.
+// drawn vertices and the reformed (block-local) triangles.
 std::map<uint32_t, std::pair<std::vector<glm::vec3>, std::vector<uint32_t>>> drawnGeometry(const Pipeline& p) {
     std::map<uint32_t, std::pair<std::vector<glm::vec3>, std::vector<uint32_t>>> out;
     const k::HostLayout& l = p.layout();
@@ -110,7 +110,7 @@ std::map<uint32_t, std::pair<std::vector<glm::vec3>, std::vector<uint32_t>>> dra
         auto& [vertices, triangles] = out[l.objects[j]];
         vertices.assign(active.begin() + l.vertex_offset[j], active.begin() + l.vertex_offset[j] + vc);
         for (uint64_t c = 0; c < 3ull * tc; ++c)
-            triangles.push_back(index[3 * l.triangle_offset[j] + c] - uint32_t(l.vertex_offset[j]));
+            triangles.push_back(index[3 * l.triangle_offset[j] + c]);
     }
     return out;
 }
@@ -222,6 +222,7 @@ TEST_F(PipelineFrames, AnUnchangedFrameStreamsMovesAndReformsNothing) {
     const FrameStats repeat = pipeline.runFrame(still, 6);
     EXPECT_EQ(repeat.streamed_bytes, 0u);
     EXPECT_EQ(repeat.moved_bytes, 0u);
+    EXPECT_EQ(repeat.reformed_triangles, 0u);
     options.stream = StreamMode::NonCoherent;
     Pipeline fresh(*f.file, options);
     fresh.runFrame(still, 0);
@@ -238,6 +239,42 @@ TEST_F(PipelineFrames, FullModeDrawsEveryFrustumObjectAtFullDetail) {
     const k::HostLayout& l = pipeline.layout();
     for (uint32_t j = 0; j < l.count; ++j)
         EXPECT_EQ(pipeline.drawVertices()[j], pipeline.scene().host_objects[l.objects[j]].vertex_count);
+}
+
+// The stable layout (issue 12): a block that keeps its place keeps its bytes, most blocks keep
+// their place from frame to frame, and compaction is the exception.
+TEST_F(PipelineFrames, BlocksKeepTheirPlaceAndTheirBytes) {
+    const PipelineFixture& f = fixture();
+    Pipeline pipeline(*f.file, smallOptions(StreamMode::Coherent));
+    std::map<uint32_t, std::pair<uint64_t, std::vector<glm::vec3>>> before;  // id -> (offset, vertices)
+    uint64_t shared = 0, stayed = 0, compactions = 0;
+    for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
+        const FrameStats s = pipeline.runFrame(f.cameras[frame], frame);
+        const k::HostLayout& l = pipeline.layout();
+        const std::vector<glm::vec3> active = activeVertices(pipeline);
+        std::map<uint32_t, std::pair<uint64_t, std::vector<glm::vec3>>> now;
+        uint64_t moved_here = 0;
+        for (uint32_t j = 0; j < l.count; ++j) {
+            auto& [offset, vertices] = now[l.objects[j]];
+            offset = l.vertex_offset[j];
+            vertices.assign(active.begin() + offset, active.begin() + offset + l.vertex_count[j]);
+            const auto was = before.find(l.objects[j]);
+            if (was == before.end()) continue;
+            ++shared;
+            if (was->second.first != offset) {
+                ++moved_here;
+                continue;
+            }
+            ++stayed;
+            const size_t common = std::min(was->second.second.size(), vertices.size());
+            for (size_t v = 0; v < common; ++v)
+                ASSERT_EQ(vertices[v], was->second.second[v]) << "frame " << frame << " object " << l.objects[j];
+        }
+        compactions += frame > 0 && moved_here > 0 && s.moved_bytes > 0 && moved_here * 2 > l.count;
+        before = std::move(now);
+    }
+    EXPECT_GT(stayed, shared * 9 / 10) << stayed << " of " << shared << " blocks kept their place";
+    EXPECT_LT(compactions, f.cameras.size() / 4);
 }
 
 // Issue 12's target without a display: after the first frame, what crosses between host and
