@@ -147,99 +147,87 @@ std::remove_const_t<U> readBack(DevicePtr<U> src) {
     return value;
 }
 
-// A growable array in device memory. Contents are uninitialised after construction and after
-// resize; resizeKeep keeps them (a device-to-device copy when it grows). Capacity never shrinks.
-template <class T>
-class DeviceArray {
+// What DeviceArray and PinnedArray share: an owned, growable allocation from Alloc / Free.
+// Contents are uninitialised after construction and after resize (resize keeps nothing when it
+// grows). Capacity never shrinks.
+template <class T, void* (*Alloc)(size_t), void (*Free)(void*)>
+class OwnedArray {
 public:
-    DeviceArray() = default;
-    explicit DeviceArray(size_t n) { resize(n); }
-    ~DeviceArray() { deviceFree(data_); }
-    DeviceArray(DeviceArray&& o) noexcept
+    OwnedArray() = default;
+    explicit OwnedArray(size_t n) { resize(n); }
+    ~OwnedArray() { Free(data_); }
+    OwnedArray(OwnedArray&& o) noexcept
         : data_(std::exchange(o.data_, nullptr)), size_(std::exchange(o.size_, 0)),
           capacity_(std::exchange(o.capacity_, 0)) {}
-    DeviceArray& operator=(DeviceArray&& o) noexcept {
+    OwnedArray& operator=(OwnedArray&& o) noexcept {
         std::swap(data_, o.data_);
         std::swap(size_, o.size_);
         std::swap(capacity_, o.capacity_);
         return *this;
     }
-    DeviceArray(const DeviceArray&) = delete;
-    DeviceArray& operator=(const DeviceArray&) = delete;
+    OwnedArray(const OwnedArray&) = delete;
+    OwnedArray& operator=(const OwnedArray&) = delete;
 
     void resize(size_t n) {
-        if (n > capacity_) {
-            T* fresh = static_cast<T*>(deviceAlloc(n * sizeof(T)));
-            deviceFree(data_);
-            data_ = fresh;
-            capacity_ = n;
-        }
+        if (n > capacity_) replace(n, 0);
         size_ = n;
     }
-    void resizeKeep(size_t n) {
-        if (n > capacity_) {
-            T* fresh = static_cast<T*>(deviceAlloc(n * sizeof(T)));
-            deviceToDevice(DevicePtr<void>(DevicePtr<T>(fresh)), DevicePtr<const void>(DevicePtr<const T>(data_)),
-                           size_ * sizeof(T));
-            deviceFree(data_);
-            data_ = fresh;
-            capacity_ = n;
-        }
-        size_ = n;
-    }
-    DevicePtr<T> ptr() { return DevicePtr<T>(data_); }
-    DevicePtr<const T> ptr() const { return DevicePtr<const T>(data_); }
     size_t size() const { return size_; }
     size_t capacity() const { return capacity_; }
     bool empty() const { return size_ == 0; }
 
-private:
+protected:
+    // A fresh allocation of n elements; `keep` elements are copied over by copy(fresh, old).
+    template <class Copy>
+    void replace(size_t n, size_t keep, Copy&& copy) {
+        T* fresh = static_cast<T*>(Alloc(n * sizeof(T)));
+        if (keep) copy(fresh, data_);
+        Free(data_);
+        data_ = fresh;
+        capacity_ = n;
+    }
+    void replace(size_t n, size_t) {
+        replace(n, 0, [](T*, T*) {});
+    }
     T* data_ = nullptr;
     size_t size_ = 0, capacity_ = 0;
 };
 
-// A growable array of pinned host memory, what the bus moves at full speed. Contents are
-// uninitialised after construction and resize (resize keeps nothing when it grows).
+// A growable array in device memory that host code can hand to kernels but not read.
+// resizeKeep keeps the contents (a device-to-device copy when it grows).
 template <class T>
-class PinnedArray {
+class DeviceArray : public OwnedArray<T, deviceAlloc, deviceFree> {
+    using Base = OwnedArray<T, deviceAlloc, deviceFree>;
+
 public:
-    PinnedArray() = default;
-    explicit PinnedArray(size_t n) { resize(n); }
-    ~PinnedArray() { pinnedFree(data_); }
-    PinnedArray(PinnedArray&& o) noexcept
-        : data_(std::exchange(o.data_, nullptr)), size_(std::exchange(o.size_, 0)),
-          capacity_(std::exchange(o.capacity_, 0)) {}
-    PinnedArray& operator=(PinnedArray&& o) noexcept {
-        std::swap(data_, o.data_);
-        std::swap(size_, o.size_);
-        std::swap(capacity_, o.capacity_);
-        return *this;
+    using Base::Base;
+    void resizeKeep(size_t n) {
+        if (n > this->capacity_)
+            this->replace(n, this->size_, [&](T* fresh, T* old) {
+                deviceToDevice(DevicePtr<void>(DevicePtr<T>(fresh)), DevicePtr<const void>(DevicePtr<const T>(old)),
+                               this->size_ * sizeof(T));
+            });
+        this->size_ = n;
     }
-    PinnedArray(const PinnedArray&) = delete;
-    PinnedArray& operator=(const PinnedArray&) = delete;
+    DevicePtr<T> ptr() { return DevicePtr<T>(this->data_); }
+    DevicePtr<const T> ptr() const { return DevicePtr<const T>(this->data_); }
+};
 
-    void resize(size_t n) {
-        if (n > capacity_) {
-            T* fresh = static_cast<T*>(pinnedAlloc(n * sizeof(T)));
-            pinnedFree(data_);
-            data_ = fresh;
-            capacity_ = n;
-        }
-        size_ = n;
-    }
-    T* data() { return data_; }
-    const T* data() const { return data_; }
-    size_t size() const { return size_; }
-    T& operator[](size_t i) { return data_[i]; }
-    const T& operator[](size_t i) const { return data_[i]; }
-    T* begin() { return data_; }
-    T* end() { return data_ + size_; }
-    const T* begin() const { return data_; }
-    const T* end() const { return data_ + size_; }
+// A growable array of pinned host memory, what the bus moves at full speed; the host indexes it.
+template <class T>
+class PinnedArray : public OwnedArray<T, pinnedAlloc, pinnedFree> {
+    using Base = OwnedArray<T, pinnedAlloc, pinnedFree>;
 
-private:
-    T* data_ = nullptr;
-    size_t size_ = 0, capacity_ = 0;
+public:
+    using Base::Base;
+    T* data() { return this->data_; }
+    const T* data() const { return this->data_; }
+    T& operator[](size_t i) { return this->data_[i]; }
+    const T& operator[](size_t i) const { return this->data_[i]; }
+    T* begin() { return this->data_; }
+    T* end() { return this->data_ + this->size_; }
+    const T* begin() const { return this->data_; }
+    const T* end() const { return this->data_ + this->size_; }
 };
 
 // Memory someone else owns and lends the kernels: the display's OpenGL buffers, which hold the
