@@ -291,9 +291,20 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
         const k::LodParams params{float(budget_), options_.alpha, options_.pet};
         k::lodSelect(scene_.objects.ptr(), pvs, count, camera, params, scene_.map_first.ptr(), scene_.maps.ptr(),
                      pvs_vc_device_.ptr(), pvs_tc_device_.ptr(), lod_shares_);
+        if (options_.lod_hysteresis > 0 && !previous_lod.empty()) {
+            // The last frame's visible set goes up (the switch's comes from the other rank).
+            previous_lod_.resize(previous_lod.size());
+            for (size_t j = 0; j < previous_lod.size(); ++j)
+                previous_lod_[j] = {previous_lod[j].first, previous_lod[j].second};
+            if (previous_lod_device_.size() < previous_lod.size())
+                previous_lod_device_.resize(previous_lod.size() + previous_lod.size() / 2);
+            k::copyToDevice(previous_lod_device_.ptr(), previous_lod_.data(), previous_lod.size());
+            k::keepSimilarLods(pvs, count, previous_lod_device_.ptr(), uint32_t(previous_lod.size()),
+                               options_.lod_hysteresis, budget_, scene_.objects.ptr(), scene_.map_first.ptr(),
+                               scene_.maps.ptr(), pvs_vc_device_.ptr(), pvs_tc_device_.ptr(), hysteresis_scratch_);
+        }
         k::copyToHost(pvs_vc_.data(), pvs_vc_device_.ptr(), count);
         k::copyToHost(pvs_tc_.data(), pvs_tc_device_.ptr(), count);
-        if (options_.lod_hysteresis > 0) keepSimilarLods(previous_lod);
     }
     std::swap(history_[0], history_[1]);
     CulledFrame& h = history_[0];
@@ -302,42 +313,6 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     h.lod.resize(pvs_.size());
     for (size_t j = 0; j < pvs_.size(); ++j) h.lod[j] = {pvs_[j], pvs_vc_[j]};
     clock.lap(Stage::LodSelect);
-}
-
-// For each PVS object that was visible last frame with a vertex count p, keeps p where Eq. 1's
-// new count v is within lod_hysteresis * p of it (both are valid LODs: p >= q). Kept counts
-// that raise the total above max(N, what Eq. 1 chose) are given back, largest raise first.
-void Pipeline::keepSimilarLods(std::span<const std::pair<uint32_t, uint32_t>> previous) {
-    const uint32_t count = uint32_t(pvs_.size());
-    double total = 0, chosen = 0;
-    std::vector<std::pair<uint32_t, uint32_t>> raised;  // (p - v, j) where p > v was kept
-    std::vector<uint32_t> eq1(count);
-    size_t i = 0;
-    for (uint32_t j = 0; j < count; ++j) {
-        const uint32_t v = pvs_vc_[j];
-        eq1[j] = v;
-        chosen += v;
-        while (i < previous.size() && previous[i].first < pvs_[j]) ++i;
-        if (v > 0 && i < previous.size() && previous[i].first == pvs_[j]) {
-            const uint32_t p = previous[i].second;
-            if (p > 0 && p != v && std::abs(double(v) - double(p)) <= options_.lod_hysteresis * double(p)) {
-                pvs_vc_[j] = p;
-                if (p > v) raised.emplace_back(p - v, j);
-            }
-        }
-        total += pvs_vc_[j];
-    }
-    const double limit = std::max(budget_, chosen);
-    if (total > limit) {
-        std::sort(raised.begin(), raised.end(), std::greater<>());
-        for (const auto& [extra, j] : raised) {
-            if (total <= limit) break;
-            pvs_vc_[j] = eq1[j];
-            total -= extra;
-        }
-    }
-    for (uint32_t j = 0; j < count; ++j)
-        if (pvs_vc_[j] != eq1[j]) pvs_tc_[j] = scene_.lodTriangles(scene_.host_objects[pvs_[j]].mesh, pvs_vc_[j]);
 }
 
 void Pipeline::setVisible(std::span<const uint32_t> ids, std::span<const uint32_t> vertex_counts) {

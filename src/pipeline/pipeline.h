@@ -2,6 +2,7 @@
 #pragma once
 
 #include "defragment.h"
+#include "lod_hysteresis.h"
 #include "draw_commands.h"
 #include "reform.h"
 #include "pipeline/block_allocator.h"
@@ -177,7 +178,6 @@ private:
     // Places this frame's blocks (layout arrays l) and fills the move and reform lists.
     // Returns true when it compacted (every block written into the other buffers).
     bool placeBlocks(HostLayoutArrays& l, uint32_t blocks, FrameStats& stats);
-    void keepSimilarLods(std::span<const std::pair<uint32_t, uint32_t>> previous);
     void chooseOccluders(const k::Camera& camera, std::span<const uint32_t> occluder_source);
     void rasterOccluders(const k::Camera& camera, FrameStats& stats);
     void buildLayout(uint64_t frame, FrameStats& stats);
@@ -203,6 +203,9 @@ private:
     k::DeviceArray<float> hzm_;
     k::DeviceArray<uint32_t> pvs_device_, pvs_vc_device_, pvs_tc_device_;
     k::DeviceArray<float> lod_shares_;
+    k::PinnedArray<k::LodEntry> previous_lod_;  // the hysteresis' last visible set, on its way up
+    k::DeviceArray<k::LodEntry> previous_lod_device_;
+    k::LodHysteresisScratch hysteresis_scratch_;
     CameraPose frustum_pose_{};
     bool has_frustum_pose_ = false;
 
