@@ -63,7 +63,6 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     frustum_ids_.resize(room);
     weights_.resize(std::max<uint32_t>(1, scene_.cos_count));
     occluders_.resize(room);
-    occluder_source_.resize(room);
     pvs_occluder_scratch_.taken.resize(room);
     k::deviceMemset(pvs_occluder_scratch_.taken.ptr(), 0, room);
     hzm_.resize(size_t(k::hzmTotalTexels(options.width, options.height)));
@@ -115,7 +114,7 @@ k::HzmLevels Pipeline::hzmLevels() const {
 
 // The AOS (Eq. 3's top-K of the COS), then the earlier PVS's best occluders per triangle, all
 // chosen on the device; only their count comes back.
-void Pipeline::chooseOccluders(const k::Camera& camera, std::span<const uint32_t> occluder_source) {
+void Pipeline::chooseOccluders(const k::Camera& camera, k::DevicePtr<const uint32_t> source, uint32_t source_count) {
     uint32_t aos = 0;
     if (scene_.cos_count > 0 && options_.aos > 0) {
         k::occluderWeight(scene_.objects.ptr(), scene_.cos.ptr(), scene_.cos_count, in_frustum_.ptr(), camera,
@@ -124,10 +123,8 @@ void Pipeline::chooseOccluders(const k::Camera& camera, std::span<const uint32_t
                             topk_keys_);
     }
     uint32_t extra = 0;
-    if (options_.pvs_occluder_triangles > 0 && !occluder_source.empty()) {
-        const uint32_t count = uint32_t(std::min<size_t>(occluder_source.size(), scene_.object_count));
-        k::copyToDevice(occluder_source_.ptr(), occluder_source.data(), count);
-        extra = k::selectPvsOccluders(scene_.objects.ptr(), occluder_source_.ptr(), count, in_frustum_.ptr(), camera,
+    if (options_.pvs_occluder_triangles > 0 && source_count > 0) {
+        extra = k::selectPvsOccluders(scene_.objects.ptr(), source, source_count, in_frustum_.ptr(), camera,
                                       occluders_.ptr(), aos, options_.pvs_occluder_triangles, pvs_occluder_scratch_,
                                       occluders_.ptr() + aos);
     }
@@ -247,13 +244,16 @@ bool Pipeline::frustumIsFor(const CameraPose& pose) const {
 
 void Pipeline::occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& stats) {
     if (options_.mode != CullMode::OcLod) return;
-    std::span<const uint32_t> occluder_source;
+    // The earlier PVS stays on the device for this: nothing crosses the bus.
+    k::DevicePtr<const uint32_t> source;
+    uint32_t source_count = 0;
     for (const CulledFrame& h : history_)
-        if (frame >= options_.pvs_occluder_lag && h.frame == frame - options_.pvs_occluder_lag) occluder_source = h.pvs;
+        if (frame >= options_.pvs_occluder_lag && h.frame == frame - options_.pvs_occluder_lag)
+            source = h.device_pvs.ptr(), source_count = uint32_t(h.pvs.size());
     if (!frustumIsFor(pose)) frustumPass(pose, stats);
     StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
-    chooseOccluders(camera, occluder_source);
+    chooseOccluders(camera, source, source_count);
     clock.lap(Stage::OccluderSelect);
     rasterOccluders(camera, stats);
     clock.lap(Stage::DepthRaster);
@@ -310,6 +310,8 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     CulledFrame& h = history_[0];
     h.frame = frame;
     h.pvs.assign(pvs_.begin(), pvs_.end());
+    if (h.device_pvs.size() < count) h.device_pvs.resize(std::max<size_t>(1, count));
+    k::copyOnDevice(h.device_pvs.ptr(), pvs, count);
     h.lod.resize(pvs_.size());
     for (size_t j = 0; j < pvs_.size(); ++j) h.lod[j] = {pvs_[j], pvs_vc_[j]};
     clock.lap(Stage::LodSelect);

@@ -178,7 +178,7 @@ private:
     // Places this frame's blocks (layout arrays l) and fills the move and reform lists.
     // Returns true when it compacted (every block written into the other buffers).
     bool placeBlocks(HostLayoutArrays& l, uint32_t blocks, FrameStats& stats);
-    void chooseOccluders(const k::Camera& camera, std::span<const uint32_t> occluder_source);
+    void chooseOccluders(const k::Camera& camera, k::DevicePtr<const uint32_t> source, uint32_t source_count);
     void rasterOccluders(const k::Camera& camera, FrameStats& stats);
     void buildLayout(uint64_t frame, FrameStats& stats);
 
@@ -196,7 +196,6 @@ private:
     k::DeviceArray<uint64_t> topk_keys_;
     k::DeviceArray<uint32_t> occluders_;        // AOS, then the PVS occluders
     uint32_t occluder_count_ = 0;
-    k::DeviceArray<uint32_t> occluder_source_;  // the earlier PVS, uploaded
     k::PvsOccluderScratch pvs_occluder_scratch_;
     k::OccluderGeometry occluder_geometry_;
     k::DepthRasterScratch raster_scratch_;
@@ -216,6 +215,7 @@ private:
     struct CulledFrame {
         uint64_t frame = UINT64_MAX;
         std::vector<uint32_t> pvs;
+        k::DeviceArray<uint32_t> device_pvs;  // the same, for the occluder choice
         std::vector<std::pair<uint32_t, uint32_t>> lod;
     };
     CulledFrame history_[2];
