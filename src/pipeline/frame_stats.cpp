@@ -16,7 +16,7 @@ std::string frameStatsHeader() {
     std::string h =
         "frame,objects_in_frustum,objects_occluded,objects_visible,objects_drawn,aos_size,occluder_triangles,"
         "active_triangles,active_vertices,resident_triangles,resident_vertices,budget_vertices,streamed_triangles,streamed_vertices,streamed_bytes,"
-        "moved_bytes,reformed_triangles,bus_h2d_bytes,bus_d2h_bytes";
+        "moved_bytes,reformed_triangles,bus_h2d_bytes,bus_d2h_bytes,pvs_hash";
     for (uint32_t s = 0; s < uint32_t(Stage::Count); ++s) h += std::string(",ms_") + stageName(Stage(s));
     return h + ",ms_total";
 }
@@ -26,7 +26,10 @@ std::string frameStatsRow(const FrameStats& s) {
     o << s.frame << ',' << s.objects_in_frustum << ',' << s.objects_occluded << ',' << s.objects_visible << ','
       << s.objects_drawn << ',' << s.aos_size << ',' << s.occluder_triangles << ',' << s.active_triangles << ','
       << s.active_vertices << ',' << s.resident_triangles << ',' << s.resident_vertices << ',' << s.budget_vertices << ',' << s.streamed_triangles << ',' << s.streamed_vertices
-      << ',' << s.streamed_bytes << ',' << s.moved_bytes << ',' << s.reformed_triangles << ',' << s.bus_h2d_bytes << ',' << s.bus_d2h_bytes;
+      << ',' << s.streamed_bytes << ',' << s.moved_bytes << ',' << s.reformed_triangles << ',' << s.bus_h2d_bytes << ',' << s.bus_d2h_bytes << ',';
+    char hash[17];
+    std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(s.pvs_hash));
+    o << hash;
     o.setf(std::ios::fixed);
     o.precision(3);
     for (double ms : s.ms) o << ',' << ms;

@@ -48,6 +48,8 @@ struct FrameStats {
     // by the bus (kernels/device_memory.h); measurement passes (--exact, --reference) excluded.
     uint64_t bus_h2d_bytes = 0;
     uint64_t bus_d2h_bytes = 0;
+    // XXH3-64 of the PVS's ids (not their LOD counts): what must be the same on every back end.
+    uint64_t pvs_hash = 0;
     double ms[size_t(Stage::Count)] = {};
     double ms_total = 0;
 };

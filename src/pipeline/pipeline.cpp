@@ -10,6 +10,8 @@
 #include "reform.h"
 #include "scene/errors.h"
 
+#include <xxhash.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstring>
@@ -477,6 +479,7 @@ void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
     stats.frame = frame;
     stats.budget_vertices = uint64_t(budget_);
     stats.objects_visible = pvs_.size();
+    stats.pvs_hash = XXH3_64bits(pvs_.data(), pvs_.size() * sizeof(uint32_t));
     buildLayout(frame, stats);
     HostLayoutArrays& l = host_layouts_[cur_index_];
     const uint32_t blocks = layout_count_;
