@@ -49,7 +49,18 @@ inline constexpr uint64_t kRunTile = 1;
 inline constexpr uint64_t kRunTile = kHostRunTile;
 #endif
 
-// One half of an ActiveLayout, so that code moving blocks is written once for vertices and
+// Widening before a scan or a sum makes Thrust accumulate 32-bit counts in 64 bits (it sums in
+// the input's value type).
+struct Widen {
+    OCC_HD uint64_t operator()(uint32_t x) const { return x; }
+};
+
+// One past the last element of tile `tile` of kRunTile elements, out of `total`.
+OCC_HD inline uint64_t tileEnd(uint64_t tile, uint64_t total) {
+    return (tile + 1) * kRunTile < total ? (tile + 1) * kRunTile : total;
+}
+
+// One half of a HostLayout, so that code moving blocks is written once for vertices and
 // triangles: block j of object objects[j] has size[j] elements starting at offset[j].
 struct BlockColumn {
     const uint32_t* objects;

@@ -3,11 +3,6 @@
 
 #include "layout_access.h"
 
-#include <thrust/execution_policy.h>
-#include <thrust/for_each.h>
-#include <thrust/iterator/counting_iterator.h>
-#include <thrust/transform.h>
-
 namespace occ::k {
 
 namespace {
@@ -16,10 +11,6 @@ struct WorkOf {
     const BlockMove* moves;
     OCC_HD uint32_t operator()(uint32_t j) const { return moves[j].moved + moves[j].staged; }
 };
-
-OCC_HD inline uint64_t tileEnd(uint64_t tile, uint64_t total) {
-    return (tile + 1) * kRunTile < total ? (tile + 1) * kRunTile : total;
-}
 
 // Element i of block j's work: the moved prefix first, then the staged part after the kept one.
 template <class T, int W>
@@ -48,17 +39,11 @@ struct Place {
 template <class T, int W>
 uint64_t apply(DevicePtr<const BlockMove> moves, uint32_t count, DevicePtr<const T> src, DevicePtr<T> dst,
                DevicePtr<const T> staging, ActiveArrays& scratch) {
-    if (count == 0) return 0;
-    if (scratch.lengths.size() < count) scratch.lengths.resize(count + count / 2);
-    if (scratch.offsets.size() < count) scratch.offsets.resize(count + count / 2);
-    const thrust::counting_iterator<uint32_t> first(0);
-    thrust::transform(thrust::device, first, first + count, raw(scratch.lengths.ptr()), WorkOf{raw(moves)});
-    const uint64_t total = exclusiveScan(scratch.lengths.ptr(), count, scratch.offsets.ptr());
-    if (total == 0) return 0;
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), (total + kRunTile - 1) / kRunTile,
-                       Place<T, W>{raw(moves), raw(scratch.offsets.ptr()), count, total, raw(src), raw(staging),
-                                   raw(dst)});
-    return total;
+    return forEachBlockTile(count, WorkOf{raw(moves)}, scratch.lengths, scratch.offsets,
+                            [&](const uint64_t* work_offset, uint64_t total) {
+                                return Place<T, W>{raw(moves), work_offset, count, total, raw(src), raw(staging),
+                                                   raw(dst)};
+                            });
 }
 
 }  // namespace

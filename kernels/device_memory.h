@@ -172,6 +172,11 @@ public:
         if (n > capacity_) replace(n, 0);
         size_ = n;
     }
+    // At least n elements: grows to n + n / 2 when short (contents not kept), so that a need
+    // that creeps up from frame to frame does not reallocate every frame.
+    void growTo(size_t n) {
+        if (size_ < n) resize(n + n / 2);
+    }
     size_t size() const { return size_; }
     size_t capacity() const { return capacity_; }
     bool empty() const { return size_ == 0; }

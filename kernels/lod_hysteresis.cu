@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "lod_hysteresis.h"
 
+#include "block_runs.h"
 #include "device_access.h"
 
 #include <thrust/copy.h>
@@ -46,10 +47,6 @@ struct KeepSimilar {
         vertex_count[j] = p;
         if (p > v) raised[j] = (uint64_t(p - v) << 32) | j;
     }
-};
-
-struct Widen {
-    OCC_HD uint64_t operator()(uint32_t x) const { return x; }
 };
 
 struct IsRaised {
@@ -98,9 +95,9 @@ void keepSimilarLods(DevicePtr<const uint32_t> ids, uint32_t count, DevicePtr<co
                      DevicePtr<uint32_t> vertex_count, DevicePtr<uint32_t> triangle_count,
                      LodHysteresisScratch& scratch) {
     if (count == 0) return;
-    if (scratch.eq1.size() < count) scratch.eq1.resize(count + count / 2);
-    if (scratch.raised.size() < count) scratch.raised.resize(count + count / 2);
-    if (scratch.sums.size() < count) scratch.sums.resize(count + count / 2);
+    scratch.eq1.growTo(count);
+    scratch.raised.growTo(count);
+    scratch.sums.growTo(count);
     uint32_t* const vc = raw(vertex_count);
     uint32_t* const eq1 = raw(scratch.eq1.ptr());
     uint64_t* const raised = raw(scratch.raised.ptr());

@@ -227,7 +227,7 @@ uint64_t lodSelect(DevicePtr<const ObjectInfo> object_memory, DevicePtr<const ui
     const ObjectInfo* const objects = raw(object_memory);
     const uint32_t* const ids = raw(id_memory);
     const thrust::counting_iterator<uint32_t> first(0);
-    if (share_memory.size() < count) share_memory.resize(count);
+    share_memory.growTo(count);
     float* const shares = raw(share_memory.ptr());
 
     const float exponent = (params.alpha - 1.0f) / params.alpha;

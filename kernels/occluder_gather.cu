@@ -24,10 +24,6 @@ struct SizesOf {
     }
 };
 
-OCC_HD inline uint64_t tileEnd(uint64_t tile, uint64_t total) {
-    return (tile + 1) * kRunTile < total ? (tile + 1) * kRunTile : total;
-}
-
 struct TransformVertices {
     const ObjectInfo* objects;
     const glm::mat4* world;
@@ -81,35 +77,24 @@ struct OffsetTriangles {
     }
 };
 
-template <class F>
-void forEachTile(uint64_t total, const F& f) {
-    if (total == 0) return;
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), (total + kRunTile - 1) / kRunTile, f);
-}
-
-template <class T>
-void reserve(DeviceArray<T>& array, uint64_t n) {
-    if (n > array.size()) array.resize(n + n / 2);
-}
-
 }  // namespace
 
 void gatherOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const glm::mat4> world, const MeshGeometry& meshes,
                      DevicePtr<const uint32_t> ids, uint32_t count, OccluderGeometry& out) {
     out.vertex_total = out.triangle_total = 0;
     if (count == 0) return;
-    reserve(out.sizes, 2 * uint64_t(count));
-    reserve(out.offsets, 2 * uint64_t(count));
+    out.sizes.growTo(2 * uint64_t(count));
+    out.offsets.growTo(2 * uint64_t(count));
     uint32_t* const sizes = raw(out.sizes.ptr());
     uint64_t* const offsets = raw(out.offsets.ptr());
     thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), count,
                        SizesOf{raw(objects), raw(ids), count, sizes});
     out.vertex_total = exclusiveScan(out.sizes.ptr(), count, out.offsets.ptr());
     out.triangle_total = exclusiveScan(out.sizes.ptr() + count, count, out.offsets.ptr() + count);
-    reserve(out.positions, out.vertex_total);
-    reserve(out.triangles, 3 * out.triangle_total);
-    reserve(out.edge_flags, out.triangle_total);
-    reserve(out.edge_neighbours, 3 * out.triangle_total);
+    out.positions.growTo(out.vertex_total);
+    out.triangles.growTo(3 * out.triangle_total);
+    out.edge_flags.growTo(out.triangle_total);
+    out.edge_neighbours.growTo(3 * out.triangle_total);
     forEachTile(out.vertex_total, TransformVertices{raw(objects), raw(world), raw(ids), offsets, count, out.vertex_total,
                                                     raw(meshes.positions), raw(meshes.vertex_first),
                                                     raw(out.positions.ptr())});

@@ -38,18 +38,19 @@ struct Eq3Weight {
     }
 };
 
-// Sorting these ascending sorts by weight descending, then by object id ascending: for positive
-// floats the IEEE bit pattern grows with the value, so its complement shrinks.
+// Sorting these keys ascending sorts by score descending, then by object id ascending: for
+// non-negative floats the IEEE bit pattern grows with the value, so its complement shrinks.
+OCC_HD inline uint64_t descendingKey(float score, uint32_t id) {
+    uint32_t bits;
+    memcpy(&bits, &score, sizeof bits);
+    return (uint64_t(~bits) << 32) | id;
+}
+
 struct TopKKey {
     const uint32_t* candidates;
     const float* weight;
 
-    OCC_HD uint64_t operator()(uint32_t j) const {
-        const float w = weight[j];
-        uint32_t bits;
-        memcpy(&bits, &w, sizeof bits);
-        return (uint64_t(~bits) << 32) | candidates[j];
-    }
+    OCC_HD uint64_t operator()(uint32_t j) const { return descendingKey(weight[j], candidates[j]); }
 };
 
 struct IsPositive {
@@ -73,7 +74,7 @@ void occluderWeight(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_
 uint32_t selectTopK(DevicePtr<const uint32_t> cos, DevicePtr<const float> weight, uint32_t cos_count, uint32_t k,
                     DevicePtr<uint32_t> aos, DeviceArray<uint64_t>& keys) {
     if (cos_count == 0 || k == 0) return 0;
-    if (keys.size() < cos_count) keys.resize(cos_count);
+    keys.growTo(cos_count);
     uint64_t* const key_data = raw(keys.ptr());
     const auto first_key =
         thrust::make_transform_iterator(thrust::counting_iterator<uint32_t>(0), TopKKey{raw(cos), raw(weight)});
@@ -89,8 +90,8 @@ uint32_t selectTopK(DevicePtr<const uint32_t> cos, DevicePtr<const float> weight
 
 namespace {
 
-// Ascending keys sort by score descending, then id ascending (the bit trick of TopKKey; scores
-// are >= 0, and 0 sorts last).
+// Ascending keys sort by score descending, then id ascending (descendingKey; out-of-frustum
+// candidates get the largest key and are dropped after the sort).
 struct PvsOccluderKey {
     const ObjectInfo* objects;
     const uint32_t* candidates;
@@ -107,11 +108,8 @@ struct PvsOccluderKey {
         const float distance = length > near_plane ? length : near_plane;
         const float size = glm::length(o.aabb.max - o.aabb.min) / distance;
         const float triangles = float(o.triangle_count > 1 ? o.triangle_count : 1u);
-        float score = size * size * o.compactness / triangles;
-        if (!(score >= 0.0f)) score = 0.0f;  // a NaN or negative score ranks last, not first
-        uint32_t bits;
-        memcpy(&bits, &score, sizeof bits);
-        return (uint64_t(~bits) << 32) | id;
+        const float score = size * size * o.compactness / triangles;
+        return descendingKey(score >= 0.0f ? score : 0.0f, id);  // a NaN or negative score ranks last
     }
 };
 
@@ -154,7 +152,7 @@ uint32_t selectPvsOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const
                             DevicePtr<const uint32_t> exclude, uint32_t exclude_count, uint64_t triangle_budget,
                             PvsOccluderScratch& scratch, DevicePtr<uint32_t> out) {
     if (count == 0 || triangle_budget == 0) return 0;
-    if (scratch.keys.size() < count) scratch.keys.resize(count);
+    scratch.keys.growTo(count);
     if (scratch.chosen.size() < 1) scratch.chosen.resize(1);
     uint64_t* const keys = raw(scratch.keys.ptr());
     uint8_t* const taken = raw(scratch.taken.ptr());

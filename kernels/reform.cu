@@ -3,10 +3,6 @@
 
 #include "layout_access.h"
 
-#include <thrust/execution_policy.h>
-#include <thrust/for_each.h>
-#include <thrust/iterator/counting_iterator.h>
-#include <thrust/transform.h>
 
 namespace occ::k {
 
@@ -29,8 +25,8 @@ struct ReformTile {
     uint32_t* indices;
 
     OCC_HD void operator()(uint64_t tile) const {
-        const uint64_t begin = tile * kRunTile, end = begin + kRunTile < total ? begin + kRunTile : total;
-        forEachRun(work_offset, count, total, begin, end, [&](uint32_t j, uint64_t first, uint64_t length) {
+        forEachRun(work_offset, count, total, tile * kRunTile, tileEnd(tile, total),
+                   [&](uint32_t j, uint64_t first, uint64_t length) {
             const ReformBlock& block = blocks[j];
             const uint32_t vc = block.walk_vertex_count;
             if (vc == 0) return;  // resident but not drawn this frame
@@ -75,17 +71,11 @@ struct ReformTile {
 uint64_t reformBlocks(DevicePtr<const ReformBlock> blocks, uint32_t count, DevicePtr<const ObjectInfo> objects,
                       DevicePtr<const uint64_t> vertex_first, DevicePtr<const int32_t> ecol,
                       DevicePtr<const uint32_t> active_triangles, DevicePtr<uint32_t> indices, ReformScratch& scratch) {
-    if (count == 0) return 0;
-    if (scratch.lengths.size() < count) scratch.lengths.resize(count + count / 2);
-    if (scratch.offsets.size() < count) scratch.offsets.resize(count + count / 2);
-    const thrust::counting_iterator<uint32_t> first(0);
-    thrust::transform(thrust::device, first, first + count, raw(scratch.lengths.ptr()), TrianglesOf{raw(blocks)});
-    const uint64_t total = exclusiveScan(scratch.lengths.ptr(), count, scratch.offsets.ptr());
-    if (total == 0) return 0;
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), (total + kRunTile - 1) / kRunTile,
-                       ReformTile{raw(blocks), raw(scratch.offsets.ptr()), count, total, raw(objects),
-                                  raw(vertex_first), raw(ecol), raw(active_triangles), raw(indices)});
-    return total;
+    return forEachBlockTile(count, TrianglesOf{raw(blocks)}, scratch.lengths, scratch.offsets,
+                            [&](const uint64_t* work_offset, uint64_t total) {
+                                return ReformTile{raw(blocks), work_offset, count, total, raw(objects),
+                                                  raw(vertex_first), raw(ecol), raw(active_triangles), raw(indices)};
+                            });
 }
 
 }  // namespace occ::k

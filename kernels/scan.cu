@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "scan.h"
 
+#include "block_runs.h"
 #include "device_access.h"
 
 #include <thrust/copy.h>
@@ -12,11 +13,6 @@
 namespace occ::k {
 
 namespace {
-
-// Widening before the scan makes Thrust accumulate in 64 bits: it sums in the input's value type.
-struct Widen {
-    OCC_HD uint64_t operator()(uint32_t x) const { return x; }
-};
 
 struct Equals {
     uint8_t value;

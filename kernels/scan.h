@@ -20,27 +20,16 @@ uint32_t compactIndices(DevicePtr<const uint8_t> flags, uint32_t count, uint8_t 
 uint32_t compactSelected(DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t> flags, uint32_t count, uint8_t value,
                          DevicePtr<uint32_t> out);
 
-// Where every drawn object of one frame sits in the active arrays: lodSelect's output over the
-// PVS and its two exclusive scans. All pointers are device memory with `count` entries (none
-// read when count is 0, so ActiveLayout{} is the empty layout: "nothing drawn", the previous
-// layout of the first frame). HostLayout is the same in host memory, for the host's side of
-// streaming (what to gather from the mapped file).
+// Where every resident object's block of one frame sits in the active arrays, as the host keeps
+// it (the device gets only the blocks that changed). All pointers are host memory with `count`
+// entries (none read when count is 0, so HostLayout{} is the empty layout: "nothing resident",
+// the previous layout of the first frame).
 //   objects          object ids, strictly ascending (streaming matches frames by binary search)
-//   vertex_count     vc_i, the LOD's vertex count; 0 = not drawn (the entry is then ignored)
+//   vertex_count     vc_i, the vertices the block holds; 0 = none (the entry is then ignored)
 //   triangle_count   tc_i = map_i[vc_i]; 0 when vc_i is 0
-//   vertex_offset    exclusiveScan(vertex_count): where the object's vc_i vertices start
-//   triangle_offset  exclusiveScan(triangle_count), in triangles (3 indices each)
-// vertex_total and triangle_total are the two scans' returned totals.
-struct ActiveLayout {
-    DevicePtr<const uint32_t> objects;
-    DevicePtr<const uint32_t> vertex_count;
-    DevicePtr<const uint32_t> triangle_count;
-    DevicePtr<const uint64_t> vertex_offset;
-    DevicePtr<const uint64_t> triangle_offset;
-    uint32_t count = 0;
-    uint64_t vertex_total = 0;
-    uint64_t triangle_total = 0;
-};
+//   vertex_offset    where the block's vertices start (blocks may have gaps between them)
+//   triangle_offset  where its triangles start, in triangles (3 indices each)
+// vertex_total and triangle_total are the sums of the counts.
 struct HostLayout {
     const uint32_t* objects = nullptr;
     const uint32_t* vertex_count = nullptr;

@@ -25,10 +25,6 @@ struct StagedLength {
     }
 };
 
-struct Widen {
-    OCC_HD uint64_t operator()(uint32_t x) const { return x; }
-};
-
 // Copies the staged elements of one tile: element kept + i of block j comes from the block's
 // object's mesh. T is one element of width W (a vertex, or a triangle's 3 corners).
 template <class T, int W>
@@ -56,9 +52,10 @@ struct GatherTile {
     }
 };
 
-template <class Array>
-void reserve(Array& array, uint64_t n) {
-    if (n > array.size()) array.resize(n + n / 2);
+// Staging and the host-side bookkeeping: at least n elements, growing by half again.
+template <class T>
+void reserve(std::vector<T>& v, uint64_t n) {
+    if (n > v.size()) v.resize(n + n / 2);
 }
 
 // Stages one column (the vertex or the triangle blocks); returns the element count.
@@ -78,7 +75,7 @@ uint64_t collect(const BlockColumn& previous, const BlockColumn& current, const 
     const uint64_t total = offsets[current.count - 1] + lengths[current.count - 1];
     if (total == 0) return 0;
 
-    reserve(staging, W * total);
+    staging.growTo(W * total);
     const uint64_t tiles = (total + kHostRunTile - 1) / kHostRunTile;
     thrust::for_each_n(kHostSide, thrust::counting_iterator<uint64_t>(0), tiles,
                        GatherTile<T, W>{current, lengths, offsets, total, source, mesh_first, objects, staging.data()});
@@ -101,8 +98,8 @@ StreamCounts streamCollect(const HostLayout& previous, const HostLayout& current
     staging.vertex_count = counts.vertices;
     staging.triangle_count = counts.triangles;
     // The transfer: what was gathered, and nothing else, crosses the bus.
-    reserve(staging.device_vertices, counts.vertices);
-    reserve(staging.device_triangles, 3 * counts.triangles);
+    staging.device_vertices.growTo(counts.vertices);
+    staging.device_triangles.growTo(3 * counts.triangles);
     copyToDevice(staging.device_vertices.ptr(), staging.vertices.data(), counts.vertices);
     copyToDevice(staging.device_triangles.ptr(), staging.triangles.data(), 3 * counts.triangles);
     return counts;

@@ -60,22 +60,6 @@ private:
     TransportCounters last_;
 };
 
-// Per-row differences of this thread's bus counters: what the rank moved between host and
-// device memory since its last row (kernels/device_memory.h).
-class BusWindow {
-public:
-    BusWindow() : last_(k::busCounters()) {}
-    void take(FrameStats& s) {
-        const k::BusCounters now = k::busCounters();
-        s.bus_h2d_bytes = now.h2d_bytes - last_.h2d_bytes;
-        s.bus_d2h_bytes = now.d2h_bytes - last_.d2h_bytes;
-        last_ = now;
-    }
-
-private:
-    k::BusCounters last_;
-};
-
 std::string fixed3(double v) {
     char b[64];
     std::snprintf(b, sizeof b, "%.3f", v);

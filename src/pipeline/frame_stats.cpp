@@ -12,6 +12,13 @@ const char* stageName(Stage s) {
     return names[uint32_t(s)];
 }
 
+void BusWindow::take(FrameStats& s) {
+    const k::BusCounters now = k::busCounters();
+    s.bus_h2d_bytes = now.h2d_bytes - last_.h2d_bytes;
+    s.bus_d2h_bytes = now.d2h_bytes - last_.d2h_bytes;
+    last_ = now;
+}
+
 std::string frameStatsHeader() {
     std::string h =
         "frame,objects_in_frustum,objects_occluded,objects_visible,objects_drawn,aos_size,occluder_triangles,"

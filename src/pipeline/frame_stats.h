@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include "device_memory.h"
+
 #include <cstdint>
 #include <cstdio>
 #include <string>
@@ -52,6 +54,17 @@ struct FrameStats {
     uint64_t pvs_hash = 0;
     double ms[size_t(Stage::Count)] = {};
     double ms_total = 0;
+};
+
+// The bus columns of a row: how far this thread's bus counters (kernels/device_memory.h) grew
+// since the last take, or since construction.
+class BusWindow {
+public:
+    BusWindow() : last_(k::busCounters()) {}
+    void take(FrameStats& s);
+
+private:
+    k::BusCounters last_;
 };
 
 // Writes the CSV header line and rows; the columns are the fields above in order.

@@ -20,6 +20,17 @@
 
 namespace occ {
 
+namespace {
+
+// The first `count` entries of a host list to its device copy, which grows as needed.
+template <class T, class Host>
+void upload(k::DeviceArray<T>& device, const Host& host, size_t count) {
+    device.growTo(std::max<size_t>(1, count));
+    k::copyToDevice(device.ptr(), host.data(), count);
+}
+
+}  // namespace
+
 CullMode parseCullMode(const std::string& s) {
     if (s == "full") return CullMode::Full;
     if (s == "lod") return CullMode::Lod;
@@ -91,8 +102,7 @@ void Pipeline::lendActiveArrays(k::BufferProvider& lender) {
     indices_.lendFrom(&lender, kIndexSlot, 3 * triangle_heap_.extent());
     lender.endDeviceWrites();
     lender_ = &lender;
-    draw_blocks_device_.resize(std::max<size_t>(1, draw_count_));
-    k::copyToDevice(draw_blocks_device_.ptr(), draw_blocks_.data(), draw_count_);
+    upload(draw_blocks_device_, draw_blocks_, draw_count_);
 }
 
 std::vector<uint32_t> Pipeline::downloadFrustumObjects() const {
@@ -298,9 +308,7 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
             previous_lod_.resize(previous_lod.size());
             for (size_t j = 0; j < previous_lod.size(); ++j)
                 previous_lod_[j] = {previous_lod[j].first, previous_lod[j].second};
-            if (previous_lod_device_.size() < previous_lod.size())
-                previous_lod_device_.resize(previous_lod.size() + previous_lod.size() / 2);
-            k::copyToDevice(previous_lod_device_.ptr(), previous_lod_.data(), previous_lod.size());
+            upload(previous_lod_device_, previous_lod_, previous_lod.size());
             k::keepSimilarLods(pvs, count, previous_lod_device_.ptr(), uint32_t(previous_lod.size()),
                                options_.lod_hysteresis, budget_, scene_.objects.ptr(), scene_.map_first.ptr(),
                                scene_.maps.ptr(), pvs_vc_device_.ptr(), pvs_tc_device_.ptr(), hysteresis_scratch_);
@@ -312,7 +320,7 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     CulledFrame& h = history_[0];
     h.frame = frame;
     h.pvs.assign(pvs_.begin(), pvs_.end());
-    if (h.device_pvs.size() < count) h.device_pvs.resize(std::max<size_t>(1, count));
+    h.device_pvs.growTo(std::max<uint32_t>(1, count));
     k::copyOnDevice(h.device_pvs.ptr(), pvs, count);
     h.lod.resize(pvs_.size());
     for (size_t j = 0; j < pvs_.size(); ++j) h.lod[j] = {pvs_[j], pvs_vc_[j]};
@@ -352,21 +360,23 @@ bool fragmented(const RangeAllocator& heap) {
     return extent > (uint64_t(1) << 16) && extent - heap.used() > extent / 2;
 }
 
-template <class T>
-void reserveList(k::PinnedArray<T>& list, size_t n) {
-    if (list.size() < n) list.resize(n + n / 2);
-}
 
 }  // namespace
 
 bool Pipeline::placeBlocks(HostLayoutArrays& l, uint32_t blocks, FrameStats& stats) {
     const bool coherent = options_.stream == StreamMode::Coherent;
-    reserveList(vertex_moves_, std::max<uint32_t>(1, blocks));
-    reserveList(triangle_moves_, std::max<uint32_t>(1, blocks));
-    reserveList(reforms_, std::max<uint32_t>(1, blocks));
-    reserveList(draw_blocks_, std::max<uint32_t>(1, blocks));
+    for (k::PinnedArray<k::BlockMove>* moves : {&vertex_moves_, &triangle_moves_}) moves->growTo(std::max<uint32_t>(1, blocks));
+    reforms_.growTo(std::max<uint32_t>(1, blocks));
+    draw_blocks_.growTo(std::max<uint32_t>(1, blocks));
     vertex_move_count_ = triangle_move_count_ = reform_count_ = draw_count_ = 0;
 
+    // The last frame's blocks that this frame's layout no longer has (both lists ascending).
+    std::vector<uint32_t> dropped;
+    for (uint32_t a = 0, b = 0; a < prev_host_.count; ++a) {
+        const uint32_t id = prev_host_.objects[a];
+        while (b < blocks && l.ids[b] < id) ++b;
+        if (!(b < blocks && l.ids[b] == id)) dropped.push_back(id);
+    }
     // Without coherence nothing of the last frame is reused (SnC and NS): every block is new.
     if (!coherent)
         for (uint32_t j = 0; j < prev_host_.count; ++j) places_[prev_host_.objects[j]] = BlockPlace{};
@@ -374,24 +384,25 @@ bool Pipeline::placeBlocks(HostLayoutArrays& l, uint32_t blocks, FrameStats& sta
     // Each block keeps its place while its LOD fits its room; a block that outgrew it, or is new,
     // gets a new range. Old ranges are given back after the frame, so that no move of this frame
     // writes where another reads. When the heaps are full or mostly holes, everything is
-    // compacted into the other buffers instead.
+    // compacted into the other buffers instead. Places go straight into the layout (l.voff, l.toff).
     std::vector<std::pair<uint64_t, uint64_t>> vertex_frees, triangle_frees;
     std::vector<uint32_t> next_vcap(blocks), next_tcap(blocks);
-    std::vector<uint64_t> next_voff(blocks), next_toff(blocks);
-    bool compact = !coherent || fragmented(vertex_heap_) || fragmented(triangle_heap_);
-    for (uint32_t j = 0; j < blocks && !compact; ++j) {
-        const uint32_t id = l.ids[j];
-        const BlockPlace& p = places_[id];
-        if (p.resident && l.vc[j] <= p.vcap && l.tc[j] <= p.tcap) {
-            next_vcap[j] = p.vcap, next_tcap[j] = p.tcap, next_voff[j] = p.voff, next_toff[j] = p.toff;
-            continue;
-        }
-        const k::ObjectInfo& o = scene_.host_objects[id];
+    const auto giveRoom = [&](uint32_t j) {
+        const k::ObjectInfo& o = scene_.host_objects[l.ids[j]];
         next_vcap[j] = roomFor(l.vc[j], o.vertex_count);
         next_tcap[j] = scene_.lodTriangles(o.mesh, next_vcap[j]);
-        next_voff[j] = next_vcap[j] ? vertex_heap_.allocate(next_vcap[j]) : 0;
-        next_toff[j] = next_tcap[j] ? triangle_heap_.allocate(next_tcap[j]) : 0;
-        if (next_voff[j] == RangeAllocator::kNone || next_toff[j] == RangeAllocator::kNone) compact = true;
+    };
+    bool compact = !coherent || fragmented(vertex_heap_) || fragmented(triangle_heap_);
+    for (uint32_t j = 0; j < blocks && !compact; ++j) {
+        const BlockPlace& p = places_[l.ids[j]];
+        if (p.resident && l.vc[j] <= p.vcap && l.tc[j] <= p.tcap) {
+            next_vcap[j] = p.vcap, next_tcap[j] = p.tcap, l.voff[j] = p.voff, l.toff[j] = p.toff;
+            continue;
+        }
+        giveRoom(j);
+        l.voff[j] = next_vcap[j] ? vertex_heap_.allocate(next_vcap[j]) : 0;
+        l.toff[j] = next_tcap[j] ? triangle_heap_.allocate(next_tcap[j]) : 0;
+        if (l.voff[j] == RangeAllocator::kNone || l.toff[j] == RangeAllocator::kNone) compact = true;
         if (p.resident) {
             vertex_frees.emplace_back(p.voff, p.vcap);
             triangle_frees.emplace_back(p.toff, p.tcap);
@@ -401,10 +412,8 @@ bool Pipeline::placeBlocks(HostLayoutArrays& l, uint32_t blocks, FrameStats& sta
         // Every block afresh, back to back, with room to grow and heaps half as large again.
         uint64_t vertices = 0, triangles = 0;
         for (uint32_t j = 0; j < blocks; ++j) {
-            const k::ObjectInfo& o = scene_.host_objects[l.ids[j]];
-            next_vcap[j] = roomFor(l.vc[j], o.vertex_count);
-            next_tcap[j] = scene_.lodTriangles(o.mesh, next_vcap[j]);
-            next_voff[j] = vertices, next_toff[j] = triangles;
+            giveRoom(j);
+            l.voff[j] = vertices, l.toff[j] = triangles;
             vertices += next_vcap[j];
             triangles += next_tcap[j];
         }
@@ -420,11 +429,7 @@ bool Pipeline::placeBlocks(HostLayoutArrays& l, uint32_t blocks, FrameStats& sta
                               std::to_string(triangles) + " triangles, more than 32-bit indices reach: lower --budget");
     } else {
         // Blocks that left the layout give their ranges back too.
-        uint32_t b = 0;
-        for (uint32_t a = 0; a < prev_host_.count; ++a) {
-            const uint32_t id = prev_host_.objects[a];
-            while (b < blocks && l.ids[b] < id) ++b;
-            if (b < blocks && l.ids[b] == id) continue;
+        for (uint32_t id : dropped) {
             vertex_frees.emplace_back(places_[id].voff, places_[id].vcap);
             triangle_frees.emplace_back(places_[id].toff, places_[id].tcap);
         }
@@ -440,36 +445,25 @@ bool Pipeline::placeBlocks(HostLayoutArrays& l, uint32_t blocks, FrameStats& sta
         BlockPlace& p = places_[id];
         const uint32_t kept_v = p.resident ? std::min(p.vc, l.vc[j]) : 0;
         const uint32_t kept_t = p.resident ? std::min(p.tc, l.tc[j]) : 0;
-        const bool placed = !p.resident || next_voff[j] != p.voff || next_toff[j] != p.toff || compact;
+        const bool placed = !p.resident || l.voff[j] != p.voff || l.toff[j] != p.toff || compact;
         const uint32_t staged_v = l.vc[j] - kept_v, staged_t = l.tc[j] - kept_t;
         const uint32_t moved_v = placed ? kept_v : 0, moved_t = placed ? kept_t : 0;
         if (moved_v + staged_v > 0)
-            vertex_moves_[vertex_move_count_++] = {p.voff, next_voff[j], staged_vertices, kept_v, moved_v, staged_v, 0};
+            vertex_moves_[vertex_move_count_++] = {p.voff, l.voff[j], staged_vertices, kept_v, moved_v, staged_v, 0};
         if (moved_t + staged_t > 0)
-            triangle_moves_[triangle_move_count_++] = {p.toff, next_toff[j], staged_triangles, kept_t, moved_t,
-                                                       staged_t, 0};
+            triangle_moves_[triangle_move_count_++] = {p.toff, l.toff[j], staged_triangles, kept_t, moved_t, staged_t, 0};
         staged_vertices += staged_v;
         staged_triangles += staged_t;
         moved += moved_v * sizeof(glm::vec3) + moved_t * 3 * sizeof(uint32_t);
         // Indices are local to the block: only a block whose drawn LOD or triangles changed, or
         // that moved, is reformed.
         if (l.draw_vc[j] > 0 && (placed || staged_t > 0 || p.draw_vc != l.draw_vc[j]))
-            reforms_[reform_count_++] = {next_toff[j], id, l.draw_vc[j], l.draw_tc[j], 0};
+            reforms_[reform_count_++] = {l.toff[j], id, l.draw_vc[j], l.draw_tc[j], 0};
         if (l.draw_vc[j] > 0)
-            draw_blocks_[draw_count_++] = {id, l.draw_tc[j], uint32_t(next_toff[j]), uint32_t(next_voff[j])};
-        p = {next_voff[j], next_toff[j], next_vcap[j], next_tcap[j], l.vc[j], l.tc[j], l.draw_vc[j], true};
-        l.voff[j] = next_voff[j];
-        l.toff[j] = next_toff[j];
+            draw_blocks_[draw_count_++] = {id, l.draw_tc[j], uint32_t(l.toff[j]), uint32_t(l.voff[j])};
+        p = {l.voff[j], l.toff[j], next_vcap[j], next_tcap[j], l.vc[j], l.tc[j], l.draw_vc[j], true};
     }
-    // Blocks gone from the layout are no longer resident.
-    {
-        uint32_t b = 0;
-        for (uint32_t a = 0; a < prev_host_.count; ++a) {
-            const uint32_t id = prev_host_.objects[a];
-            while (b < blocks && l.ids[b] < id) ++b;
-            if (!(b < blocks && l.ids[b] == id)) places_[id] = BlockPlace{};
-        }
-    }
+    for (uint32_t id : dropped) places_[id] = BlockPlace{};
     stats.moved_bytes = moved;
     return compact;
 }
@@ -512,11 +506,6 @@ void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
                                 host_, staging_);
         clock.lap(Stage::StreamCollect);
         // Only the blocks that changed: their lists cross the bus, then their elements move.
-        const auto upload = [](k::DeviceArray<k::BlockMove>& device, const k::PinnedArray<k::BlockMove>& host,
-                               uint32_t count) {
-            if (device.size() < count) device.resize(count + count / 2);
-            k::copyToDevice(device.ptr(), host.data(), count);
-        };
         upload(vertex_moves_device_, vertex_moves_, vertex_move_count_);
         upload(triangle_moves_device_, triangle_moves_, triangle_move_count_);
         k::defragmentVertices(vertex_moves_device_.ptr(), vertex_move_count_, vertices.buffers[vertices.current].ptr(),
@@ -532,13 +521,11 @@ void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
     stats.streamed_triangles = sent.triangles;
     stats.streamed_bytes = sent.bytes();
 
-    if (reforms_device_.size() < reform_count_) reforms_device_.resize(reform_count_ + reform_count_ / 2);
-    k::copyToDevice(reforms_device_.ptr(), reforms_.data(), reform_count_);
+    upload(reforms_device_, reforms_, reform_count_);
     stats.reformed_triangles = k::reformBlocks(reforms_device_.ptr(), reform_count_, scene_.objects.ptr(), scene_.vertex_first.ptr(),
                     scene_.ecol.ptr(), triangles.data(), indices_.ptr(), reform_scratch_);
     if (lender_) {
-        draw_blocks_device_.resize(std::max<size_t>(1, draw_count_));
-        k::copyToDevice(draw_blocks_device_.ptr(), draw_blocks_.data(), draw_count_);
+        upload(draw_blocks_device_, draw_blocks_, draw_count_);
         lender_->endDeviceWrites();
     }
     clock.lap(Stage::Reform);
@@ -550,7 +537,7 @@ void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
 FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
     FrameStats stats;
     stats.frame = frame;
-    const k::BusCounters bus_before = k::busCounters();
+    BusWindow bus;
     // The PVS `pvs_occluder_lag` frames back supplies this frame's extra occluders.
     occluderPass(pose, frame, stats);
     // The last frame's visible set, if this pipeline culled it, for the hysteresis.
@@ -558,8 +545,7 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
     static const std::vector<std::pair<uint32_t, uint32_t>> none;
     cullPass(pose, frame, stats, last ? history_[0].lod : none);
     streamPass(frame, stats);
-    stats.bus_h2d_bytes = k::busCounters().h2d_bytes - bus_before.h2d_bytes;
-    stats.bus_d2h_bytes = k::busCounters().d2h_bytes - bus_before.d2h_bytes;
+    bus.take(stats);
     return stats;
 }
 

@@ -158,11 +158,7 @@ void SceneRenderer::reserve(uint32_t slot, size_t bytes) {
     GlSlot& s = slots_[slot];
     if (bytes <= s.capacity) return;
     // Immutable storage cannot grow: a new buffer replaces the old one, once GL no longer reads it.
-    if (drawn_) {
-        glClientWaitSync(drawn_, GL_SYNC_FLUSH_COMMANDS_BIT, GLuint64(60) * 1000000000);
-        glDeleteSync(drawn_);
-        drawn_ = nullptr;
-    }
+    waitForLastDraw();
     s.view.reset();
     glDeleteBuffers(1, &s.buffer);
     s.buffer = makeBuffer();
@@ -186,15 +182,18 @@ void SceneRenderer::reserve(uint32_t slot, size_t bytes) {
 
 k::DevicePtr<void> SceneRenderer::pointer(uint32_t slot) const { return slots_[slot].view->ptr(); }
 
+void SceneRenderer::waitForLastDraw() {
+    if (!drawn_) return;
+    const GLenum r = glClientWaitSync(drawn_, GL_SYNC_FLUSH_COMMANDS_BIT, GLuint64(60) * 1000000000);
+    glDeleteSync(drawn_);
+    drawn_ = nullptr;
+    if (r == GL_TIMEOUT_EXPIRED || r == GL_WAIT_FAILED)
+        throw SystemError("OpenGL: the last frame's draw did not finish within 60 s");
+}
+
 void SceneRenderer::beginDeviceWrites() {
     // The last frame's draw reads the buffers the device is about to write.
-    if (drawn_) {
-        const GLenum r = glClientWaitSync(drawn_, GL_SYNC_FLUSH_COMMANDS_BIT, GLuint64(60) * 1000000000);
-        if (r == GL_TIMEOUT_EXPIRED || r == GL_WAIT_FAILED)
-            throw SystemError("OpenGL: the last frame's draw did not finish within 60 s");
-        glDeleteSync(drawn_);
-        drawn_ = nullptr;
-    }
+    waitForLastDraw();
     for (GlSlot& slot : slots_) slot.view->map();
     writing_ = true;
 }

@@ -100,6 +100,8 @@ private:
         std::unique_ptr<k::GlBufferView> view;
     };
     void uploadFullDetail();
+    // Waits until GL has finished the last frame's draw (the fence after it), at most 60 s.
+    void waitForLastDraw();
     // One glMultiDrawElementsIndirect of `draws` commands from the bound indirect buffer with
     // the shaded program and `vao`.
     void multiDraw(GLuint vao, uint32_t draws, const k::Camera& camera);

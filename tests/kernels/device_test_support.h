@@ -51,14 +51,13 @@ std::vector<T> toHost(const DeviceArray<T>& a) {
     return toHost(a.ptr(), a.size());
 }
 
-// One frame's layout (scan.h) twice over, from the same vectors: the host copy that
-// streamCollect and streamObjectByObject read, and the device copy that defragment and reform
-// read. The offsets are the kernels' exclusiveScan of the counts, downloaded for the host copy.
+// One frame's packed layout (scan.h) as streamCollect and streamObjectByObject read it, from
+// the block vectors; the offsets are the kernels' exclusiveScan of the counts, downloaded.
 struct LayoutPair {
     std::vector<uint32_t> objects, vertex_count, triangle_count;
     std::vector<uint64_t> vertex_offset, triangle_offset;
     uint64_t vertex_total = 0, triangle_total = 0;
-    DeviceArray<uint32_t> device_objects, device_vertex_count, device_triangle_count;
+    DeviceArray<uint32_t> device_vertex_count, device_triangle_count;
     DeviceArray<uint64_t> device_vertex_offset, device_triangle_offset;
 
     LayoutPair(std::vector<uint32_t> ids, std::vector<uint32_t> vc, std::vector<uint32_t> tc)
@@ -72,7 +71,6 @@ struct LayoutPair {
         triangle_total = exclusiveScan(device_triangle_count.ptr(), n, device_triangle_offset.ptr());
         vertex_offset = toHost(device_vertex_offset, n);
         triangle_offset = toHost(device_triangle_offset, n);
-        device_objects = toDevice(objects);
     }
 
     uint32_t count() const { return uint32_t(objects.size()); }
@@ -80,16 +78,8 @@ struct LayoutPair {
         return {objects.data(),         vertex_count.data(), triangle_count.data(), vertex_offset.data(),
                 triangle_offset.data(), count(),             vertex_total,          triangle_total};
     }
-    ActiveLayout device() const {
-        return {device_objects.ptr(),       device_vertex_count.ptr(),    device_triangle_count.ptr(),
-                device_vertex_offset.ptr(), device_triangle_offset.ptr(), count(),
-                vertex_total,               triangle_total};
-    }
-    // Rewrites the ids in both copies (for a test that breaks a layout on purpose).
-    void setObjects(std::vector<uint32_t> ids) {
-        objects = std::move(ids);
-        device_objects = toDevice(objects);
-    }
+    // Rewrites the ids (for a test that breaks a layout on purpose).
+    void setObjects(std::vector<uint32_t> ids) { objects = std::move(ids); }
 };
 
 // Why this build's device cannot run kernels here, or empty when it can (the CPU build always
