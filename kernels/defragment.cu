@@ -58,17 +58,18 @@ uint64_t defragmentTriangles(DevicePtr<const BlockMove> moves, uint32_t count, D
     return apply<uint32_t, 3>(moves, count, src, dst, staging, scratch);
 }
 
-StreamCounts streamObjectByObject(const HostLayout& current, const HostGeometry& host, DevicePtr<glm::vec3> vertices,
-                                  DevicePtr<uint32_t> triangles) {
+StreamCounts streamObjectByObject(const StreamBlock* blocks, uint32_t count, const HostGeometry& host,
+                                  DevicePtr<glm::vec3> vertices, DevicePtr<uint32_t> triangles) {
     StreamCounts counts;
-    for (uint32_t j = 0; j < current.count; ++j) {
-        const uint32_t mesh = host.objects[current.objects[j]].mesh;
-        copyToDevice(vertices + current.vertex_offset[j], host.positions + host.vertex_first[mesh],
-                     current.vertex_count[j]);
-        copyToDevice(triangles + 3 * current.triangle_offset[j], host.triangles + 3 * host.triangle_first[mesh],
-                     3 * uint64_t(current.triangle_count[j]));
-        counts.vertices += current.vertex_count[j];
-        counts.triangles += current.triangle_count[j];
+    for (uint32_t j = 0; j < count; ++j) {
+        const StreamBlock& b = blocks[j];
+        const uint32_t mesh = host.objects[b.object].mesh;
+        copyToDevice(vertices + (b.vertex_offset + b.vertex_kept), host.positions + host.vertex_first[mesh] + b.vertex_kept,
+                     b.vertex_staged);
+        copyToDevice(triangles + 3 * (b.triangle_offset + b.triangle_kept),
+                     host.triangles + 3 * (host.triangle_first[mesh] + b.triangle_kept), 3 * uint64_t(b.triangle_staged));
+        counts.vertices += b.vertex_staged;
+        counts.triangles += b.triangle_staged;
     }
     return counts;
 }

@@ -6,10 +6,10 @@
 
 // Streaming with frame-to-frame coherence (SC, Algorithm 3 of Peng & Cao 2012), part 2 of 2:
 // the blocks of the active arrays that changed this frame are updated in place. The layout is
-// stable (src/pipeline/block_allocator.h places the blocks): a block that keeps its place keeps
+// stable (placeLayout in block_layout.h places the blocks): a block that keeps its place keeps
 // its bytes and is not touched; a block that grew past its room moved to a new place, where its
 // kept prefix is copied device to device; every block's streamed part comes from the staging
-// buffer that streamCollect filled. Compaction (all blocks into a fresh buffer) is the same call
+// buffer that streamBlocks filled. Compaction (all blocks into a fresh buffer) is the same call
 // with src != dst.
 
 namespace occ::k {
@@ -62,11 +62,11 @@ uint64_t defragmentVertices(DevicePtr<const BlockMove> moves, uint32_t count, De
 uint64_t defragmentTriangles(DevicePtr<const BlockMove> moves, uint32_t count, DevicePtr<const uint32_t> src,
                              DevicePtr<uint32_t> dst, DevicePtr<const uint32_t> staging, ActiveArrays& scratch);
 
-// The NS baseline of Peng & Cao's Table 1, no streaming batch: every block of `current` (the
-// host's placed layout) copied whole from `host` straight to its place in `vertices` and
-// `triangles` (device memory with room for the layout's offsets plus sizes), one bus copy per
-// object and array, with no staging and no reuse of the previous frame. Returns the counts.
-StreamCounts streamObjectByObject(const HostLayout& current, const HostGeometry& host, DevicePtr<glm::vec3> vertices,
-                                  DevicePtr<uint32_t> triangles);
+// The NS baseline of Peng & Cao's Table 1, no streaming batch: every listed part (host memory,
+// `count` entries, placeLayout's stream list) copied from `host` straight to its place in
+// `vertices` and `triangles` (device memory with room for the offsets plus sizes), one bus copy
+// per block and array, with no staging. Returns the counts.
+StreamCounts streamObjectByObject(const StreamBlock* blocks, uint32_t count, const HostGeometry& host,
+                                  DevicePtr<glm::vec3> vertices, DevicePtr<uint32_t> triangles);
 
 }  // namespace occ::k

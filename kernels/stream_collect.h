@@ -11,19 +11,19 @@
 // gather on the host what the device's active arrays lack and send it over the bus. Part 2,
 // defragment.h, writes it, and moves the blocks that changed place, in the active arrays.
 //
-// One frame, as src/pipeline/pipeline.cpp drives it. The host keeps the layout (HostLayout:
-// per resident block its object, vertex and triangle counts and its place, which a stable
-// allocator chooses) of the last frame and of this one:
-//   streamCollect(prev, cur, host, staging);   // what prev lacks, gathered and sent to the device
+// One frame, as src/pipeline/pipeline.cpp drives it. The device builds the layout
+// (block_layout.h) and hands back the blocks that lack something, in layout order:
+//   placeLayout(...);                          // the layout, its moves, reforms and stream list
+//   streamBlocks(list, host, staging);         // what they lack, gathered and sent to the device
 //   defragmentVertices(moves, ..., staging.device_vertices, ...);   // the changed blocks only
 //   defragmentTriangles(moves, ..., staging.device_triangles, ...);
 //   reformBlocks(...);                         // indices of the blocks whose drawn LOD changed
-//   prev = cur
-// The first frame passes HostLayout{} as prev. StagingBuffers is reused from frame to frame; its
-// contents matter only between streamCollect and defragment of one frame. Baselines of Peng &
-// Cao's Table 1: SnC (streaming without coherence) passes HostLayout{} as prev every frame, so
-// every block is gathered and copied whole; NS (no streaming batch: one copy per object) is
-// streamObjectByObject in defragment.h.
+// StagingBuffers is reused from frame to frame; its contents matter only between the gather and
+// defragment of one frame. A layout the host holds (HostLayout) gets its list from streamList,
+// or both steps at once from streamCollect. Baselines of Peng & Cao's Table 1: SnC (streaming
+// without coherence) treats every block as new every frame, so every block is gathered and
+// copied whole; NS (no streaming batch: one copy per object) is streamObjectByObject in
+// defragment.h.
 
 namespace occ::k {
 
@@ -52,9 +52,19 @@ struct StagingBuffers {
     DeviceArray<uint32_t> device_triangles;
     uint64_t vertex_count = 0;
     uint64_t triangle_count = 0;
-    std::vector<uint32_t> lengths;  // per-block bookkeeping of streamCollect; no meaning outside it
-    std::vector<uint64_t> offsets;
+    std::vector<uint64_t> offsets;  // per-entry bookkeeping of the gather; no meaning outside it
 };
+
+// What the host must stream for one block: elements [kept, kept + staged) of its object's mesh,
+// which land at offset + kept. Listed in layout order, which is the order they are staged in.
+struct StreamBlock {
+    uint64_t vertex_offset, triangle_offset;
+    uint32_t object;
+    uint32_t vertex_kept, vertex_staged;
+    uint32_t triangle_kept, triangle_staged;
+    uint32_t pad;
+};
+static_assert(sizeof(StreamBlock) == 40);
 
 struct StreamCounts {
     uint64_t vertices = 0;   // gathered (host -> device)
@@ -62,13 +72,19 @@ struct StreamCounts {
     uint64_t bytes() const { return vertices * sizeof(glm::vec3) + triangles * 3 * sizeof(uint32_t); }
 };
 
-// Fills `staging` with what `current` needs beyond what `previous` held, gathered from `host`,
-// copies it to the device side of `staging` (the frame's one bulk host -> device transfer) and
-// returns the counts. The layouts are the host's copies of the device layouts defragment gets
-// (same blocks), read only; they may share arrays (an unchanged frame); previous may be
-// HostLayout{} (first frame, or the SNC baseline). Objects in `current` with vc = 0 contribute
-// nothing. Throws std::invalid_argument if current's ids are not strictly ascending. The gather
-// is thread-parallel on the host.
+// Fills `staging` with the parts the list names (host memory, `count` entries, staged in list
+// order: vertex parts back to back, then likewise the triangle parts), gathered from `host`,
+// copies them to the device side of `staging` (the frame's one bulk host -> device transfer)
+// and returns the counts. The gather is thread-parallel on the host.
+StreamCounts streamBlocks(const StreamBlock* blocks, uint32_t count, const HostGeometry& host, StagingBuffers& staging);
+
+// Per block of `current`, in order: what it needs beyond what `previous` held (the shared
+// prefix is kept). The layouts may share arrays (an unchanged frame); previous may be
+// HostLayout{} (first frame, or the SnC baseline). Throws std::invalid_argument if current's
+// ids are not strictly ascending.
+std::vector<StreamBlock> streamList(const HostLayout& previous, const HostLayout& current);
+
+// streamBlocks(streamList(previous, current)).
 StreamCounts streamCollect(const HostLayout& previous, const HostLayout& current, const HostGeometry& host,
                            StagingBuffers& staging);
 

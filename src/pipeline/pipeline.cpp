@@ -82,27 +82,28 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     pvs_device_.resize(room);
     pvs_vc_device_.resize(room);
     pvs_tc_device_.resize(room);
-    for (HostLayoutArrays& l : host_layouts_) {
-        for (std::vector<uint32_t>* a : {&l.ids, &l.vc, &l.tc, &l.draw_vc, &l.draw_tc}) a->resize(room);
-        l.voff.resize(room);
-        l.toff.resize(room);
-    }
-    places_.resize(n);
+    for (k::DeviceArray<k::LayoutBlock>& l : layouts_) l.resize(room);
+    places_.resize(room);
+    k::deviceMemset(places_.ptr(), 0, room * sizeof(k::BlockPlace));
     pvs_vc_.resize(n);
     pvs_tc_.resize(n);
-    resident_vc_.assign(n, 0);
-    last_drawn_.assign(n, 0);
 }
 
 void Pipeline::lendActiveArrays(k::BufferProvider& lender) {
     lender.beginDeviceWrites();
     for (uint32_t b = 0; b < 2; ++b)
         active_.vertices.buffers[b].lendFrom(&lender, kActiveVertexSlot + b,
-                                             b == active_.vertices.current ? vertex_heap_.extent() : 0);
-    indices_.lendFrom(&lender, kIndexSlot, 3 * triangle_heap_.extent());
+                                             b == active_.vertices.current ? heap_.vertex_top : 0);
+    indices_.lendFrom(&lender, kIndexSlot, 3 * heap_.triangle_top);
     lender.endDeviceWrites();
     lender_ = &lender;
-    upload(draw_blocks_device_, draw_blocks_, draw_count_);
+}
+
+std::vector<k::LayoutBlock> Pipeline::downloadLayout() const {
+    const uint32_t last = cur_index_ ^ 1;
+    std::vector<k::LayoutBlock> blocks(layout_counts_[last]);
+    k::copyToHost(blocks.data(), layouts_[last].ptr(), blocks.size());
+    return blocks;
 }
 
 std::vector<uint32_t> Pipeline::downloadFrustumObjects() const {
@@ -152,67 +153,6 @@ void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
                    g.edge_neighbours.ptr(), camera, hzm_.ptr(), raster_scratch_);
     stats.aos_size = occluder_count_;
     stats.occluder_triangles = g.triangle_total;
-}
-
-// The blocks of this frame's active arrays: every object drawn now, and (coherent streaming)
-// every object still resident from recent frames, with at least the vertices it draws.
-void Pipeline::buildLayout(uint64_t frame, FrameStats& stats) {
-    HostLayoutArrays& l = host_layouts_[cur_index_];
-    const bool retain = options_.stream == StreamMode::Coherent && options_.retain_frames > 0;
-    const uint32_t* prev_ids = prev_host_.objects;
-    uint32_t a = 0, b = 0, out = 0;
-    uint64_t resident = 0;
-    const auto residentTriangles = [&](uint32_t id, uint32_t vc) {
-        return scene_.lodTriangles(scene_.host_objects[id].mesh, vc);
-    };
-    // Merge last frame's resident ids with this frame's PVS (both ascending).
-    while (a < prev_host_.count || b < pvs_.size()) {
-        const uint32_t pa = a < prev_host_.count ? prev_ids[a] : UINT32_MAX;
-        const uint32_t pb = b < pvs_.size() ? pvs_[b] : UINT32_MAX;
-        const uint32_t id = std::min(pa, pb);
-        uint32_t draw = 0, draw_tc = 0;
-        if (pb == id) {
-            draw = pvs_vc_[b];
-            draw_tc = pvs_tc_[b];
-            ++b;
-        }
-        if (pa == id) ++a;
-        if (draw > 0) last_drawn_[id] = frame;
-        uint32_t keep = draw;
-        if (retain && resident_vc_[id] > draw && frame - last_drawn_[id] <= options_.retain_frames)
-            keep = resident_vc_[id];
-        if (keep == 0) {
-            resident_vc_[id] = 0;
-            continue;
-        }
-        l.ids[out] = id;
-        l.vc[out] = keep;
-        l.tc[out] = keep == draw ? draw_tc : residentTriangles(id, keep);
-        l.draw_vc[out] = draw;
-        l.draw_tc[out] = draw_tc;
-        resident += keep;
-        stats.active_vertices += draw;
-        stats.active_triangles += draw_tc;
-        stats.objects_drawn += draw > 0;
-        ++out;
-    }
-    // Over the memory cap, residency starts again from what this frame draws.
-    if (retain && double(resident) > options_.resident_factor * budget_) {
-        uint32_t kept = 0;
-        for (uint32_t j = 0; j < out; ++j) {
-            if (l.draw_vc[j] == 0) continue;
-            l.ids[kept] = l.ids[j];
-            l.vc[kept] = l.draw_vc[j];
-            l.tc[kept] = l.draw_tc[j];
-            l.draw_vc[kept] = l.draw_vc[j];
-            l.draw_tc[kept] = l.draw_tc[j];
-            ++kept;
-        }
-        out = kept;
-    }
-    std::fill(resident_vc_.begin(), resident_vc_.end(), 0u);
-    for (uint32_t j = 0; j < out; ++j) resident_vc_[l.ids[j]] = l.vc[j];
-    layout_count_ = out;
 }
 
 namespace {
@@ -290,15 +230,23 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     }
     stats.objects_visible = count;
     stats.objects_occluded = in_count - count;
-    // The visible set comes back to the host: the network sends it and the layout is built from it.
+    // The visible set comes back to the host, for the network and the history; it stays on the
+    // device for the layout.
+    if (options_.mode != CullMode::OcLod) {
+        k::copyOnDevice(pvs_device_.ptr(), pvs, count);
+        pvs = pvs_device_.ptr();
+    }
     pvs_.resize(count);
     k::copyToHost(pvs_.data(), pvs, count);
 
     if (options_.mode == CullMode::Full) {
+        // The baseline draws every object whole: its counts go up.
         for (uint32_t j = 0; j < count; ++j) {
             pvs_vc_[j] = scene_.host_objects[pvs_[j]].vertex_count;
             pvs_tc_[j] = scene_.host_objects[pvs_[j]].triangle_count;
         }
+        k::copyToDevice(pvs_vc_device_.ptr(), pvs_vc_.data(), count);
+        k::copyToDevice(pvs_tc_device_.ptr(), pvs_tc_.data(), count);
     } else {
         const k::LodParams params{float(budget_), options_.alpha, options_.pet};
         k::lodSelect(scene_.objects.ptr(), pvs, count, camera, params, scene_.map_first.ptr(), scene_.maps.ptr(),
@@ -314,7 +262,6 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
                                scene_.maps.ptr(), pvs_vc_device_.ptr(), pvs_tc_device_.ptr(), hysteresis_scratch_);
         }
         k::copyToHost(pvs_vc_.data(), pvs_vc_device_.ptr(), count);
-        k::copyToHost(pvs_tc_.data(), pvs_tc_device_.ptr(), count);
     }
     std::swap(history_[0], history_[1]);
     CulledFrame& h = history_[0];
@@ -342,130 +289,10 @@ void Pipeline::setVisible(std::span<const uint32_t> ids, std::span<const uint32_
         pvs_vc_[j] = vertex_counts[j];
         pvs_tc_[j] = scene_.lodTriangles(scene_.host_objects[ids[j]].mesh, vertex_counts[j]);
     }
-}
-
-namespace {
-
-// A block's room: its LOD plus a quarter for growth (at least 32 vertices), never more than the
-// full mesh, so that LOD changes within it (Eq. 1 and the hysteresis move by a few percent a
-// frame) write only the new vertices and triangles where the block already is.
-uint32_t roomFor(uint32_t vertices, uint32_t full) {
-    const uint64_t room = uint64_t(vertices) + std::max<uint32_t>(vertices / 4, 32);
-    return uint32_t(std::min<uint64_t>(room, full));
-}
-
-// Heaps are compacted when more than half of what they span is holes (and they are not small).
-bool fragmented(const RangeAllocator& heap) {
-    const uint64_t extent = heap.extent();
-    return extent > (uint64_t(1) << 16) && extent - heap.used() > extent / 2;
-}
-
-
-}  // namespace
-
-bool Pipeline::placeBlocks(HostLayoutArrays& l, uint32_t blocks, FrameStats& stats) {
-    const bool coherent = options_.stream == StreamMode::Coherent;
-    for (k::PinnedArray<k::BlockMove>* moves : {&vertex_moves_, &triangle_moves_}) moves->growTo(std::max<uint32_t>(1, blocks));
-    reforms_.growTo(std::max<uint32_t>(1, blocks));
-    draw_blocks_.growTo(std::max<uint32_t>(1, blocks));
-    vertex_move_count_ = triangle_move_count_ = reform_count_ = draw_count_ = 0;
-
-    // The last frame's blocks that this frame's layout no longer has (both lists ascending).
-    std::vector<uint32_t> dropped;
-    for (uint32_t a = 0, b = 0; a < prev_host_.count; ++a) {
-        const uint32_t id = prev_host_.objects[a];
-        while (b < blocks && l.ids[b] < id) ++b;
-        if (!(b < blocks && l.ids[b] == id)) dropped.push_back(id);
-    }
-    // Without coherence nothing of the last frame is reused (SnC and NS): every block is new.
-    if (!coherent)
-        for (uint32_t j = 0; j < prev_host_.count; ++j) places_[prev_host_.objects[j]] = BlockPlace{};
-
-    // Each block keeps its place while its LOD fits its room; a block that outgrew it, or is new,
-    // gets a new range. Old ranges are given back after the frame, so that no move of this frame
-    // writes where another reads. When the heaps are full or mostly holes, everything is
-    // compacted into the other buffers instead. Places go straight into the layout (l.voff, l.toff).
-    std::vector<std::pair<uint64_t, uint64_t>> vertex_frees, triangle_frees;
-    std::vector<uint32_t> next_vcap(blocks), next_tcap(blocks);
-    const auto giveRoom = [&](uint32_t j) {
-        const k::ObjectInfo& o = scene_.host_objects[l.ids[j]];
-        next_vcap[j] = roomFor(l.vc[j], o.vertex_count);
-        next_tcap[j] = scene_.lodTriangles(o.mesh, next_vcap[j]);
-    };
-    bool compact = !coherent || fragmented(vertex_heap_) || fragmented(triangle_heap_);
-    for (uint32_t j = 0; j < blocks && !compact; ++j) {
-        const BlockPlace& p = places_[l.ids[j]];
-        if (p.resident && l.vc[j] <= p.vcap && l.tc[j] <= p.tcap) {
-            next_vcap[j] = p.vcap, next_tcap[j] = p.tcap, l.voff[j] = p.voff, l.toff[j] = p.toff;
-            continue;
-        }
-        giveRoom(j);
-        l.voff[j] = next_vcap[j] ? vertex_heap_.allocate(next_vcap[j]) : 0;
-        l.toff[j] = next_tcap[j] ? triangle_heap_.allocate(next_tcap[j]) : 0;
-        if (l.voff[j] == RangeAllocator::kNone || l.toff[j] == RangeAllocator::kNone) compact = true;
-        if (p.resident) {
-            vertex_frees.emplace_back(p.voff, p.vcap);
-            triangle_frees.emplace_back(p.toff, p.tcap);
-        }
-    }
-    if (compact) {
-        // Every block afresh, back to back, with room to grow and heaps half as large again.
-        uint64_t vertices = 0, triangles = 0;
-        for (uint32_t j = 0; j < blocks; ++j) {
-            giveRoom(j);
-            l.voff[j] = vertices, l.toff[j] = triangles;
-            vertices += next_vcap[j];
-            triangles += next_tcap[j];
-        }
-        vertex_heap_.reset(std::max<uint64_t>(4096, vertices + vertices / 2));
-        triangle_heap_.reset(std::max<uint64_t>(4096, triangles + triangles / 2));
-        for (uint32_t j = 0; j < blocks; ++j) {
-            if (next_vcap[j]) vertex_heap_.allocate(next_vcap[j]);
-            if (next_tcap[j]) triangle_heap_.allocate(next_tcap[j]);
-        }
-        // The display draws with 32-bit first indices and base vertices.
-        if (vertex_heap_.capacity() > uint64_t(INT32_MAX) || 3 * triangle_heap_.capacity() > uint64_t(UINT32_MAX))
-            throw SystemError("the active arrays would hold " + std::to_string(vertices) + " vertices and " +
-                              std::to_string(triangles) + " triangles, more than 32-bit indices reach: lower --budget");
-    } else {
-        // Blocks that left the layout give their ranges back too.
-        for (uint32_t id : dropped) {
-            vertex_frees.emplace_back(places_[id].voff, places_[id].vcap);
-            triangle_frees.emplace_back(places_[id].toff, places_[id].tcap);
-        }
-        for (const auto& [offset, n] : vertex_frees) vertex_heap_.release(offset, n);
-        for (const auto& [offset, n] : triangle_frees) triangle_heap_.release(offset, n);
-    }
-
-    // The moves and reforms of the frame, block by block in layout order, which is also the order
-    // streamCollect stages the blocks' new parts in.
-    uint64_t staged_vertices = 0, staged_triangles = 0, moved = 0;
-    for (uint32_t j = 0; j < blocks; ++j) {
-        const uint32_t id = l.ids[j];
-        BlockPlace& p = places_[id];
-        const uint32_t kept_v = p.resident ? std::min(p.vc, l.vc[j]) : 0;
-        const uint32_t kept_t = p.resident ? std::min(p.tc, l.tc[j]) : 0;
-        const bool placed = !p.resident || l.voff[j] != p.voff || l.toff[j] != p.toff || compact;
-        const uint32_t staged_v = l.vc[j] - kept_v, staged_t = l.tc[j] - kept_t;
-        const uint32_t moved_v = placed ? kept_v : 0, moved_t = placed ? kept_t : 0;
-        if (moved_v + staged_v > 0)
-            vertex_moves_[vertex_move_count_++] = {p.voff, l.voff[j], staged_vertices, kept_v, moved_v, staged_v, 0};
-        if (moved_t + staged_t > 0)
-            triangle_moves_[triangle_move_count_++] = {p.toff, l.toff[j], staged_triangles, kept_t, moved_t, staged_t, 0};
-        staged_vertices += staged_v;
-        staged_triangles += staged_t;
-        moved += moved_v * sizeof(glm::vec3) + moved_t * 3 * sizeof(uint32_t);
-        // Indices are local to the block: only a block whose drawn LOD or triangles changed, or
-        // that moved, is reformed.
-        if (l.draw_vc[j] > 0 && (placed || staged_t > 0 || p.draw_vc != l.draw_vc[j]))
-            reforms_[reform_count_++] = {l.toff[j], id, l.draw_vc[j], l.draw_tc[j], 0};
-        if (l.draw_vc[j] > 0)
-            draw_blocks_[draw_count_++] = {id, l.draw_tc[j], uint32_t(l.toff[j]), uint32_t(l.voff[j])};
-        p = {l.voff[j], l.toff[j], next_vcap[j], next_tcap[j], l.vc[j], l.tc[j], l.draw_vc[j], true};
-    }
-    for (uint32_t id : dropped) places_[id] = BlockPlace{};
-    stats.moved_bytes = moved;
-    return compact;
+    // The layout is built on the device: the visible set goes up.
+    k::copyToDevice(pvs_device_.ptr(), pvs_.data(), pvs_.size());
+    k::copyToDevice(pvs_vc_device_.ptr(), pvs_vc_.data(), pvs_.size());
+    k::copyToDevice(pvs_tc_device_.ptr(), pvs_tc_.data(), pvs_.size());
 }
 
 void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
@@ -474,43 +301,55 @@ void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
     stats.budget_vertices = uint64_t(budget_);
     stats.objects_visible = pvs_.size();
     stats.pvs_hash = XXH3_64bits(pvs_.data(), pvs_.size() * sizeof(uint32_t));
-    buildLayout(frame, stats);
-    HostLayoutArrays& l = host_layouts_[cur_index_];
-    const uint32_t blocks = layout_count_;
-    const bool compacted = placeBlocks(l, blocks, stats);
-    uint64_t vertex_total = 0, triangle_total = 0;
-    for (uint32_t j = 0; j < blocks; ++j) vertex_total += l.vc[j], triangle_total += l.tc[j];
-    cur_host_ = {l.ids.data(), l.vc.data(), l.tc.data(), l.voff.data(), l.toff.data(), blocks, vertex_total, triangle_total};
-    stats.resident_vertices = vertex_total;
-    stats.resident_triangles = triangle_total;
+    // The layout, on the device; the host gets back what it must stream and a few totals.
+    const bool coherent = options_.stream == StreamMode::Coherent;
+    const k::VisibleLods visible{pvs_device_.ptr(), pvs_vc_device_.ptr(), pvs_tc_device_.ptr(), uint32_t(pvs_.size())};
+    const k::LayoutOptions layout{frame, coherent, coherent ? options_.retain_frames : 0u,
+                                  options_.resident_factor * budget_};
+    const uint32_t last = cur_index_ ^ 1;
+    k::LayoutTotals totals;
+    try {
+        totals = k::placeLayout(visible, layouts_[last].ptr(), layout_counts_[last], layouts_[cur_index_].ptr(),
+                                places_.ptr(), {scene_.objects.ptr(), scene_.map_first.ptr(), scene_.maps.ptr()},
+                                layout, heap_, lists_, layout_scratch_);
+    } catch (const std::length_error& e) {
+        throw SystemError(e.what());
+    }
+    layout_counts_[cur_index_] = totals.blocks;
+    stats.active_vertices = totals.active_vertices;
+    stats.active_triangles = totals.active_triangles;
+    stats.objects_drawn = totals.objects_drawn;
+    stats.resident_vertices = totals.resident_vertices;
+    stats.resident_triangles = totals.resident_triangles;
+    stats.moved_bytes = totals.moved_bytes;
+    stream_list_.growTo(std::max<uint32_t>(1, lists_.stream_count));
+    k::copyToHost(stream_list_.data(), lists_.streams.ptr(), lists_.stream_count);
     clock.lap(Stage::Scan);
 
     // The active arrays may be the display's buffers: the kernels write them only in here.
     if (lender_) lender_->beginDeviceWrites();
-    // Compaction writes every block into the other buffers, which then become current.
+    // Compaction and growth write every block into the other buffers, which then become current.
     k::ActiveBuffer<glm::vec3>& vertices = active_.vertices;
     k::ActiveBuffer<uint32_t>& triangles = active_.triangles;
-    const uint32_t vertex_to = compacted ? vertices.current ^ 1 : vertices.current;
-    const uint32_t triangle_to = compacted ? triangles.current ^ 1 : triangles.current;
-    vertices.buffers[vertex_to].reserve(vertex_heap_.capacity());
-    triangles.buffers[triangle_to].reserve(3 * triangle_heap_.capacity());
-    indices_.reserve(3 * triangle_heap_.capacity());
+    const uint32_t vertex_to = totals.relocated ? vertices.current ^ 1 : vertices.current;
+    const uint32_t triangle_to = totals.relocated ? triangles.current ^ 1 : triangles.current;
+    vertices.buffers[vertex_to].reserve(heap_.vertex_capacity);
+    triangles.buffers[triangle_to].reserve(3 * heap_.triangle_capacity);
+    indices_.reserve(3 * heap_.triangle_capacity);
     k::StreamCounts sent;
     if (options_.stream == StreamMode::None) {
-        sent = k::streamObjectByObject(cur_host_, host_, vertices.buffers[vertex_to].ptr(),
-                                       triangles.buffers[triangle_to].ptr());
+        sent = k::streamObjectByObject(stream_list_.data(), lists_.stream_count, host_,
+                                       vertices.buffers[vertex_to].ptr(), triangles.buffers[triangle_to].ptr());
         clock.lap(Stage::StreamCollect);
         clock.lap(Stage::Defragment);
     } else {
-        sent = k::streamCollect(options_.stream == StreamMode::Coherent ? prev_host_ : k::HostLayout{}, cur_host_,
-                                host_, staging_);
+        sent = k::streamBlocks(stream_list_.data(), lists_.stream_count, host_, staging_);
         clock.lap(Stage::StreamCollect);
-        // Only the blocks that changed: their lists cross the bus, then their elements move.
-        upload(vertex_moves_device_, vertex_moves_, vertex_move_count_);
-        upload(triangle_moves_device_, triangle_moves_, triangle_move_count_);
-        k::defragmentVertices(vertex_moves_device_.ptr(), vertex_move_count_, vertices.buffers[vertices.current].ptr(),
-                              vertices.buffers[vertex_to].ptr(), staging_.device_vertices.ptr(), active_);
-        k::defragmentTriangles(triangle_moves_device_.ptr(), triangle_move_count_,
+        // Only the blocks that changed move; their lists never left the device.
+        k::defragmentVertices(lists_.vertex_moves.ptr(), lists_.vertex_move_count,
+                              vertices.buffers[vertices.current].ptr(), vertices.buffers[vertex_to].ptr(),
+                              staging_.device_vertices.ptr(), active_);
+        k::defragmentTriangles(lists_.triangle_moves.ptr(), lists_.triangle_move_count,
                                triangles.buffers[triangles.current].ptr(), triangles.buffers[triangle_to].ptr(),
                                staging_.device_triangles.ptr(), active_);
         clock.lap(Stage::Defragment);
@@ -521,16 +360,11 @@ void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
     stats.streamed_triangles = sent.triangles;
     stats.streamed_bytes = sent.bytes();
 
-    upload(reforms_device_, reforms_, reform_count_);
-    stats.reformed_triangles = k::reformBlocks(reforms_device_.ptr(), reform_count_, scene_.objects.ptr(), scene_.vertex_first.ptr(),
-                    scene_.ecol.ptr(), triangles.data(), indices_.ptr(), reform_scratch_);
-    if (lender_) {
-        upload(draw_blocks_device_, draw_blocks_, draw_count_);
-        lender_->endDeviceWrites();
-    }
+    stats.reformed_triangles =
+        k::reformBlocks(lists_.reforms.ptr(), lists_.reform_count, scene_.objects.ptr(), scene_.vertex_first.ptr(),
+                        scene_.ecol.ptr(), triangles.data(), indices_.ptr(), reform_scratch_);
+    if (lender_) lender_->endDeviceWrites();
     clock.lap(Stage::Reform);
-
-    prev_host_ = cur_host_;
     cur_index_ ^= 1;
 }
 

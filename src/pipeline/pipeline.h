@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include "block_layout.h"
 #include "defragment.h"
 #include "lod_hysteresis.h"
 #include "draw_commands.h"
 #include "reform.h"
-#include "pipeline/block_allocator.h"
 #include "depth_raster.h"
 #include "device_memory.h"
 #include "occluder_gather.h"
@@ -74,10 +74,11 @@ struct PipelineOptions {
 //
 // Where the data lives: every per-object stage works on device arrays (frustum culling and its
 // compaction, the occluders (Eq. 3 and the earlier PVS's) and their full-detail geometry, the
-// depth raster, HZM, HZM test and PVS compaction, LOD selection). The host gets back the PVS
-// with its LOD counts (for the network and the layout), builds the layout of the active
-// arrays, gathers what the layout lacks from the mapped file, and sends the layout's per-block
-// counts and the gathered geometry over the bus. FrameStats' bus columns count every byte.
+// depth raster, HZM, HZM test and PVS compaction, LOD selection and its hysteresis, the layout
+// of the active arrays with its move, reform and draw lists). The host gets back the PVS with
+// its LOD counts (for the network and the history), the blocks that lack geometry and a few
+// totals; it gathers what those blocks lack from the mapped file and sends it over the bus.
+// FrameStats' bus columns count every byte.
 class Pipeline {
 public:
     // file must outlive the pipeline. Throws UsageError for impossible options.
@@ -123,15 +124,13 @@ public:
     const std::vector<uint32_t>& visibleObjects() const { return pvs_; }  // PVS, ascending ids
     // Eq. 1's vertex count for each PVS object, in visibleObjects() order (0 = below the PET).
     std::span<const uint32_t> visibleLodVertices() const { return {pvs_vc_.data(), pvs_.size()}; }
-    // The layout of the active arrays: resident vertex / triangle counts, where each block is
-    // (blocks keep their place from frame to frame; there may be gaps between them), ids
-    // (ascending), one block per object. vertex_total and triangle_total are the resident sums.
-    const k::HostLayout& layout() const { return prev_host_; }
-    // Per block of layout(): what this frame draws, a prefix of the resident block (0 = resident
-    // only). Block j's triangles to draw are indices()[3 * triangle_offset[j], + 3 * drawTriangles()[j]),
-    // local to the block: vertex v of the block is activeVertices()[vertex_offset[j] + v].
-    const uint32_t* drawVertices() const { return host_layouts_[cur_index_ ^ 1].draw_vc.data(); }
-    const uint32_t* drawTriangles() const { return host_layouts_[cur_index_ ^ 1].draw_tc.data(); }
+    // The layout of the active arrays, read back over the bus (for tests and measurements, not
+    // part of a frame's work): one block per resident object, ascending ids, with what it holds
+    // and what this frame draws of it (a prefix); blocks keep their place from frame to frame
+    // and there may be gaps between them. Block j's triangles to draw are
+    // indices()[3 * triangle_offset, + 3 * draw_triangle_count), local to the block: vertex v of
+    // the block is activeVertices()[vertex_offset + v].
+    std::vector<k::LayoutBlock> downloadLayout() const;
     uint32_t frustumCount() const { return frustum_count_; }
     const DeviceScene& scene() const { return scene_; }
     double budget() const { return budget_; }
@@ -140,12 +139,11 @@ public:
     // triangleExtent() entries hold blocks).
     k::DevicePtr<const glm::vec3> activeVertices() const { return active_.vertices.data(); }
     k::DevicePtr<const uint32_t> indices() const { return indices_.ptr(); }
-    uint64_t vertexExtent() const { return vertex_heap_.extent(); }
-    uint64_t triangleExtent() const { return triangle_heap_.extent(); }
-    // The blocks the last frame draws, drawCount() of them, for the display's draw commands
-    // (uploaded only once the active arrays are lent to a display).
-    k::DevicePtr<const k::DrawBlock> drawBlocks() const { return draw_blocks_device_.ptr(); }
-    uint32_t drawCount() const { return draw_count_; }
+    uint64_t vertexExtent() const { return heap_.vertex_top; }
+    uint64_t triangleExtent() const { return heap_.triangle_top; }
+    // The blocks the last frame draws, drawCount() of them, for the display's draw commands.
+    k::DevicePtr<const k::DrawBlock> drawBlocks() const { return lists_.draws.ptr(); }
+    uint32_t drawCount() const { return lists_.draw_count; }
     k::DevicePtr<const float> occluderDepth() const { return hzm_.ptr(); }  // W x H, level 0 of the HZM
     // Every level of the HZM (meaningful after an oc+lod frame).
     k::HzmLevels hzmLevels() const;
@@ -163,24 +161,8 @@ public:
     std::vector<uint32_t> downloadOccluders() const;  // the last occluderPass's, AOS first
 
 private:
-    struct HostLayoutArrays {
-        std::vector<uint32_t> ids, vc, tc, draw_vc, draw_tc;
-        std::vector<uint64_t> voff, toff;
-    };
-    // Where an object's block is, while it is resident.
-    struct BlockPlace {
-        uint64_t voff = 0, toff = 0;
-        uint32_t vcap = 0, tcap = 0;    // its room: vertices, and the triangles of that LOD
-        uint32_t vc = 0, tc = 0;        // what it holds
-        uint32_t draw_vc = 0;           // what its indices are reformed for
-        bool resident = false;
-    };
-    // Places this frame's blocks (layout arrays l) and fills the move and reform lists.
-    // Returns true when it compacted (every block written into the other buffers).
-    bool placeBlocks(HostLayoutArrays& l, uint32_t blocks, FrameStats& stats);
     void chooseOccluders(const k::Camera& camera, k::DevicePtr<const uint32_t> source, uint32_t source_count);
     void rasterOccluders(const k::Camera& camera, FrameStats& stats);
-    void buildLayout(uint64_t frame, FrameStats& stats);
 
     const OssFile& file_;
     PipelineOptions options_;
@@ -208,8 +190,8 @@ private:
     CameraPose frustum_pose_{};
     bool has_frustum_pose_ = false;
 
-    // Host memory: the visible set and what the layout is built from.
-    std::vector<uint32_t> pvs_, pvs_vc_, pvs_tc_;  // Eq. 1's choice for each PVS object
+    // Host memory: the visible set, as the network sends it.
+    std::vector<uint32_t> pvs_, pvs_vc_, pvs_tc_;  // Eq. 1's choice for each PVS object (pvs_tc_: setVisible's)
     // The visible sets of the last two frames this pipeline culled, newest first (frame
     // UINT64_MAX: none yet): the PVS supplies a later frame's occluders, the counts the hysteresis.
     struct CulledFrame {
@@ -219,24 +201,18 @@ private:
         std::vector<std::pair<uint32_t, uint32_t>> lod;
     };
     CulledFrame history_[2];
-    std::vector<uint32_t> resident_vc_;         // per object, vertices in the active arrays
-    std::vector<uint64_t> last_drawn_;          // per object, last frame it was drawn
 
-    HostLayoutArrays host_layouts_[2];
+    // The layout, on the device: the last frame's and this frame's blocks (layouts_[cur_index_ ^ 1]
+    // is the last built), each resident object's place, the heap's few totals (host) and the
+    // frame's lists; the host gets back the stream list.
+    k::DeviceArray<k::LayoutBlock> layouts_[2];
+    uint32_t layout_counts_[2] = {0, 0};
     uint32_t cur_index_ = 0;
-    uint32_t layout_count_ = 0;
-    k::HostLayout prev_host_{}, cur_host_{};
-    // The stable layout: each resident object's block, and the free ranges around them.
-    std::vector<BlockPlace> places_;
-    RangeAllocator vertex_heap_, triangle_heap_;
-    // What changed this frame, built on the host and sent over the bus.
-    k::PinnedArray<k::BlockMove> vertex_moves_, triangle_moves_;
-    k::PinnedArray<k::ReformBlock> reforms_;
-    k::PinnedArray<k::DrawBlock> draw_blocks_;
-    uint32_t vertex_move_count_ = 0, triangle_move_count_ = 0, reform_count_ = 0, draw_count_ = 0;
-    k::DeviceArray<k::BlockMove> vertex_moves_device_, triangle_moves_device_;
-    k::DeviceArray<k::ReformBlock> reforms_device_;
-    k::DeviceArray<k::DrawBlock> draw_blocks_device_;
+    k::DeviceArray<k::BlockPlace> places_;
+    k::LayoutHeap heap_;
+    k::LayoutLists lists_;
+    k::LayoutScratch layout_scratch_;
+    k::PinnedArray<k::StreamBlock> stream_list_;
     k::ReformScratch reform_scratch_;
     k::StagingBuffers staging_;
     k::ActiveArrays active_;

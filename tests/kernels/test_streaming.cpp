@@ -581,8 +581,10 @@ TEST_F(Streaming, ObjectByObjectCopiesEveryBlockWholeToItsPlace) {
     const HostLayout layout{ids.data(), vc.data(), tc.data(), voff.data(), toff.data(), 4, 14, 24};
     DeviceArray<glm::vec3> vertices = filledDevice<glm::vec3>(30, kVertexSentinel);
     DeviceArray<uint32_t> triangles = filledDevice<uint32_t>(3 * 40, kCornerSentinel);
+    const std::vector<StreamBlock> list = streamList(HostLayout{}, layout);
     const BusCounters before = busCounters();
-    const StreamCounts c = streamObjectByObject(layout, scene.host(), vertices.ptr(), triangles.ptr());
+    const StreamCounts c = streamObjectByObject(list.data(), uint32_t(list.size()), scene.host(), vertices.ptr(),
+                                                triangles.ptr());
     EXPECT_EQ(c.vertices, 14u);
     EXPECT_EQ(c.triangles, 24u);
     EXPECT_EQ(busCounters().h2d_bytes - before.h2d_bytes, c.bytes());
@@ -607,7 +609,8 @@ TEST_F(Streaming, ObjectByObjectAndDefragmentMayAlternate) {
     const HostLayout a{ids.data(), vc.data(), tc.data(), voff.data(), toff.data(), 2, 8, 14};
     DeviceArray<glm::vec3> vertices = filledDevice<glm::vec3>(32, kVertexSentinel);
     DeviceArray<uint32_t> triangles = filledDevice<uint32_t>(3 * 48, kCornerSentinel);
-    streamObjectByObject(a, scene.host(), vertices.ptr(), triangles.ptr());
+    const std::vector<StreamBlock> whole = streamList(HostLayout{}, a);
+    streamObjectByObject(whole.data(), uint32_t(whole.size()), scene.host(), vertices.ptr(), triangles.ptr());
     // Next: object 0 grows to 4 in place, object 2 shrinks to 2 in place, object 4 (3) is new.
     const std::vector<uint32_t> ids2{0, 2, 4}, vc2{4, 2, 3}, tc2{7, 3, 5};
     const std::vector<uint64_t> voff2{0, 10, 20}, toff2{0, 20, 30};

@@ -73,23 +73,28 @@ TEST_F(PipelineFrames, ReformedTrianglesEqualTheLodPrefixOfTheOss) {
     Pipeline pipeline(*f.file, smallOptions(StreamMode::Coherent));
     for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
         const FrameStats s = pipeline.runFrame(f.cameras[frame], frame);
-        const k::HostLayout& l = pipeline.layout();
+        const std::vector<k::LayoutBlock> layout = pipeline.downloadLayout();
         const std::vector<glm::vec3> active = activeVertices(pipeline);
         const std::vector<uint32_t> index = indices(pipeline);
         uint64_t checked = 0;
-        for (uint32_t j = 0; j < l.count; ++j) {
-            const uint32_t vc = pipeline.drawVertices()[j], tc = pipeline.drawTriangles()[j];
-            const OssFile::MeshView mesh = f.file->mesh(f.file->objects()[l.objects[j]].mesh);
+        for (size_t j = 0; j < layout.size(); ++j) {
+            const k::LayoutBlock& b = layout[j];
+            if (j > 0) {
+                ASSERT_LT(layout[j - 1].object, b.object);
+            }
+            const uint32_t vc = b.draw_vertex_count, tc = b.draw_triangle_count;
+            const OssFile::MeshView mesh = f.file->mesh(f.file->objects()[b.object].mesh);
             ASSERT_EQ(tc, vc ? mesh.map[vc] : 0u);
-            ASSERT_LE(vc, l.vertex_count[j]);  // what is drawn is a prefix of what is resident
-            ASSERT_EQ(l.triangle_count[j], mesh.map[l.vertex_count[j]]);
-            for (uint32_t v = 0; v < l.vertex_count[j]; ++v)
-                ASSERT_EQ(active[l.vertex_offset[j] + v], mesh.positions[v]);
+            ASSERT_LE(vc, b.vertex_count);  // what is drawn is a prefix of what is resident
+            ASSERT_EQ(b.triangle_count, mesh.map[b.vertex_count]);
+            ASSERT_LE(b.vertex_offset + b.vertex_count, pipeline.vertexExtent());
+            ASSERT_LE(b.triangle_offset + b.triangle_count, pipeline.triangleExtent());
+            for (uint32_t v = 0; v < b.vertex_count; ++v)
+                ASSERT_EQ(active[b.vertex_offset + v], mesh.positions[v]);
             for (uint32_t c = 0; c < 3 * tc; ++c) {
                 uint32_t v = mesh.triangles[c];
                 while (v >= vc) v = uint32_t(mesh.ecol[v]);
-                ASSERT_EQ(index[3 * l.triangle_offset[j] + c], v)
-                    << "frame " << frame << " object " << l.objects[j];
+                ASSERT_EQ(index[3 * b.triangle_offset + c], v) << "frame " << frame << " object " << b.object;
             }
             checked += tc;
         }
@@ -101,16 +106,14 @@ TEST_F(PipelineFrames, ReformedTrianglesEqualTheLodPrefixOfTheOss) {
 // drawn vertices and the reformed (block-local) triangles.
 std::map<uint32_t, std::pair<std::vector<glm::vec3>, std::vector<uint32_t>>> drawnGeometry(const Pipeline& p) {
     std::map<uint32_t, std::pair<std::vector<glm::vec3>, std::vector<uint32_t>>> out;
-    const k::HostLayout& l = p.layout();
     const std::vector<glm::vec3> active = activeVertices(p);
     const std::vector<uint32_t> index = indices(p);
-    for (uint32_t j = 0; j < l.count; ++j) {
-        const uint32_t vc = p.drawVertices()[j], tc = p.drawTriangles()[j];
+    for (const k::LayoutBlock& b : p.downloadLayout()) {
+        const uint32_t vc = b.draw_vertex_count, tc = b.draw_triangle_count;
         if (vc == 0) continue;
-        auto& [vertices, triangles] = out[l.objects[j]];
-        vertices.assign(active.begin() + l.vertex_offset[j], active.begin() + l.vertex_offset[j] + vc);
-        for (uint64_t c = 0; c < 3ull * tc; ++c)
-            triangles.push_back(index[3 * l.triangle_offset[j] + c]);
+        auto& [vertices, triangles] = out[b.object];
+        vertices.assign(active.begin() + b.vertex_offset, active.begin() + b.vertex_offset + vc);
+        for (uint64_t c = 0; c < 3ull * tc; ++c) triangles.push_back(index[3 * b.triangle_offset + c]);
     }
     return out;
 }
@@ -196,12 +199,11 @@ TEST_F(PipelineFrames, VertexBudgetIsRespectedUpToTheFloors) {
     Pipeline pipeline(*f.file, options);
     for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
         const FrameStats s = pipeline.runFrame(f.cameras[frame], frame);
-        const k::HostLayout& l = pipeline.layout();
         uint64_t floors = 0;
-        for (uint32_t j = 0; j < l.count; ++j)
-            if (pipeline.drawVertices()[j] > 0) {
-                floors += pipeline.scene().host_objects[l.objects[j]].q;
-                ASSERT_GE(pipeline.drawVertices()[j], pipeline.scene().host_objects[l.objects[j]].q);
+        for (const k::LayoutBlock& b : pipeline.downloadLayout())
+            if (b.draw_vertex_count > 0) {
+                floors += pipeline.scene().host_objects[b.object].q;
+                ASSERT_GE(b.draw_vertex_count, pipeline.scene().host_objects[b.object].q);
             }
         EXPECT_LE(s.active_vertices, std::max<uint64_t>(uint64_t(options.budget), floors)) << "frame " << frame;
     }
@@ -236,9 +238,10 @@ TEST_F(PipelineFrames, FullModeDrawsEveryFrustumObjectAtFullDetail) {
     Pipeline pipeline(*f.file, options);
     const FrameStats s = pipeline.runFrame(f.cameras.back(), 0);
     EXPECT_EQ(s.objects_occluded, 0u);
-    const k::HostLayout& l = pipeline.layout();
-    for (uint32_t j = 0; j < l.count; ++j)
-        EXPECT_EQ(pipeline.drawVertices()[j], pipeline.scene().host_objects[l.objects[j]].vertex_count);
+    const std::vector<k::LayoutBlock> layout = pipeline.downloadLayout();
+    EXPECT_EQ(layout.size(), s.objects_visible);
+    for (const k::LayoutBlock& b : layout)
+        EXPECT_EQ(b.draw_vertex_count, pipeline.scene().host_objects[b.object].vertex_count);
 }
 
 // The stable layout (issue 12): a block that keeps its place keeps its bytes, most blocks keep
@@ -250,15 +253,15 @@ TEST_F(PipelineFrames, BlocksKeepTheirPlaceAndTheirBytes) {
     uint64_t shared = 0, stayed = 0, compactions = 0;
     for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
         const FrameStats s = pipeline.runFrame(f.cameras[frame], frame);
-        const k::HostLayout& l = pipeline.layout();
+        const std::vector<k::LayoutBlock> layout = pipeline.downloadLayout();
         const std::vector<glm::vec3> active = activeVertices(pipeline);
         std::map<uint32_t, std::pair<uint64_t, std::vector<glm::vec3>>> now;
         uint64_t moved_here = 0;
-        for (uint32_t j = 0; j < l.count; ++j) {
-            auto& [offset, vertices] = now[l.objects[j]];
-            offset = l.vertex_offset[j];
-            vertices.assign(active.begin() + offset, active.begin() + offset + l.vertex_count[j]);
-            const auto was = before.find(l.objects[j]);
+        for (const k::LayoutBlock& b : layout) {
+            auto& [offset, vertices] = now[b.object];
+            offset = b.vertex_offset;
+            vertices.assign(active.begin() + offset, active.begin() + offset + b.vertex_count);
+            const auto was = before.find(b.object);
             if (was == before.end()) continue;
             ++shared;
             if (was->second.first != offset) {
@@ -268,9 +271,9 @@ TEST_F(PipelineFrames, BlocksKeepTheirPlaceAndTheirBytes) {
             ++stayed;
             const size_t common = std::min(was->second.second.size(), vertices.size());
             for (size_t v = 0; v < common; ++v)
-                ASSERT_EQ(vertices[v], was->second.second[v]) << "frame " << frame << " object " << l.objects[j];
+                ASSERT_EQ(vertices[v], was->second.second[v]) << "frame " << frame << " object " << b.object;
         }
-        compactions += frame > 0 && moved_here > 0 && s.moved_bytes > 0 && moved_here * 2 > l.count;
+        compactions += frame > 0 && moved_here > 0 && s.moved_bytes > 0 && moved_here * 2 > layout.size();
         before = std::move(now);
     }
     EXPECT_GT(stayed, shared * 9 / 10) << stayed << " of " << shared << " blocks kept their place";
