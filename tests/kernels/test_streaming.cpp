@@ -462,7 +462,8 @@ TEST_F(Streaming, RandomFrameSequencesKeepEveryBlockEqualToItsMeshPrefix) {
             }
         }
 
-        // This frame's layout and places, as the pipeline's placeBlocks makes them.
+        // This frame's layout and places, the test playing a first-fit allocator (the pipeline's is
+        // block_layout.h's segregated fit; defragment takes any placement without overlaps).
         std::vector<uint32_t> ids, vc, tc;
         for (const auto& [object, n] : blocks) ids.push_back(object), vc.push_back(n), tc.push_back(Scene::trianglesFor(n));
         const uint32_t n = uint32_t(ids.size());
