@@ -2,6 +2,7 @@
 #include "cli/commands.h"
 
 #include "import/import.h"
+#include "prep/weld.h"
 #include "scene/oss_file.h"
 
 #include <nlohmann/json.hpp>
@@ -17,6 +18,7 @@ namespace {
 
 struct InfoOptions {
     std::string file;
+    ImportOptions import;
 };
 
 nlohmann::json vec3Json(const glm::vec3& v) { return {v.x, v.y, v.z}; }
@@ -71,7 +73,7 @@ int runOssInfo(const std::string& path) {
 int runInfo(const InfoOptions& o) {
     if (lowerExtension(o.file) == ".oss") return runOssInfo(o.file);
     const auto start = std::chrono::steady_clock::now();
-    const Scene scene = importModel(o.file);
+    const Scene scene = importModel(o.file, o.import);
     const Bounds bounds = scene.worldBounds();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
@@ -82,9 +84,21 @@ int runInfo(const InfoOptions& o) {
     j["triangles"] = scene.triangleCount();
     j["vertices"] = scene.vertexCount();
     j["bounds"] = {{"min", vec3Json(bounds.min)}, {"max", vec3Json(bounds.max)}};
+    // What prep drops on top of what import skipped: triangles with a repeated corner once
+    // vertices at the same place are welded (per mesh, as prep counts them; and with instances).
+    uint64_t repeated = 0, repeated_instances = 0;
+    std::vector<uint64_t> per_mesh(scene.meshes.size());
+    for (size_t m = 0; m < scene.meshes.size(); ++m) {
+        per_mesh[m] = weldPositions(scene.meshes[m].positions, scene.meshes[m].indices).dropped_triangles;
+        repeated += per_mesh[m];
+    }
+    for (const Object& object : scene.objects) repeated_instances += per_mesh[object.mesh];
     j["skipped"] = {{"points", scene.skipped.points},
                     {"lines", scene.skipped.lines},
-                    {"degenerate_faces", scene.skipped.degenerate}};
+                    {"degenerate_faces", scene.skipped.degenerate},
+                    {"repeated_corner_triangles", repeated},
+                    {"repeated_corner_triangles_with_instances", repeated_instances}};
+    j["triangles_kept"] = scene.triangleCount() - repeated_instances;
     j["import_seconds"] = std::round(seconds * 1000.0) / 1000.0;
     std::cout << j.dump(2) << std::endl;
     return 0;
@@ -98,6 +112,7 @@ Command addInfoCommand(CLI::App& app) {
                                                "triangles, vertices, bounds, skipped primitives; or of a .oss scene: counts, |COS|,\n"
                                                "boundary-vertex share, simplification error range, section sizes.");
     sub->add_option("file", options->file, "model file")->required();
+    sub->add_option("--scene", options->import.scene, "glTF: the scene to summarize (default: the file's default scene)");
     return {sub, [options] { return runInfo(*options); }};
 }
 

@@ -80,8 +80,9 @@ Command addPathCommand(CLI::App& app) {
     path->require_subcommand(1);
 
     CLI::App* orbit = path->add_subcommand(
-        "orbit", "Circle the scene from outside: one full turn over --frames cameras at 1.3 times the\n"
-                 "bounding-sphere radius from its centre, 25 degrees above it, looking at the centre.");
+        "orbit", "Circle the scene from outside: one full turn over --frames cameras far enough from the\n"
+                 "centre (2.1 bounding-sphere radii) that the whole model is in view, 25 degrees above it,\n"
+                 "looking at the centre.");
     addCommonOptions(orbit, *o);
 
     CLI::App* walk = path->add_subcommand(

@@ -20,6 +20,7 @@ struct PrepCommandOptions {
     std::string input, output;
     PrepOptions prep;
     std::string collapser = "fast";
+    ImportOptions import;
 };
 
 int runPrep(PrepCommandOptions o) {
@@ -33,7 +34,7 @@ int runPrep(PrepCommandOptions o) {
     o.prep.collapser = o.collapser == "openmesh" ? Collapser::OpenMesh : Collapser::Fast;
 
     const auto start = std::chrono::steady_clock::now();
-    const Scene scene = importModel(o.input);
+    const Scene scene = importModel(o.input, o.import);
     PrepProgress progress;
     PreparedScene prepared;
     {
@@ -84,6 +85,7 @@ Command addPrepCommand(CLI::App& app) {
                 "and the candidate occluder set. Uses all cores; instanced meshes are processed once.");
     sub->add_option("input", o->input, "model file (glTF, GLB, OBJ, PLY, OFF, STL)")->required();
     sub->add_option("-o,--out", o->output, "output .oss file")->required();
+    sub->add_option("--scene", o->import.scene, "glTF: the scene to prepare (default: the file's default scene)");
     sub->add_option("--ct", o->prep.ct, "compactness threshold CT for candidate occluders, in [0, 1]")
         ->capture_default_str();
     sub->add_option("--threads", o->prep.threads, "worker threads (0 = all cores)")->capture_default_str();

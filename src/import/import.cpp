@@ -14,16 +14,23 @@ std::string lowerExtension(const std::string& path) {
     return ext;
 }
 
-Scene importModel(const std::string& path) {
+Scene importModel(const std::string& path, const ImportOptions& options) {
     std::error_code ec;
     if (!std::filesystem::exists(path, ec)) throw InputError(path, "missing: no such file");
     if (std::filesystem::is_directory(path, ec)) throw InputError(path, "is a directory, not a model file");
 
     const std::string ext = lowerExtension(path);
     Scene scene;
+    if (options.scene < -1) throw InputError(path, "scene " + std::to_string(options.scene) + " does not exist");
+    if (options.scene > 0 && ext != ".gltf" && ext != ".glb")
+        throw InputError(path, "has one scene, scene " + std::to_string(options.scene) + " does not exist");
     if (ext == ".gltf" || ext == ".glb")
-        scene = importGltf(path);
-    else if (ext == ".obj" || ext == ".ply" || ext == ".off" || ext == ".stl")
+        scene = importGltf(path, options);
+    else if (ext == ".off")
+        scene = importOff(path);
+    else if (ext == ".obj")
+        scene = importObj(path);
+    else if (ext == ".ply" || ext == ".stl")
         scene = importWithOpenMesh(path);
     else
         throw InputError(path, "unsupported file extension '" + ext +

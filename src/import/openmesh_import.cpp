@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "import/import.h"
 
+#include "import/triangulate.h"
 #include "scene/errors.h"
 
 #include <OpenMesh/Core/IO/MeshIO.hh>
@@ -144,96 +145,72 @@ private:
     std::lock_guard<std::mutex> lock_;
 };
 
-// OpenMesh's OBJ reader has no notion of groups, but it reports faces in file order, so the
-// group of every "f" line is read from the text beforehand. Returns one group id per face
-// (empty when the file has at most one group with faces).
-std::vector<uint32_t> objFaceGroups(const std::string& path, std::vector<std::string>& names) {
-    std::ifstream in(path);
-    std::vector<uint32_t> groups;
-    std::string line;
-    uint32_t current = 0;
-    names.assign(1, "default");
-    std::vector<bool> has_faces(1, false);
-    while (std::getline(in, line)) {
-        size_t i = line.find_first_not_of(" \t");
-        if (i == std::string::npos || i + 1 >= line.size()) continue;
-        const char c = line[i];
-        const char next = line[i + 1];
-        if ((c == 'g' || c == 'o') && (next == ' ' || next == '\t')) {
-            std::string name = line.substr(i + 2);
-            while (!name.empty() && (name.back() == '\r' || name.back() == ' ')) name.pop_back();
-            const auto it = std::find(names.begin(), names.end(), name);
-            current = uint32_t(it - names.begin());
-            if (it == names.end()) {
-                names.push_back(name);
-                has_faces.push_back(false);
-            }
-        } else if (c == 'f' && (next == ' ' || next == '\t')) {
-            groups.push_back(current);
-            has_faces[current] = true;
-        }
+// The whitespace-separated words of one line.
+std::vector<std::string> words(const char* begin, const char* end) {
+    std::vector<std::string> out;
+    const char* p = begin;
+    while (p < end) {
+        while (p < end && (*p == ' ' || *p == '\t' || *p == '\r')) ++p;
+        const char* q = p;
+        while (q < end && *q != ' ' && *q != '\t' && *q != '\r') ++q;
+        if (q > p) out.emplace_back(p, q);
+        p = q;
     }
-    if (std::count(has_faces.begin(), has_faces.end(), true) <= 1) groups.clear();
-    return groups;
+    return out;
 }
 
-// An ASCII OFF file must hold at least as many data lines as its header promises vertices and
-// faces; OpenMesh's reader otherwise reads past the end as zeros and reports success.
-void validateOff(const std::string& path, const std::string& text) {
-    std::istringstream in(text);
-    std::string line, magic;
-    size_t line_no = 0;
-    const auto nextDataLine = [&]() {
-        while (std::getline(in, line)) {
-            ++line_no;
-            const size_t i = line.find_first_not_of(" \t\r");
-            if (i != std::string::npos && line[i] != '#') return true;
-        }
-        return false;
-    };
-    if (!nextDataLine()) throw InputError(path, "empty file, an OFF file starts with 'OFF'");
-    std::istringstream header(line);
-    header >> magic;
-    if (magic.size() < 3 || magic.compare(magic.size() - 3, 3, "OFF") != 0)
-        throw InputError(path, "line " + std::to_string(line_no) + ": bad magic '" + magic +
-                                   "', an OFF file starts with 'OFF' (or COFF, NOFF, STOFF, ...)");
-    // The counts follow the magic word on the same line or on the next data line.
-    std::string rest((std::istreambuf_iterator<char>(header)), std::istreambuf_iterator<char>());
-    if (rest.find("BINARY") != std::string::npos) return;  // binary OFF sizes are the reader's to check
-    if (rest.find_first_not_of(" \t\r") == std::string::npos) rest = nextDataLine() ? line : "";
-    long long counts[2] = {-1, -1};
-    std::istringstream(rest) >> counts[0] >> counts[1];
-    if (counts[0] < 0 || counts[1] < 0)
-        throw InputError(path, "line " + std::to_string(line_no) + ": missing vertex and face counts after 'OFF'");
-    long long data_lines = 0;
-    while (nextDataLine()) ++data_lines;
-    if (data_lines < counts[0] + counts[1])
-        throw InputError(path, "truncated: header says " + std::to_string(counts[0]) + " vertices and " +
-                                   std::to_string(counts[1]) + " faces, the file has " + std::to_string(data_lines) +
-                                   " data lines");
+bool isNumber(const std::string& w, double* value = nullptr) {
+    char* after = nullptr;
+    const double v = std::strtod(w.c_str(), &after);
+    if (value) *value = v;
+    return after != w.c_str() && *after == '\0';
 }
 
-// OpenMesh's OBJ reader silently drops a vertex it cannot parse ("v nan 0 0"), which shifts
-// every later index; non-finite vertices are found here, with their line.
-void validateObjVertices(const std::string& path, const std::string& text) {
-    size_t line_no = 0, start = 0;
+// ASCII STL: every "vertex" line with three numbers, every facet with three vertices (OpenMesh's
+// reader reads past both). A binary STL may begin with "solid" too: it is the one whose size is
+// 84 + 50 x its triangle count.
+bool isBinaryStl(const std::vector<char>& bytes) {
+    if (bytes.size() < 84) return false;
+    uint32_t count;
+    std::memcpy(&count, bytes.data() + 80, 4);
+    return 84 + uint64_t(count) * 50 == bytes.size();
+}
+
+void validateAsciiStl(const std::string& path, const std::string& text) {
+    size_t line_no = 0, start = 0, corners = 0, facet_line = 0;
+    bool in_facet = false;
     while (start < text.size()) {
         size_t end = text.find('\n', start);
         if (end == std::string::npos) end = text.size();
         ++line_no;
-        if (end - start > 2 && text[start] == 'v' && (text[start + 1] == ' ' || text[start + 1] == '\t')) {
-            const char* p = text.c_str() + start + 2;
-            for (int k = 0; k < 3; ++k) {
-                char* after = nullptr;
-                const float v = std::strtof(p, &after);
-                if (after == p) break;
-                if (!std::isfinite(v))
-                    throw InputError(path, "line " + std::to_string(line_no) + ": vertex is not finite (nan or inf)");
-                p = after;
-            }
-        }
+        const std::vector<std::string> w = words(text.c_str() + start, text.c_str() + end);
         start = end + 1;
+        if (w.empty()) continue;
+        const auto bad = [&](size_t line, const std::string& what) {
+            throw InputError(path, "line " + std::to_string(line) + ": " + what);
+        };
+        if (w[0] == "facet") {
+            if (in_facet) bad(line_no, "facet inside a facet (missing endfacet)");
+            in_facet = true;
+            corners = 0;
+            facet_line = line_no;
+        } else if (w[0] == "vertex") {
+            if (!in_facet) bad(line_no, "vertex outside a facet");
+            if (w.size() != 4) bad(line_no, "a vertex needs 3 coordinates, found " + std::to_string(w.size() - 1));
+            for (size_t k = 1; k < 4; ++k) {
+                double v = 0;
+                if (!isNumber(w[k], &v)) bad(line_no, "'" + w[k] + "' is not a number");
+                if (!std::isfinite(float(v))) bad(line_no, "vertex is not finite (nan or inf)");
+            }
+            ++corners;
+        } else if (w[0] == "endfacet") {
+            if (!in_facet) bad(line_no, "endfacet without a facet");
+            if (corners != 3) bad(facet_line, "the facet has " + std::to_string(corners) + " vertices, an STL facet has 3");
+            in_facet = false;
+        }
     }
+    if (in_facet)
+        throw InputError(path, "truncated: the facet of line " + std::to_string(facet_line) + " has no endfacet");
 }
 
 // OpenMesh's readers trust lengths and accept non-finite numbers in places, so the parts of
@@ -245,9 +222,9 @@ void validateContainer(const std::string& path, const std::string& ext) {
     std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     const std::string head(bytes.begin(), bytes.begin() + long(std::min<size_t>(bytes.size(), 256)));
     if (ext == ".ply" && head.rfind("ply", 0) != 0) throw InputError(path, "offset 0: bad magic, a PLY file starts with 'ply'");
-    if (ext == ".off") validateOff(path, std::string(bytes.begin(), bytes.end()));
-    if (ext == ".obj") validateObjVertices(path, std::string(bytes.begin(), bytes.end()));
-    if (ext == ".stl" && head.rfind("solid", 0) != 0) {
+    if (ext == ".stl" && head.rfind("solid", 0) == 0 && !isBinaryStl(bytes))
+        validateAsciiStl(path, std::string(bytes.begin(), bytes.end()));
+    if (ext == ".stl" && (head.rfind("solid", 0) != 0 || isBinaryStl(bytes))) {
         if (bytes.size() < 84)
             throw InputError(path, "truncated: " + std::to_string(bytes.size()) + " bytes, a binary STL header needs 84");
         uint32_t count;
@@ -292,52 +269,12 @@ Scene importWithOpenMesh(const std::string& path) {
             throw InputError(path, "vertex " + std::to_string(i) + " is not finite (nan or inf)");
     }
 
-    std::vector<std::string> group_names;
-    std::vector<uint32_t> face_group;
-    const size_t face_count = importer.face_offsets.size() - 1;
-    if (ext == ".obj") {
-        face_group = objFaceGroups(path, group_names);
-        // The reader may skip a face it cannot parse; then lines and faces no longer pair up,
-        // and one object for the whole file is the honest answer.
-        if (face_group.size() != face_count) face_group.clear();
-    }
-    const uint32_t group_count = face_group.empty() ? 1u : uint32_t(group_names.size());
-
     Scene scene;
-    // Vertices are renumbered per group so that each object only holds what it uses.
-    std::vector<uint32_t> remap(importer.positions.size(), UINT32_MAX);
-    for (uint32_t g = 0; g < group_count; ++g) {
-        Mesh mesh;
-        mesh.name = face_group.empty() ? std::filesystem::path(path).stem().string() : group_names[g];
-        std::fill(remap.begin(), remap.end(), UINT32_MAX);
-        std::vector<uint32_t> poly;
-        for (size_t f = 0; f < face_count; ++f) {
-            if (!face_group.empty() && face_group[f] != g) continue;
-            poly.assign(importer.corners.begin() + importer.face_offsets[f],
-                        importer.corners.begin() + importer.face_offsets[f + 1]);
-            // A polygon that repeats a corner in a row collapses an edge; drop the repeat.
-            poly.erase(std::unique(poly.begin(), poly.end()), poly.end());
-            while (poly.size() > 1 && poly.front() == poly.back()) poly.pop_back();
-            if (poly.size() < 3) {
-                ++scene.skipped.degenerate;
-                continue;
-            }
-            for (uint32_t& v : poly) {
-                if (remap[v] == UINT32_MAX) {
-                    remap[v] = uint32_t(mesh.positions.size());
-                    mesh.positions.push_back(importer.positions[v]);
-                }
-                v = remap[v];
-            }
-            for (size_t i = 2; i < poly.size(); ++i) mesh.indices.insert(mesh.indices.end(), {poly[0], poly[i - 1], poly[i]});
-        }
-        if (mesh.indices.empty()) continue;
-        Object object;
-        object.mesh = uint32_t(scene.meshes.size());
-        object.color = mesh.color;
-        scene.meshes.push_back(std::move(mesh));
-        scene.objects.push_back(object);
-    }
+    PolygonSoup soup;
+    soup.positions = std::move(importer.positions);
+    soup.face_offsets = std::move(importer.face_offsets);
+    soup.corners = std::move(importer.corners);
+    addPolygonObjects(soup, std::filesystem::path(path).stem().string(), scene);
     return scene;
 }
 

@@ -228,7 +228,7 @@ constexpr float kFovyDegrees = 60.0f;
 
 namespace {
 
-constexpr double kOrbitDistance = 1.3;        // in bounding-sphere radii, from the centre
+constexpr double kOrbitMargin = 1.05;         // the sphere's radius, plus 5 %, fills the field of view
 constexpr double kOrbitElevationDegrees = 25.0;
 constexpr double kOrbitNear = 0.01;           // in radii; the nearest object is >= 0.3 R away
 
@@ -240,7 +240,9 @@ std::vector<CameraPose> orbitPath(const PathScene& scene, uint32_t frames) {
     const glm::dvec3 centre = bounds.centre();
     const double radius = glm::length(bounds.size()) / 2;
     if (!(radius > 0.0)) throw InputError(scene.name, "orbit: the scene's bounds are a single point");
-    const double distance = kOrbitDistance * radius;
+    // The whole bounding sphere in view: at distance d its silhouette subtends 2 asin(R / d),
+    // which the vertical field of view (the narrower one, at aspect >= 1) must hold.
+    const double distance = kOrbitMargin * radius / std::sin(kFovyDegrees / 2 * std::numbers::pi / 180.0);
     const double elevation = kOrbitElevationDegrees * std::numbers::pi / 180.0;
 
     std::vector<CameraPose> cameras(frames);

@@ -62,11 +62,12 @@ struct PathScene {
 PathScene pathSceneOf(const OssFile& file);
 
 // `frames` cameras circling the union of the objects' AABBs: centre C, bounding-sphere radius R;
-// eye at distance 1.3 R from C, 25 degrees above the horizontal plane through C, at azimuth
-// 2 pi i / frames for camera i (one full turn, counter-clockwise seen from +y, so the path loops
-// seamlessly), looking at C with up = +y and a 60 degree fovy. near = R / 100 (every object is
-// at least 0.3 R away, so nothing is clipped, and the depth buffer keeps its precision),
-// far = 1.3 R + 2 R. Throws std::invalid_argument if frames is 0 or above kMaxPathFrames,
+// eye at distance d = 1.05 R / sin(30 degrees) = 2.1 R from C, so that the whole sphere fits the
+// 60 degree fovy (the narrower field at aspect >= 1) with a margin, 25 degrees above the
+// horizontal plane through C, at azimuth 2 pi i / frames for camera i (one full turn,
+// counter-clockwise seen from +y, so the path loops seamlessly), looking at C with up = +y.
+// near = R / 100 (every object is at least 1.1 R away, so nothing is clipped, and the depth
+// buffer keeps its precision), far = d + 2 R. Throws std::invalid_argument if frames is 0 or above kMaxPathFrames,
 // InputError(scene.name, ...) if there are no objects, an AABB is not finite or inverted, the
 // bounds are a single point, or the scene is too far from the origin for float cameras.
 std::vector<CameraPose> orbitPath(const PathScene& scene, uint32_t frames);

@@ -12,7 +12,7 @@ namespace {
 
 using test::writeFixture;
 
-TEST(ImportObj, OneObjectPerGroupWithPolygonsFanTriangulated) {
+TEST(ImportObj, OneObjectPerGroupWithPolygonsTriangulated) {
     const std::string path = writeFixture("groups.obj",
                                           "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\n"
                                           "g first\nf 1 2 3 4\n"
@@ -33,9 +33,7 @@ TEST(ImportObj, FileWithoutGroupsIsOneObjectAndPentagonGivesThreeTriangles) {
     const Scene s = importModel(path);
     ASSERT_EQ(s.objects.size(), 1u);
     const Mesh& m = s.meshes[0];
-    EXPECT_EQ(m.triangleCount(), 3u);
-    const std::vector<uint32_t> fan{0, 1, 2, 0, 2, 3, 0, 3, 4};
-    EXPECT_EQ(m.indices, fan);
+    EXPECT_EQ(m.triangleCount(), 3u);  // ear clipping: tests/unit/test_import_polygons.cpp
 }
 
 TEST(ImportOff, CubeOfQuadsBecomesTwelveTriangles) {
@@ -147,6 +145,77 @@ TEST(ImportGltf, StripAndFanAreTriangulatedWithConsistentWinding) {
     ASSERT_EQ(s.meshes.size(), 2u);
     EXPECT_EQ(s.meshes[0].indices, (std::vector<uint32_t>{0, 1, 2, 2, 1, 3}));
     EXPECT_EQ(s.meshes[1].indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+}
+
+// Positions as KHR_mesh_quantization allows them (normalized 16-bit integers with a byte
+// stride) and through sparse accessors (on a buffer view, and on zeros without one).
+TEST(ImportGltf, QuantizedAndSparsePositions) {
+    std::vector<unsigned char> bin(96, 0);
+    const float pos[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    std::memcpy(bin.data(), pos, 36);
+    const uint16_t idx[3] = {0, 1, 2};
+    std::memcpy(bin.data() + 36, idx, 6);
+    const uint16_t sparse_idx[2] = {1, 2};
+    std::memcpy(bin.data() + 44, sparse_idx, 4);
+    const float sparse_val[6] = {5, 0, 0, 0, 5, 0};
+    std::memcpy(bin.data() + 48, sparse_val, 24);
+    const int16_t q[12] = {0, 0, 0, 0, 32767, 0, 0, 0, 0, -32767, 0, 0};  // stride 8: x y z pad
+    std::memcpy(bin.data() + 72, q, 24);
+    const std::string json =
+        R"({"asset":{"version":"2.0"},"extensionsUsed":["KHR_mesh_quantization"],"extensionsRequired":["KHR_mesh_quantization"],)"
+        R"("scene":0,"scenes":[{"nodes":[0,1,2]}],"nodes":[{"mesh":0},{"mesh":1},{"mesh":2}],)"
+        R"("meshes":[{"primitives":[{"attributes":{"POSITION":0},"indices":1}]},)"
+        R"({"primitives":[{"attributes":{"POSITION":2},"indices":1}]},{"primitives":[{"attributes":{"POSITION":3},"indices":1}]}],)"
+        R"("accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",)"
+        R"("sparse":{"count":2,"indices":{"bufferView":2,"componentType":5123},"values":{"bufferView":3}}},)"
+        R"({"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"},)"
+        R"({"bufferView":4,"componentType":5122,"normalized":true,"count":3,"type":"VEC3"},)"
+        R"({"componentType":5126,"count":3,"type":"VEC3",)"
+        R"("sparse":{"count":2,"indices":{"bufferView":2,"componentType":5123},"values":{"bufferView":3}}}],)"
+        R"("bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":6},)"
+        R"({"buffer":0,"byteOffset":44,"byteLength":4},{"buffer":0,"byteOffset":48,"byteLength":24},)"
+        R"({"buffer":0,"byteOffset":72,"byteLength":24,"byteStride":8}],)"
+        R"("buffers":[{"byteLength":96,"uri":"data:application/octet-stream;base64,)" + test::base64(bin) + R"("}]})";
+    const Scene s = importModel(writeFixture("qs.gltf", json));
+    ASSERT_EQ(s.meshes.size(), 3u);
+    EXPECT_EQ(s.meshes[0].positions, (std::vector<glm::vec3>{{0, 0, 0}, {5, 0, 0}, {0, 5, 0}}));
+    EXPECT_EQ(s.meshes[1].positions, (std::vector<glm::vec3>{{0, 0, 0}, {1, 0, 0}, {0, -1, 0}}));
+    EXPECT_EQ(s.meshes[2].positions, (std::vector<glm::vec3>{{0, 0, 0}, {5, 0, 0}, {0, 5, 0}}));
+}
+
+// EXT_mesh_gpu_instancing: one object per instance, the node's transform times the instance's.
+TEST(ImportGltf, GpuInstancesBecomeObjectsSharingTheMesh) {
+    std::vector<unsigned char> bin(44 + 24 + 32, 0);
+    const float pos[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    std::memcpy(bin.data(), pos, 36);
+    const uint16_t idx[3] = {0, 1, 2};
+    std::memcpy(bin.data() + 36, idx, 6);
+    const float t[6] = {10, 0, 0, 0, 20, 0};
+    std::memcpy(bin.data() + 44, t, 24);
+    const float r[8] = {0, 0, 0.7071067811865476f, 0.7071067811865476f, 0, 0, 0, 1};
+    std::memcpy(bin.data() + 68, r, 32);
+    const std::string json =
+        R"({"asset":{"version":"2.0"},"extensionsUsed":["EXT_mesh_gpu_instancing"],"extensionsRequired":["EXT_mesh_gpu_instancing"],)"
+        R"("scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0,"translation":[0,0,1],)"
+        R"("extensions":{"EXT_mesh_gpu_instancing":{"attributes":{"TRANSLATION":2,"ROTATION":3}}}}],)"
+        R"("meshes":[{"primitives":[{"attributes":{"POSITION":0},"indices":1}]}],)"
+        R"("accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3"},)"
+        R"({"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"},)"
+        R"({"bufferView":2,"componentType":5126,"count":2,"type":"VEC3"},{"bufferView":3,"componentType":5126,"count":2,"type":"VEC4"}],)"
+        R"("bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":6},)"
+        R"({"buffer":0,"byteOffset":44,"byteLength":24},{"buffer":0,"byteOffset":68,"byteLength":32}],)"
+        R"("buffers":[{"byteLength":100,"uri":"data:application/octet-stream;base64,)" + test::base64(bin) + R"("}]})";
+    const Scene s = importModel(writeFixture("inst.gltf", json));
+    ASSERT_EQ(s.objects.size(), 2u);
+    ASSERT_EQ(s.meshes.size(), 1u);
+    const glm::vec3 a = s.objects[0].world * glm::vec4(1, 0, 0, 1);  // rotate 90 about z, + (10,0,0), + (0,0,1)
+    EXPECT_NEAR(a.x, 10, 1e-5);
+    EXPECT_NEAR(a.y, 1, 1e-5);
+    EXPECT_NEAR(a.z, 1, 1e-5);
+    const glm::vec3 b = s.objects[1].world * glm::vec4(1, 0, 0, 1);
+    EXPECT_NEAR(b.x, 1, 1e-5);
+    EXPECT_NEAR(b.y, 20, 1e-5);
+    EXPECT_NEAR(b.z, 1, 1e-5);
 }
 
 TEST(ImportGltf, DefaultEngineHas115ObjectsAnd121496Triangles) {

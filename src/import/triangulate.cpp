@@ -1,0 +1,127 @@
+// SPDX-License-Identifier: MIT
+#include "import/triangulate.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace occ {
+
+namespace {
+
+double cross2(const glm::dvec2& a, const glm::dvec2& b, const glm::dvec2& c) {
+    return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+}
+
+// p inside triangle abc (counter-clockwise) or on its boundary.
+bool inTriangle(const glm::dvec2& p, const glm::dvec2& a, const glm::dvec2& b, const glm::dvec2& c) {
+    return cross2(a, b, p) >= 0 && cross2(b, c, p) >= 0 && cross2(c, a, p) >= 0;
+}
+
+}  // namespace
+
+bool triangulatePolygon(const std::vector<glm::vec3>& positions, std::vector<uint32_t> corners,
+                        std::vector<uint32_t>& triangles) {
+    corners.erase(std::unique(corners.begin(), corners.end()), corners.end());
+    while (corners.size() > 1 && corners.front() == corners.back()) corners.pop_back();
+    const size_t n = corners.size();
+    if (n < 3) return false;
+    if (n == 3) {
+        triangles.insert(triangles.end(), corners.begin(), corners.end());
+        return true;
+    }
+
+    // The plane: Newell's normal, which points along the polygon's counter-clockwise side.
+    glm::dvec3 normal(0.0);
+    for (size_t i = 0; i < n; ++i) {
+        const glm::dvec3 a(positions[corners[i]]), b(positions[corners[(i + 1) % n]]);
+        normal += glm::dvec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
+    }
+    const double length = glm::length(normal);
+    if (!(length > 0)) {
+        // No area: a fan of zero-area triangles, which preprocessing counts and drops.
+        for (size_t i = 2; i < n; ++i) triangles.insert(triangles.end(), {corners[0], corners[i - 1], corners[i]});
+        return true;
+    }
+    normal /= length;
+    const glm::dvec3 helper = std::abs(normal.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
+    const glm::dvec3 t = glm::normalize(glm::cross(helper, normal));
+    const glm::dvec3 b = glm::cross(normal, t);  // (t, b, normal) right-handed: CCW stays CCW
+    std::vector<glm::dvec2> p(n);
+    for (size_t i = 0; i < n; ++i) {
+        const glm::dvec3 q(positions[corners[i]]);
+        p[i] = {glm::dot(q, t), glm::dot(q, b)};
+    }
+
+    // Ear clipping over a ring of the remaining corners. An ear is a convex corner whose triangle
+    // holds no other remaining corner (corners at the same place as one of its own, as a bridge
+    // edge to a hole makes them, do not count).
+    std::vector<size_t> next(n), prev(n);
+    for (size_t i = 0; i < n; ++i) next[i] = (i + 1) % n, prev[i] = (i + n - 1) % n;
+    const auto same = [&](size_t i, size_t j) { return p[i] == p[j]; };
+    const auto isEar = [&](size_t i) {
+        const size_t a = prev[i], c = next[i];
+        if (cross2(p[a], p[i], p[c]) <= 0) return false;
+        for (size_t j = next[c]; j != a; j = next[j]) {
+            if (same(j, a) || same(j, i) || same(j, c)) continue;
+            if (inTriangle(p[j], p[a], p[i], p[c])) return false;
+        }
+        return true;
+    };
+    size_t remaining = n, i = 0, since_last = 0;
+    bool strict = true;
+    while (remaining > 3) {
+        const bool convex = cross2(p[prev[i]], p[i], p[next[i]]) > 0;
+        if (strict ? isEar(i) : (convex || since_last >= 2 * remaining)) {
+            triangles.insert(triangles.end(), {corners[prev[i]], corners[i], corners[next[i]]});
+            next[prev[i]] = next[i];
+            prev[next[i]] = prev[i];
+            --remaining;
+            i = next[i];
+            since_last = 0;
+            strict = true;
+            continue;
+        }
+        i = next[i];
+        // A whole turn without an ear (a self-intersecting or numerically flat outline): clip
+        // convex corners regardless, and any corner after another turn, so n - 2 triangles still come out.
+        if (++since_last >= remaining) strict = false;
+    }
+    triangles.insert(triangles.end(), {corners[prev[i]], corners[i], corners[next[i]]});
+    return true;
+}
+
+void addPolygonObjects(const PolygonSoup& soup, const std::string& name, Scene& scene) {
+    const uint32_t groups = soup.face_group.empty() ? 1u : uint32_t(soup.group_names.size());
+    std::vector<uint32_t> remap(soup.positions.size(), UINT32_MAX), triangles;
+    for (uint32_t g = 0; g < groups; ++g) {
+        Mesh mesh;
+        mesh.name = soup.face_group.empty() ? name : soup.group_names[g];
+        std::fill(remap.begin(), remap.end(), UINT32_MAX);
+        for (size_t f = 0; f < soup.faceCount(); ++f) {
+            if (!soup.face_group.empty() && soup.face_group[f] != g) continue;
+            triangles.clear();
+            if (!triangulatePolygon(soup.positions,
+                                    std::vector<uint32_t>(soup.corners.begin() + soup.face_offsets[f],
+                                                          soup.corners.begin() + soup.face_offsets[f + 1]),
+                                    triangles)) {
+                ++scene.skipped.degenerate;
+                continue;
+            }
+            for (uint32_t v : triangles) {
+                if (remap[v] == UINT32_MAX) {
+                    remap[v] = uint32_t(mesh.positions.size());
+                    mesh.positions.push_back(soup.positions[v]);
+                }
+                mesh.indices.push_back(remap[v]);
+            }
+        }
+        if (mesh.indices.empty()) continue;
+        Object object;
+        object.mesh = uint32_t(scene.meshes.size());
+        object.color = mesh.color;
+        scene.meshes.push_back(std::move(mesh));
+        scene.objects.push_back(object);
+    }
+}
+
+}  // namespace occ

@@ -1,0 +1,45 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "scene/scene.h"
+
+#include <glm/glm.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace occ {
+
+// Triangulates one polygon face (corner indices into `positions`, in order) by ear clipping in
+// the plane of its Newell normal, appending n - 2 triangles for n corners to `triangles` (as
+// indices). Convex, concave and holed polygons (a hole joined to the outline by a bridge edge,
+// traversed twice, as OBJ and OFF exporters write them) come out with their own winding and
+// without filling concave notches or holes. Corners repeated in a row and a last corner equal
+// to the first are dropped first. Returns false (appending nothing) for a face with fewer than
+// three distinct corners or no area (all corners on one line): a degenerate face.
+bool triangulatePolygon(const std::vector<glm::vec3>& positions, std::vector<uint32_t> corners,
+                        std::vector<uint32_t>& triangles);
+
+// Polygons as OBJ, OFF, PLY and STL readers collect them: shared positions, faces as runs of
+// corners, and optionally a group per face (OBJ's g / o).
+struct PolygonSoup {
+    std::vector<glm::vec3> positions;
+    std::vector<uint32_t> face_offsets{0};  // face f is corners[face_offsets[f], face_offsets[f + 1])
+    std::vector<uint32_t> corners;          // each < positions.size()
+    std::vector<uint32_t> face_group;       // empty, or one entry per face into group_names
+    std::vector<std::string> group_names;
+
+    size_t faceCount() const { return face_offsets.size() - 1; }
+    void addFace(const std::vector<uint32_t>& face) {
+        corners.insert(corners.end(), face.begin(), face.end());
+        face_offsets.push_back(uint32_t(corners.size()));
+    }
+};
+
+// Appends to `scene` one mesh and object per group that has triangles (one for the whole soup,
+// named `name`, when it has no groups), each holding only the vertices it uses; faces are
+// triangulated by triangulatePolygon, and the degenerate ones counted in scene.skipped.
+void addPolygonObjects(const PolygonSoup& soup, const std::string& name, Scene& scene);
+
+}  // namespace occ
