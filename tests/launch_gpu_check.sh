@@ -1,17 +1,17 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: MIT
 # launch/gpu-check --bundle makes a folder a GPU machine without packages can run: every binary
-# and library is there, the bundled CPU build renders through the bundled loader, and DIR/run
-# passes where there is a GPU or says there is none (exit 3) where there is not.
+# and library is there, DIR/run makes the scenes with the bundled CPU build, which renders
+# through the bundled loader, and passes where there is a GPU or says there is none (exit 3)
+# where there is not.
 set -u
 src=$1
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
 "$src/launch/gpu-check" --no-setup --bundle "$dir/b" >"$dir/bundle.log" 2>&1 || { cat "$dir/bundle.log"; fail "bundle"; }
-for f in run bin/occswitch bin/occswitch-cuda bin/occ_kernel_tests_cuda bin/occ_pipeline_tests_cuda \
-         bin/gpu_compare.sh lib/ld-linux.so lib/libEGL.so.1 lib/libcudart.so.13 scenes/grid.oss scenes/grid.cam \
-         scenes/plant.oss scenes/plant.cam; do
+for f in run bin/occswitch bin/occswitch-cuda bin/occ_tests_cuda \
+         bin/gpu_compare.sh lib/ld-linux.so lib/libEGL.so.1 lib/libcudart.so.13 scenes/engine.glb; do
   [ -e "$dir/b/$f" ] || fail "the bundle lacks $f"
 done
 [ "$(du -sm "$dir/b" | cut -f1)" -lt 64 ] || fail "the bundle is $(du -sm "$dir/b" | cut -f1) MiB"
@@ -22,8 +22,12 @@ if [ $status -eq 3 ]; then
 else
   [ $status -eq 0 ] || fail "DIR/run exited $status"
 fi
+# DIR/run made the scenes with the bundled CPU build.
+for f in grid.oss grid.cam plant.oss plant.cam; do
+  [ -s "$dir/results/scenes/$f" ] || fail "DIR/run did not make scenes/$f"
+done
 # The bundled CPU build, through the bundled loader and libraries, renders a frame.
-"$dir/results/occswitch" render "$dir/b/scenes/grid.oss" --path "$dir/b/scenes/grid.cam" --no-display \
+"$dir/results/occswitch" render "$dir/results/scenes/grid.oss" --path "$dir/results/scenes/grid.cam" --no-display \
   >"$dir/cpu.log" 2>&1 || { cat "$dir/cpu.log"; fail "the bundled occswitch"; }
 grep -q "^device: " "$dir/cpu.log" || fail "no device line: $(cat "$dir/cpu.log")"
 echo "PASS"

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "cli/bench_all.h"
 
+#include "scene/atomic_file.h"
 #include "scene/errors.h"
 #include "scene/oss_file.h"
 
@@ -93,24 +94,7 @@ std::string dimsName(const GridDims& d) {
     return std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" + std::to_string(d[2]);
 }
 
-// Writes `text` to `path` through a temporary renamed into place, so a failed or interrupted
-// run never leaves half a file over an earlier result.
-void writeFileAtomic(const fs::path& path, const std::string& text) {
-    const fs::path tmp = path.string() + ".tmp";
-    {
-        std::ofstream f(tmp, std::ios::trunc | std::ios::binary);
-        f << text;
-        f.close();
-        if (!f) {
-            std::error_code ec;
-            fs::remove(tmp, ec);
-            throw InputError(path.string(), "cannot write the file");
-        }
-    }
-    std::error_code ec;
-    fs::rename(tmp, path, ec);
-    if (ec) throw InputError(path.string(), "cannot rename the written file into place: " + ec.message());
-}
+void writeFileAtomic(const fs::path& path, const std::string& text) { occ::writeFileAtomic(path.string(), text); }
 
 std::string readText(const fs::path& path) {
     std::ifstream f(path, std::ios::binary);
@@ -695,7 +679,7 @@ void Bench::streaming(std::ostringstream& md) {
     bool header = false;
     for (const PreparedScene* scene : {&grid_, &plant_}) {
         const fs::path dir = raw_ / ("pipeline_" + scene->key);
-        fs::create_directories(dir);
+        makeOutputFolder(dir.string());
         const RunResult r = runner_.run("pipeline_" + scene->key,
                                         command({"bench", "pipeline", scene->oss.string(), scene->cam.string(),
                                                  "--out", dir.string()}));
@@ -1078,11 +1062,7 @@ std::string machineDescription() {
 
 int Bench::run() {
     const auto start = Clock::now();
-    for (const fs::path& dir : {out_, scenes_, raw_, plots_, out_ / "logs"}) {
-        std::error_code ec;
-        fs::create_directories(dir, ec);
-        if (ec) throw UsageError("bench all: cannot create " + dir.string() + ": " + ec.message());
-    }
+    for (const fs::path& dir : {out_, scenes_, raw_, plots_, out_ / "logs"}) makeOutputFolder(dir.string());
     std::fprintf(stderr,
                  "bench all: size %s into %s (scenes in %s; per-run logs in %s)\n", size_.name, out_.c_str(),
                  scenes_.c_str(), (out_ / "logs").c_str());

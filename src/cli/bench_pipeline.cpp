@@ -3,6 +3,7 @@
 
 #include "device_memory.h"
 #include "pipeline/pipeline.h"
+#include "scene/atomic_file.h"
 #include "scene/errors.h"
 #include "view/camera_path.h"
 
@@ -10,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <sstream>
 #include <fstream>
 #include <vector>
 
@@ -136,8 +138,8 @@ int runPipelineBench(const PipelineBenchOptions& o) {
                 sc.in_frustum > 0 ? 100.0 * sc.occluded / sc.in_frustum : 0.0);
 
     if (!o.out_dir.empty()) {
-        std::filesystem::create_directories(o.out_dir);
-        std::ofstream csv(std::filesystem::path(o.out_dir) / "pipeline_bench.csv");
+        makeOutputFolder(o.out_dir);
+        std::ostringstream csv;
         csv << "mode,frames,streamed_bytes_per_frame,streamed_triangles_per_frame,active_triangles_per_frame,"
                "resident_triangles_per_frame,moved_bytes_per_frame,visible_per_frame,occluded_per_frame,"
                "bus_h2d_bytes_per_frame,bus_d2h_bytes_per_frame";
@@ -155,6 +157,7 @@ int runPipelineBench(const PipelineBenchOptions& o) {
             for (double ms : r->ms) csv << ',' << mean(ms, *r);
             csv << ',' << mean(r->ms_total, *r) << '\n';
         }
+        writeFileAtomic((std::filesystem::path(o.out_dir) / "pipeline_bench.csv").string(), csv.str());
         std::fprintf(stderr, "bench pipeline: wrote %s\n",
                      (std::filesystem::path(o.out_dir) / "pipeline_bench.csv").string().c_str());
     }

@@ -10,6 +10,7 @@
 #include "prep/prepare.h"
 #include "prep/rearrange.h"
 #include "prep/weld.h"
+#include "scene/atomic_file.h"
 #include "scene/errors.h"
 
 #include <meshoptimizer.h>
@@ -231,9 +232,7 @@ int runBenchPrep(const BenchPrepOptions& o) {
     if (!(o.openmesh_seconds >= 0.0)) throw UsageError("--openmesh-seconds must be >= 0");
     if (!o.out.empty()) {
         // Before the long run, so that a typo costs nothing.
-        std::error_code ec;
-        std::filesystem::create_directories(o.out, ec);
-        if (!std::filesystem::is_directory(o.out, ec)) throw UsageError("--out " + o.out + ": cannot create the folder");
+        makeOutputFolder(o.out);
     }
     const unsigned hardware = std::max(1u, std::thread::hardware_concurrency());
     const unsigned threads = o.threads ? o.threads : hardware;

@@ -6,6 +6,7 @@
 #include "net/transport.h"
 #include "pipeline/pipeline.h"
 #include "roles/occlusion_switch.h"
+#include "scene/atomic_file.h"
 #include "scene/errors.h"
 #include "view/camera_path.h"
 
@@ -42,13 +43,6 @@ struct RenderOptions {
     PipelineOptions pipeline;
 };
 
-// A folder the run writes into: created if missing; an existing file of that name is an error.
-void makeOutputFolder(const std::string& option, const std::string& dir) {
-    std::error_code ec;
-    std::filesystem::create_directories(dir, ec);
-    if (ec || !std::filesystem::is_directory(dir))
-        throw InputError(dir, option + ": cannot create the folder" + (ec ? ": " + ec.message() : std::string()));
-}
 
 std::string frameName(uint64_t frame) {
     char b[32];
@@ -60,30 +54,21 @@ std::string frameName(uint64_t frame) {
 // only when the run succeeds.
 class StatsFile {
 public:
-    StatsFile(const std::string& path, const std::string& header) : path_(path) {
+    StatsFile(const std::string& path, const std::string& header) {
         if (path.empty()) return;
-        tmp_ = path + ".tmp";
-        csv_.open(tmp_, std::ios::trunc);
-        if (!csv_) throw InputError(path, "cannot write the stats file");
-        csv_ << header << '\n';
-    }
-    ~StatsFile() {
-        if (!tmp_.empty()) std::remove(tmp_.c_str());
+        file_ = std::make_unique<AtomicFile>(path);
+        file_->write(header + "\n");
     }
     void write(const std::string& rows) {
-        if (csv_.is_open()) csv_ << rows;
+        if (file_) file_->write(rows);
     }
     void commit() {
-        if (!csv_.is_open()) return;
-        csv_.close();
-        if (!csv_) throw InputError(path_, "write failed");
-        std::filesystem::rename(tmp_, path_);
-        tmp_.clear();
+        if (file_) file_->commit();
+        file_.reset();
     }
 
 private:
-    std::string path_, tmp_;
-    std::ofstream csv_;
+    std::unique_ptr<AtomicFile> file_;
 };
 
 int runRender(RenderOptions o) {
@@ -118,7 +103,7 @@ int runRender(RenderOptions o) {
         w.height = o.pipeline.height;
         w.path = o.path;
         w.out = o.out.empty() ? "." : o.out;
-        if (!o.out.empty()) makeOutputFolder("--out", o.out);
+        if (!o.out.empty()) makeOutputFolder(o.out);
         return render::runWindow(file, o.pipeline, w);
     }
 #endif
@@ -147,8 +132,8 @@ int runRender(RenderOptions o) {
             throw UsageError("render: --debug-frames " + std::to_string(f) + " is past the path's last frame " +
                              std::to_string(cameras.size() - 1));
     // Folders only once every option is known to be good: a refused run creates nothing.
-    if (rank0 && !o.out.empty()) makeOutputFolder("--out", o.out);
-    if (rank0 && !o.debug_views.empty()) makeOutputFolder("--debug-views", o.debug_views);
+    if (rank0 && !o.out.empty()) makeOutputFolder(o.out);
+    if (rank0 && !o.debug_views.empty()) makeOutputFolder(o.debug_views);
 
     roles::RunOptions run;
     run.cameras = cameras;

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "import/glb_writer.h"
 
+#include "scene/atomic_file.h"
 #include "scene/errors.h"
 
 #include <nlohmann/json.hpp>
@@ -126,24 +127,8 @@ void writeGlb(const std::string& path, const std::vector<Mesh>& meshes, const st
     }
     if (out.size() > UINT32_MAX) throw InputError(path, "scene too large for one GLB file (over 4 GiB)");
 
-    // A temporary next to the target and a rename: readers see the old file or the whole new one.
-    const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-    {
-        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-        if (!f) throw InputError(path, std::string("cannot write: ") + std::strerror(errno));
-        f.write(reinterpret_cast<const char*>(out.data()), std::streamsize(out.size()));
-        f.close();
-        if (!f) {
-            std::remove(tmp.c_str());
-            throw InputError(path, "write failed (disk full?)");
-        }
-    }
-    std::error_code ec;
-    std::filesystem::rename(tmp, path, ec);
-    if (ec) {
-        std::remove(tmp.c_str());
-        throw InputError(path, "cannot rename temporary file into place: " + ec.message());
-    }
+    // Readers see the old file or the whole new one.
+    writeFileAtomic(path, std::string_view(reinterpret_cast<const char*>(out.data()), out.size()));
 }
 
 void writeSceneGlb(const std::string& path, const Scene& scene) {

@@ -30,8 +30,10 @@ Scene importModel(const std::string& path, const ImportOptions& options) {
         scene = importOff(path);
     else if (ext == ".obj")
         scene = importObj(path);
-    else if (ext == ".ply" || ext == ".stl")
-        scene = importWithOpenMesh(path);
+    else if (ext == ".ply")
+        scene = importPly(path);
+    else if (ext == ".stl")
+        scene = importStl(path);
     else
         throw InputError(path, "unsupported file extension '" + ext +
                                    "' (expected .gltf, .glb, .obj, .ply, .off or .stl)");

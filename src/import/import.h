@@ -15,8 +15,8 @@ namespace occ {
 //                         (EXT_meshopt_compression), primitives Draco-compressed
 //                         (KHR_draco_mesh_compression), accessors sparse;
 //   .obj                  our reader, one object per group ("g"/"o"), or one per file;
-//   .ply / .stl           OpenMesh's readers (ASCII STL checked line by line first), one object
-//                         per file;
+//   .ply                  our reader (ASCII and binary of either byte order), one object per file;
+//   .stl                  our reader (binary and ASCII, shared corners merged), one object per file;
 //   .off                  our reader (OFF, COFF, NOFF, STOFF, 4OFF, nOFF, comments anywhere),
 //                         one object per file.
 // Polygons are triangulated by ear clipping (concave and holed ones too); points and lines are
@@ -35,7 +35,8 @@ std::string lowerExtension(const std::string& path);
 
 // Per-format entry points used by importModel; same contract.
 Scene importGltf(const std::string& path, const ImportOptions& options = {});
-Scene importWithOpenMesh(const std::string& path);
+Scene importPly(const std::string& path);
+Scene importStl(const std::string& path);
 Scene importOff(const std::string& path);
 Scene importObj(const std::string& path);
 

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "render/png_writer.h"
 
+#include "scene/atomic_file.h"
 #include "scene/errors.h"
 
 #include <stb/stb_image_write.h>
@@ -12,19 +13,15 @@
 namespace occ::render {
 
 void writePng(const std::string& path, uint32_t width, uint32_t height, int channels, const uint8_t* pixels) {
-    const std::string tmp = path + ".tmp";
+    AtomicFile file(path);
     // Bottom row first in memory, top row first in the file.
     stbi_flip_vertically_on_write(1);
-    if (!stbi_write_png(tmp.c_str(), int(width), int(height), channels, pixels, int(width) * channels)) {
-        std::remove(tmp.c_str());
-        throw InputError(path, "cannot write the PNG (missing folder, or disk full?)");
-    }
-    std::error_code ec;
-    std::filesystem::rename(tmp, path, ec);
-    if (ec) {
-        std::remove(tmp.c_str());
-        throw InputError(path, "cannot rename the written PNG into place: " + ec.message());
-    }
+    const auto sink = [](void* context, void* data, int size) {
+        static_cast<AtomicFile*>(context)->write(data, size_t(size));
+    };
+    if (!stbi_write_png_to_func(sink, &file, int(width), int(height), channels, pixels, int(width) * channels))
+        throw InputError(path, "cannot encode the PNG");
+    file.commit();
 }
 
 std::vector<uint8_t> depthToGrey(const float* depth, uint64_t count) {

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "view/camera_path.h"
 
+#include "scene/atomic_file.h"
 #include "scene/errors.h"
 #include "scene/oss_file.h"
 #include "scene/splitmix.h"
@@ -111,31 +112,17 @@ void writeCameraPath(const std::string& path, std::span<const CameraPose> camera
         if (const std::string defect = poseDefect(cameras[i]); !defect.empty())
             throw std::invalid_argument("writeCameraPath: camera " + std::to_string(i) + ": " + defect);
 
-    static std::atomic<uint64_t> serial{0};
-    const std::string temporary = path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(serial++);
-    std::FILE* file = std::fopen(temporary.c_str(), "wb");
-    if (!file) throw InputError(path, "cannot create " + temporary + ": " + systemError());
-    const auto fail = [&](const std::string& what) {
-        const std::string reason = what + ": " + systemError();
-        if (file) std::fclose(file);
-        std::remove(temporary.c_str());
-        throw InputError(path, reason);
-    };
-
+    AtomicFile file(path);
     std::string text = std::string(kCameraPathHeader) + "\n";
     for (size_t i = 0; i < cameras.size(); ++i) {
         appendLine(text, cameras[i]);
         // In chunks, so that ten million cameras do not need a gigabyte of text at once.
         if (text.size() >= (1u << 20) || i + 1 == cameras.size()) {
-            if (std::fwrite(text.data(), 1, text.size(), file) != text.size()) fail("cannot write");
+            file.write(text);
             text.clear();
         }
     }
-    if (std::fflush(file) != 0 || ::fsync(::fileno(file)) != 0) fail("cannot write");
-    const int closed = std::fclose(file);
-    file = nullptr;
-    if (closed != 0) fail("cannot write");
-    if (std::rename(temporary.c_str(), path.c_str()) != 0) fail("cannot rename " + temporary + " to it");
+    file.commit();
 }
 
 std::vector<CameraPose> readCameraPath(const std::string& path) {

@@ -375,6 +375,17 @@ case("ply_garbage_header.ply", ply_ascii(b"3 0 1 2", first_line=garbage(b"occswi
      "magic", "valid ASCII PLY whose first line `ply` is replaced by 12 bytes of binary garbage")
 
 
+# ---------------------------------------------------------------- found by fuzzing
+# Inputs libFuzzer found (launch/fuzz-run), kept as they were found.
+
+case("ply_fuzz_openmesh_crash.ply", b'ply\nformat binary_little_endian 1.0\ncomment occswitch tesperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uihar int vertex_indices\nend_header\n0 0 0 1\nproperty list uchar int vertex face 1\nproperty list uc\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x80?\x00\x00\x00\x00', "property",
+     "binary PLY header mangled by the fuzzer (a property line before any element): OpenMesh's "
+     "PLY reader wrote through a wild pointer on it (SEGV in _PLYReader_::can_u_read)")
+
+case("stl_empty.stl", b"", "truncated",
+     "an empty .stl: OpenMesh's STL reader leaked 32 bytes on it")
+
+
 # ---------------------------------------------------------------- other
 
 case("model.xyz", b"0 0 0\n1 0 0\n0 1 0\n", "extension",

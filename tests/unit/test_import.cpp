@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 
 namespace occ {
@@ -59,6 +60,96 @@ TEST(ImportPly, AsciiTriangleAndQuad) {
     const Scene s = importModel(path);
     EXPECT_EQ(s.objects.size(), 1u);
     EXPECT_EQ(s.triangleCount(), 3u);
+}
+
+// Binary PLY of both byte orders, with properties and elements the importer reads past.
+std::string binaryPly(bool big) {
+    std::string h = std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") +
+                    " 1.0\ncomment made by a test\nelement vertex 4\nproperty double x\nproperty float nx\n"
+                    "property double y\nproperty double z\nproperty uchar red\n"
+                    "element face 2\nproperty list uchar uint vertex_indices\nproperty short flags\n"
+                    "element edge 1\nproperty int vertex1\nproperty int vertex2\nend_header\n";
+    const auto put = [&](const void* p, size_t n) {
+        std::string b(static_cast<const char*>(p), n);
+        if (big) std::reverse(b.begin(), b.end());
+        h += b;
+    };
+    const double xy[4][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 2}};
+    for (const auto& v : xy) {
+        const float n = 1;
+        const uint8_t red = 7;
+        put(&v[0], 8), put(&n, 4), put(&v[1], 8), put(&v[2], 8), put(&red, 1);
+    }
+    const uint32_t faces[2][4] = {{3, 0, 1, 2}, {3, 0, 2, 3}};
+    for (const auto& f : faces) {
+        const uint8_t count = 3;
+        const int16_t flags = -1;
+        put(&count, 1);
+        for (int k = 1; k < 4; ++k) put(&f[k], 4);
+        put(&flags, 2);
+    }
+    const int32_t e[2] = {0, 1};
+    put(&e[0], 4), put(&e[1], 4);
+    return h;
+}
+
+TEST(ImportPly, BinaryOfBothByteOrdersWithPropertiesReadPast) {
+    for (bool big : {false, true}) {
+        SCOPED_TRACE(big ? "big endian" : "little endian");
+        const Scene s = importModel(writeFixture(big ? "be.ply" : "le.ply", binaryPly(big)));
+        EXPECT_EQ(s.triangleCount(), 2u);
+        EXPECT_EQ(s.worldBounds().max, glm::vec3(1, 1, 2));
+        // Cut anywhere in the body: truncated, never a crash.
+        const std::string whole = binaryPly(big);
+        const size_t body = whole.find("end_header\n") + 11;
+        for (size_t n = body; n < whole.size(); n += 7)
+            EXPECT_THROW(importModel(writeFixture("cut.ply", whole.substr(0, n))), InputError) << n;
+    }
+}
+
+TEST(ImportPly, CountsThatPromiseMoreThanTheFileAreRefusedBeforeAllocating) {
+    const std::string path = writeFixture("huge.ply",
+                                          "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000000\n"
+                                          "property float x\nproperty float y\nproperty float z\nend_header\n");
+    try {
+        importModel(path);
+        FAIL() << "accepted";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("do not fit"), std::string::npos) << e.what();
+    }
+}
+
+TEST(ImportStl, BinaryTrianglesShareMergedVertices) {
+    std::string b(80, ' ');
+    const uint32_t count = 2;
+    b.append(reinterpret_cast<const char*>(&count), 4);
+    const float tris[2][12] = {{0, 0, 1, 0, 0, 0, 1, 0, 0, 1, 1, 0}, {0, 0, 1, 0, 0, 0, 1, 1, 0, 0, 1, 0}};
+    for (const auto& t : tris) {
+        b.append(reinterpret_cast<const char*>(t), 48);
+        b.append(2, '\0');
+    }
+    b.replace(0, 5, "solid");  // binary files may begin with "solid" too
+    const Scene s = importModel(writeFixture("bin.stl", b));
+    EXPECT_EQ(s.triangleCount(), 2u);
+    EXPECT_EQ(s.vertexCount(), 4u);
+}
+
+TEST(ImportStl, MalformedAsciiLinesSayWhichLine) {
+    const auto rejected = [](const std::string& text, const std::string& what) {
+        const std::string path = writeFixture("m.stl", text);
+        try {
+            importModel(path);
+            ADD_FAILURE() << "accepted: " << text;
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+        }
+    };
+    const std::string facet = "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 1 1 0\nendloop\nendfacet\n";
+    rejected("solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 blah\n", "line 4: 'blah' is not a number");
+    rejected("solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 1 1 0\nvertex 2 2 0\nendloop\nendfacet\nendsolid\n",
+             "line 2: the facet has more than 3 vertices");
+    rejected("solid t\n" + facet, "no endsolid");
+    rejected("solid t\n" + facet + "endsolid t\ngarbage\n", "line 10: unknown keyword 'garbage'");
 }
 
 TEST(ImportStl, AsciiFacetsShareMergedVertices) {

@@ -1,0 +1,62 @@
+// SPDX-License-Identifier: MIT
+// One libFuzzer target per decoder of untrusted bytes (OCC_FUZZ_TARGET picks it): the model
+// importers (by file extension: the bytes go to a file of that kind), the .oss reader and the
+// wire messages. A decoder may reject its input (InputError, std::bad_alloc for an absurd size);
+// anything else (a crash, a sanitizer report, another exception) is a finding.
+#include "import/import.h"
+#include "net/messages.h"
+#include "scene/errors.h"
+#include "scene/oss_file.h"
+
+#include <cstdint>
+#include <cstdio>
+#include <new>
+#include <stdexcept>
+#include <string>
+
+#include <unistd.h>
+
+namespace {
+
+const std::string& scratchFile(const char* extension) {
+    static const std::string path = "/tmp/occ_fuzz_" + std::to_string(::getpid()) + extension;
+    return path;
+}
+
+void writeFile(const std::string& path, const uint8_t* data, size_t size) {
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    if (!f) throw std::runtime_error("cannot write " + path);
+    if (size > 0 && std::fwrite(data, 1, size, f) != size) {
+        std::fclose(f);
+        throw std::runtime_error("cannot write " + path);
+    }
+    std::fclose(f);
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+    using namespace occ;
+#if defined(OCC_FUZZ_MESSAGES)
+    const DecodeContext ctx{};
+    const std::span<const uint8_t> bytes(data, size);
+    try { (void)decodeCameraPacket(bytes, ctx); } catch (const InputError&) {}
+    try { (void)decodeVisibleSetDelta(bytes, ctx); } catch (const InputError&) {}
+    try { (void)decodeEndOfFrame(bytes, ctx); } catch (const InputError&) {}
+    try { (void)decodeReport(bytes, ctx); } catch (const InputError&) {}
+#else
+    const std::string& path = scratchFile(OCC_FUZZ_EXTENSION);
+    writeFile(path, data, size);
+    try {
+#if defined(OCC_FUZZ_OSS)
+        const OssFile file = OssFile::open(path);
+        file.verifyLodPrefix();
+#else
+        (void)importModel(path);
+#endif
+    } catch (const InputError&) {
+    } catch (const std::bad_alloc&) {
+    }
+#endif
+    return 0;
+}
