@@ -33,4 +33,17 @@ for bad in "--size 0x10" "--size big" "--mode none" "--stream fast" "--alpha 1" 
 done
 "$exe" render "$dir/p.oss" --path "$dir/missing.cam" --no-display >/dev/null 2>"$dir/err"
 [ $? -eq 2 ] && grep -q "missing.cam" "$dir/err" || fail "a missing path file: $(cat "$dir/err")"
+# A model file renders directly: prepared once into MODEL.oss beside it, reused while unchanged,
+# prepared again when its bytes change.
+cp "$dir/p.glb" "$dir/m.glb"
+"$exe" render "$dir/m.glb" --path "$dir/walk.cam" --no-display >/dev/null 2>"$dir/first" || fail "render of a model file: $(cat "$dir/first")"
+grep -q "preparing it into $dir/m.glb.oss" "$dir/first" || fail "no preparation: $(cat "$dir/first")"
+[ -s "$dir/m.glb.oss" ] && [ -s "$dir/m.glb.oss.source" ] || fail "no cache beside the model"
+"$exe" render "$dir/m.glb" --path "$dir/walk.cam" --no-display >/dev/null 2>"$dir/second" || fail "second render"
+grep -q "using the prepared scene $dir/m.glb.oss" "$dir/second" || fail "cache not reused: $(cat "$dir/second")"
+"$exe" gen plant --objects 300 -o "$dir/m.glb" 2>/dev/null || fail "gen"
+"$exe" render "$dir/m.glb" --path "$dir/walk.cam" --no-display >/dev/null 2>"$dir/third" || fail "third render"
+grep -q "preparing it into" "$dir/third" || fail "a changed model was not prepared again: $(cat "$dir/third")"
+"$exe" render "$dir/missing.glb" --path "$dir/walk.cam" --no-display >/dev/null 2>"$dir/err"; status=$?
+[ $status -eq 2 ] && grep -q "missing" "$dir/err" || fail "a missing model: exit $status, $(cat "$dir/err")"
 echo ok

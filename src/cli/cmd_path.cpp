@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "cli/commands.h"
+#include "cli/model_cache.h"
 
 #include "scene/errors.h"
 #include "scene/oss_file.h"
@@ -33,7 +34,7 @@ void checkOptions(const PathOptions& o) {
 
 int runOrbit(const PathOptions& o) {
     checkOptions(o);
-    const OssFile file = OssFile::open(o.scene);
+    const OssFile file = OssFile::open(preparedScene(o.scene));
     const std::vector<CameraPose> cameras = orbitPath(pathSceneOf(file), uint32_t(o.frames));
     writeCameraPath(o.output, cameras);
     const CameraPose& first = cameras.front();
@@ -47,7 +48,7 @@ int runOrbit(const PathOptions& o) {
 
 int runWalk(const PathOptions& o) {
     checkOptions(o);
-    const OssFile file = OssFile::open(o.scene);
+    const OssFile file = OssFile::open(preparedScene(o.scene));
     const Avoid avoid = o.avoid == "triangles" ? Avoid::triangles : Avoid::boxes;
     const WalkPath walk = walkPath(pathSceneOf(file), uint32_t(o.frames), o.seed, avoid);
     writeCameraPath(o.output, walk.cameras);

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "cli/commands.h"
 
+#include "cli/model_cache.h"
 #include "cli/progress.h"
 #include "import/import.h"
 #include "prep/prepare.h"
@@ -13,6 +14,37 @@
 #include <thread>
 
 namespace occ::cli {
+
+void prepareModel(const std::string& input, const std::string& output, const ImportOptions& import,
+                  const PrepOptions& prep) {
+    const auto start = std::chrono::steady_clock::now();
+    const Scene scene = importModel(input, import);
+    PrepProgress progress;
+    PreparedScene prepared;
+    {
+        ProgressBar bar("prep", "meshes", "tri", [&progress] {
+            return ProgressBar::Sample{double(progress.meshes_done), double(progress.meshes_total),
+                                       double(progress.triangles_done)};
+        });
+        prepared = prepareScene(scene, prep, &progress);
+    }
+    writeOss(output, prepared);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+    uint64_t unique_triangles = 0, instanced_triangles = 0, dropped = 0;
+    for (const ProgressiveMesh& m : prepared.meshes) unique_triangles += m.triangleCount(), dropped += m.dropped_triangles;
+    for (const ObjectRecord& r : prepared.objects) instanced_triangles += prepared.meshes[r.mesh].triangleCount();
+    const unsigned threads = prep.threads ? prep.threads : std::max(1u, std::thread::hardware_concurrency());
+    std::fprintf(stderr,
+                 "prep: %s -> %s: %zu objects, %zu progressive meshes (%llu triangles, %llu with instances; "
+                 "%llu degenerate input triangles dropped), |COS| = %zu at CT %.2f, %.2f s on %u threads "
+                 "(%.2f M unique triangles/s), %llu bytes\n",
+                 input.c_str(), output.c_str(), prepared.objects.size(), prepared.meshes.size(),
+                 (unsigned long long)unique_triangles, (unsigned long long)instanced_triangles,
+                 (unsigned long long)dropped, prepared.cos.size(),
+                 double(prepared.ct), seconds, threads, unique_triangles / seconds / 1e6,
+                 (unsigned long long)std::filesystem::file_size(output));
+}
 
 namespace {
 
@@ -33,33 +65,7 @@ int runPrep(PrepCommandOptions o) {
     if (o.prep.threads > 1024) throw UsageError("--threads " + std::to_string(o.prep.threads) + " is not a sensible thread count");
     o.prep.collapser = o.collapser == "openmesh" ? Collapser::OpenMesh : Collapser::Fast;
 
-    const auto start = std::chrono::steady_clock::now();
-    const Scene scene = importModel(o.input, o.import);
-    PrepProgress progress;
-    PreparedScene prepared;
-    {
-        ProgressBar bar("prep", "meshes", "tri", [&progress] {
-            return ProgressBar::Sample{double(progress.meshes_done), double(progress.meshes_total),
-                                       double(progress.triangles_done)};
-        });
-        prepared = prepareScene(scene, o.prep, &progress);
-    }
-    writeOss(o.output, prepared);
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-
-    uint64_t unique_triangles = 0, instanced_triangles = 0, dropped = 0;
-    for (const ProgressiveMesh& m : prepared.meshes) unique_triangles += m.triangleCount(), dropped += m.dropped_triangles;
-    for (const ObjectRecord& r : prepared.objects) instanced_triangles += prepared.meshes[r.mesh].triangleCount();
-    const unsigned threads = o.prep.threads ? o.prep.threads : std::max(1u, std::thread::hardware_concurrency());
-    std::fprintf(stderr,
-                 "prep: %s -> %s: %zu objects, %zu progressive meshes (%llu triangles, %llu with instances; "
-                 "%llu degenerate input triangles dropped), |COS| = %zu at CT %.2f, %.2f s on %u threads "
-                 "(%.2f M unique triangles/s), %llu bytes\n",
-                 o.input.c_str(), o.output.c_str(), prepared.objects.size(), prepared.meshes.size(),
-                 (unsigned long long)unique_triangles, (unsigned long long)instanced_triangles,
-                 (unsigned long long)dropped, prepared.cos.size(),
-                 double(prepared.ct), seconds, threads, unique_triangles / seconds / 1e6,
-                 (unsigned long long)std::filesystem::file_size(o.output));
+    prepareModel(o.input, o.output, o.import, o.prep);
     return 0;
 }
 

@@ -6,6 +6,7 @@
 #include "net/transport.h"
 #include "pipeline/pipeline.h"
 #include "roles/occlusion_switch.h"
+#include "cli/model_cache.h"
 #include "scene/atomic_file.h"
 #include "scene/errors.h"
 #include "view/camera_path.h"
@@ -94,7 +95,7 @@ int runRender(RenderOptions o) {
 
     // Before anything touches the device: each rank on a node its own GPU.
     const k::DeviceInfo device = k::selectDevice(o.device);
-    const OssFile file = OssFile::open(o.scene);
+    const OssFile file = OssFile::open(preparedScene(o.scene));
 #ifdef OCC_HAVE_GL
     if (draws && !o.headless) {
         if (o.pipeline.pvs_occluder_lag == 0) o.pipeline.pvs_occluder_lag = 1;
@@ -267,7 +268,9 @@ Command addRenderCommand(CLI::App& app) {
                   "  mpirun -np 3 occswitch render S.oss --path P.cam --headless    the occlusion switch:\n"
                   "      rank 0 displays, ranks 1 and 2 swap occluder raster and culling every frame\n"
                   "      (launch/mpi-render adds the flags mpirun needs)");
-    sub->add_option("scene", o->scene, "preprocessed scene (.oss)")->required();
+    sub->add_option("scene", o->scene,
+                    "preprocessed scene (.oss), or a model file (glTF, OBJ, PLY, OFF, STL), prepared once into\n"
+                    "MODEL.oss beside it and reused while the model is unchanged")->required();
     sub->add_option("--path", o->path, "camera path file (see `occswitch path`); in a window, played then flown");
     sub->add_flag("--headless", o->headless, "draw offscreen with EGL (no window, no X server)");
     sub->add_flag("--no-display", o->no_display, "run every stage except drawing");
