@@ -62,8 +62,12 @@ done
 "$exe" path walk "$dir/plant.oss" -o "$dir/bad.txt" 2>/dev/null; [ $? -eq 2 ] || fail "accepted a non-.cam output"
 "$exe" path walk "$dir/plant.oss" -o "$dir/no/such/bad.cam" 2>/dev/null; [ $? -eq 2 ] || fail "accepted a missing folder"
 "$exe" path walk "$dir/missing.oss" -o "$dir/bad.cam" 2>/dev/null; [ $? -eq 2 ] || fail "accepted a missing scene"
-"$exe" path orbit "$dir/plant.glb" -o "$dir/bad.cam" 2>"$dir/err"; [ $? -eq 2 ] || fail "accepted a .glb as a scene"
-grep -q "^error: $dir/plant.glb: " "$dir/err" || fail "glb scene: $(cat "$dir/err")"
+# A model file is prepared into MODEL.oss first; a file that is neither is refused.
+"$exe" path orbit "$dir/plant.glb" --frames 4 -o "$dir/model.cam" 2>"$dir/err" || fail "path of a model file: $(cat "$dir/err")"
+[ -s "$dir/plant.glb.oss" ] && [ "$(grep -vc '^#' "$dir/model.cam")" -eq 4 ] || fail "no scene prepared or no cameras"
+printf 'not a model\n' >"$dir/notes.txt"
+"$exe" path orbit "$dir/notes.txt" -o "$dir/bad.cam" 2>"$dir/err"; [ $? -eq 2 ] || fail "accepted a .txt as a scene"
+grep -q "^error: $dir/notes.txt: " "$dir/err" || fail "txt scene: $(cat "$dir/err")"
 "$exe" path 2>/dev/null; [ $? -eq 2 ] || fail "path without orbit or walk"
 [ -e "$dir/bad.cam" ] && fail "a failed command wrote a file"
 

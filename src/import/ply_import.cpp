@@ -54,6 +54,13 @@ size_t typeSize(Type t) {
 
 bool isInteger(Type t) { return t != Type::Float32 && t != Type::Float64; }
 
+// A number read from the file, for a message (it may be far outside any integer's range).
+std::string shown(double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.17g", v);
+    return text;
+}
+
 struct Property {
     std::string name;
     bool list = false;
@@ -127,7 +134,7 @@ private:
         const double v = std::strtod(word.c_str(), &after);
         if (after == word.c_str() || *after != '\0')
             throw InputError(path_, "line " + std::to_string(line_) + ": '" + word + "' is not a number");
-        if (isInteger(t) && v != std::floor(v))
+        if (isInteger(t) && !(std::isfinite(v) && v == std::floor(v)))
             throw InputError(path_, "line " + std::to_string(line_) + ": '" + word + "' is not an integer");
         at_ = end;
         return v;
@@ -254,13 +261,13 @@ Scene importPly(const std::string& path) {
                 const double n = reader.read(p.count_type);
                 if (n < 0 || n > double(reader.room(p.type)))
                     throw InputError(path, where + ": " + e.name + " " + std::to_string(r) + ": list of " +
-                                               std::to_string(int64_t(n)) + " items does not fit in the file");
+                                               shown(n) + " items does not fit in the file");
                 for (uint64_t i = 0; i < uint64_t(n); ++i) {
                     const double v = reader.read(p.type);
                     if (int(k) != indices) continue;
                     if (v < 0 || v >= 4294967295.0)
                         throw InputError(path, where + ": face " + std::to_string(r) + ": vertex index " +
-                                                   std::to_string(int64_t(v)) + " out of range");
+                                                   shown(v) + " out of range");
                     face.push_back(uint32_t(v));
                 }
             }

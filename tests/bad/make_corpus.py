@@ -382,6 +382,10 @@ case("ply_fuzz_openmesh_crash.ply", b'ply\nformat binary_little_endian 1.0\ncomm
      "binary PLY header mangled by the fuzzer (a property line before any element): OpenMesh's "
      "PLY reader wrote through a wild pointer on it (SEGV in _PLYReader_::can_u_read)")
 
+case("ply_fuzz_huge_index.ply", b'ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 2 0\n0 1 0\n2 0 0\n3 0 0 2\n4 1 4 2 888888888888888888888888888888888888888888888888888888888888888888883\n', "index",
+     "ASCII PLY whose face lists a vertex index of 8.9e68: our reader converted it to an integer "
+     "for its message (undefined behaviour, found by UBSan under libFuzzer)")
+
 case("stl_empty.stl", b"", "truncated",
      "an empty .stl: OpenMesh's STL reader leaked 32 bytes on it")
 
