@@ -336,28 +336,25 @@ struct ClassOfRequest {
     const uint32_t* need;
     OCC_HD uint32_t operator()(uint32_t j) const { return sizeClass(need[j]); }
 };
-OCC_HD inline uint32_t firstAtLeast(const uint32_t* keys, uint32_t count, uint32_t key) {
+// The first of count entries whose key (key_of(entry), ascending) is at least `key`.
+template <class T, class KeyOf>
+OCC_HD inline uint32_t firstAtLeast(const T* entries, uint32_t count, uint32_t key, KeyOf key_of) {
     uint32_t lo = 0, hi = count;
     while (lo < hi) {
         const uint32_t mid = lo + (hi - lo) / 2;
-        if (keys[mid] < key)
+        if (key_of(entries[mid]) < key)
             lo = mid + 1;
         else
             hi = mid;
     }
     return lo;
 }
-OCC_HD inline uint32_t firstRangeAtLeast(const FreeRange* ranges, uint32_t count, uint32_t key) {
-    uint32_t lo = 0, hi = count;
-    while (lo < hi) {
-        const uint32_t mid = lo + (hi - lo) / 2;
-        if (ranges[mid].size_class < key)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    return lo;
-}
+struct Itself {
+    OCC_HD uint32_t operator()(uint32_t x) const { return x; }
+};
+struct SizeClassOf {
+    OCC_HD uint32_t operator()(const FreeRange& r) const { return r.size_class; }
+};
 
 // Request i (sorted by class, block order within one) takes the class's i-th free range, where
 // there is one; the others go on top (their sizes, for the scan).
@@ -373,9 +370,9 @@ struct Assign {
     uint64_t* place;
     OCC_HD void operator()(uint32_t i) const {
         const uint32_t c = classes[i];
-        const uint32_t rank = i - firstAtLeast(classes, request_count, c);
-        const uint32_t first = firstRangeAtLeast(free, free_count, c);
-        const uint32_t last = firstRangeAtLeast(free, free_count, c + 1);
+        const uint32_t rank = i - firstAtLeast(classes, request_count, c, Itself());
+        const uint32_t first = firstAtLeast(free, free_count, c, SizeClassOf());
+        const uint32_t last = firstAtLeast(free, free_count, c + 1, SizeClassOf());
         if (rank < last - first) {
             place[requests[i]] = free[first + rank].offset;
             taken[first + rank] = 1;
@@ -405,21 +402,23 @@ struct RangeOrder {
     }
 };
 
+// The range a resident block's place holds in one heap.
+OCC_HD inline FreeRange rangeOf(const BlockPlace& p, bool vertices) {
+    return vertices ? FreeRange{sizeClass(p.vertex_room), 0, p.vertex_offset}
+                    : FreeRange{sizeClass(p.triangle_room), 0, p.triangle_offset};
+}
+OCC_HD inline bool holdsRange(const BlockPlace& p, bool vertices) {
+    return p.vertex_count > 0 && (vertices ? p.vertex_room : p.triangle_room) > 0;
+}
+
 // The ranges a frame frees: those of blocks that got a new place, and of objects that left.
 struct FreedByMove {
     const LayoutBlock* blocks;
     const BlockPlace* places;  // the old places
     const uint32_t* need;      // > 0: the block got a new place
     bool vertices;
-    OCC_HD bool keep(uint32_t j) const {
-        const BlockPlace& p = places[blocks[j].object];
-        return need[j] > 0 && p.vertex_count > 0 && (vertices ? p.vertex_room : p.triangle_room) > 0;
-    }
-    OCC_HD FreeRange operator()(uint32_t j) const {
-        const BlockPlace& p = places[blocks[j].object];
-        return vertices ? FreeRange{sizeClass(p.vertex_room), 0, p.vertex_offset}
-                        : FreeRange{sizeClass(p.triangle_room), 0, p.triangle_offset};
-    }
+    OCC_HD bool keep(uint32_t j) const { return need[j] > 0 && holdsRange(places[blocks[j].object], vertices); }
+    OCC_HD FreeRange operator()(uint32_t j) const { return rangeOf(places[blocks[j].object], vertices); }
 };
 struct MovedPred {
     FreedByMove f;
@@ -432,13 +431,9 @@ struct FreedByLeaving {
     bool vertices;
     OCC_HD bool keep(uint32_t i) const {
         const BlockPlace& p = places[previous[i].object];
-        return p.layout_stamp != stamp && p.vertex_count > 0 && (vertices ? p.vertex_room : p.triangle_room) > 0;
+        return p.layout_stamp != stamp && holdsRange(p, vertices);
     }
-    OCC_HD FreeRange operator()(uint32_t i) const {
-        const BlockPlace& p = places[previous[i].object];
-        return vertices ? FreeRange{sizeClass(p.vertex_room), 0, p.vertex_offset}
-                        : FreeRange{sizeClass(p.triangle_room), 0, p.triangle_offset};
-    }
+    OCC_HD FreeRange operator()(uint32_t i) const { return rangeOf(places[previous[i].object], vertices); }
 };
 struct LeftPred {
     FreedByLeaving f;

@@ -19,28 +19,8 @@
 
 namespace occ {
 
-namespace {
-
-// The whitespace-separated words of [begin, end), up to a '#' comment.
-void splitWords(const char* begin, const char* end, std::vector<std::string>& out) {
-    out.clear();
-    const char* p = begin;
-    while (p < end) {
-        while (p < end && (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\f' || *p == '\v')) ++p;
-        if (p < end && *p == '#') break;
-        const char* q = p;
-        while (q < end && *q != ' ' && *q != '\t' && *q != '\r' && *q != '\f' && *q != '\v') ++q;
-        if (q > p) out.emplace_back(p, q);
-        p = q;
-    }
-}
-
-}  // namespace
-
 Scene importObj(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError(path, "cannot open: " + std::string(std::strerror(errno)));
-    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string text = readModelFile(path);
 
     Scene scene;
     PolygonSoup soup;
@@ -54,7 +34,7 @@ Scene importObj(const std::string& path) {
         size_t end = text.find('\n', start);
         if (end == std::string::npos) end = text.size();
         ++line_no;
-        splitWords(text.c_str() + start, text.c_str() + end, w);
+        w = lineWords(std::string_view(text).substr(start, end - start));
         start = end + 1;
         if (w.empty()) continue;
         const auto bad = [&](const std::string& what) {

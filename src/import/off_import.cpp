@@ -47,13 +47,6 @@ std::vector<DataLine> dataLines(const std::string& text) {
     return out;
 }
 
-std::vector<std::string> tokens(const std::string& s) {
-    std::vector<std::string> out;
-    std::istringstream in(s);
-    for (std::string t; in >> t;) out.push_back(t);
-    return out;
-}
-
 bool parseDouble(const std::string& s, double& v) {
     char* end = nullptr;
     errno = 0;
@@ -71,15 +64,13 @@ bool parseIndex(const std::string& s, long long& v) {
 }  // namespace
 
 Scene importOff(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError(path, "cannot open: " + std::string(std::strerror(errno)));
-    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string text = readModelFile(path);
     const std::vector<DataLine> lines = dataLines(text);
     const auto where = [&](size_t line) { return "line " + std::to_string(line) + ": "; };
     if (lines.empty()) throw InputError(path, "empty file, an OFF file starts with 'OFF'");
 
     // The header word and the counts, on its line or the next data line.
-    std::vector<std::string> head = tokens(lines[0].text);
+    std::vector<std::string> head = lineWords(lines[0].text);
     std::string magic = head[0];
     size_t next = 1;
     int dimension = 3;
@@ -104,7 +95,7 @@ Scene importOff(const std::string& path) {
             throw InputError(path, where(lines[0].number) + "binary OFF is not supported (write it as text)");
         if (head.empty()) {
             if (lines.size() < 2) throw InputError(path, "truncated: no vertex and face counts after '" + magic + "'");
-            head = tokens(lines[1].text);
+            head = lineWords(lines[1].text);
             next = 2;
         }
         if (dimension < 0) {
@@ -115,7 +106,7 @@ Scene importOff(const std::string& path) {
             head.erase(head.begin());
             if (head.empty()) {
                 if (lines.size() <= next) throw InputError(path, "truncated: no vertex and face counts");
-                head = tokens(lines[next].text);
+                head = lineWords(lines[next].text);
                 ++next;
             }
         }
@@ -144,7 +135,7 @@ Scene importOff(const std::string& path) {
     std::vector<glm::vec3> positions(static_cast<size_t>(nv));
     for (long long v = 0; v < nv; ++v) {
         const DataLine& line = lines[next + size_t(v)];
-        const std::vector<std::string> t = tokens(line.text);
+        const std::vector<std::string> t = lineWords(line.text);
         if (t.size() < size_t(dimension))
             throw InputError(path, where(line.number) + "vertex " + std::to_string(v) + " has " + std::to_string(t.size()) +
                                        " numbers, expected " + std::to_string(dimension) + " coordinates");
@@ -178,7 +169,7 @@ Scene importOff(const std::string& path) {
     std::vector<uint32_t> corners;
     for (long long f = 0; f < nf; ++f) {
         const DataLine& line = lines[next + size_t(nv + f)];
-        const std::vector<std::string> t = tokens(line.text);
+        const std::vector<std::string> t = lineWords(line.text);
         long long count = 0;
         if (!parseIndex(t[0], count) || count < 0)
             throw InputError(path, where(line.number) + "face " + std::to_string(f) + ": '" + t[0] +

@@ -150,9 +150,7 @@ private:
 }  // namespace
 
 Scene importPly(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError(path, "cannot open: " + std::string(std::strerror(errno)));
-    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string bytes = readModelFile(path);
     if (bytes.compare(0, 3, "ply") != 0 || (bytes.size() > 3 && bytes[3] != '\n' && bytes[3] != '\r'))
         throw InputError(path, "offset 0: bad magic, a PLY file starts with 'ply'");
 

@@ -43,19 +43,6 @@ struct Corners {
     }
 };
 
-std::vector<std::string> lineWords(const std::string& text, size_t begin, size_t end) {
-    std::vector<std::string> out;
-    size_t p = begin;
-    while (p < end) {
-        while (p < end && std::isspace(static_cast<unsigned char>(text[p]))) ++p;
-        size_t q = p;
-        while (q < end && !std::isspace(static_cast<unsigned char>(text[q]))) ++q;
-        if (q > p) out.emplace_back(text, p, q - p);
-        p = q;
-    }
-    return out;
-}
-
 void readAscii(const std::string& path, const std::string& text, Corners& corners) {
     size_t line_no = 0, start = 0, facet_line = 0, in_loop = 0;
     uint32_t facet[3];
@@ -65,7 +52,7 @@ void readAscii(const std::string& path, const std::string& text, Corners& corner
         size_t end = text.find('\n', start);
         if (end == std::string::npos) end = text.size();
         ++line_no;
-        const std::vector<std::string> w = lineWords(text, start, end);
+        const std::vector<std::string> w = lineWords(std::string_view(text).substr(start, end - start));
         start = end + 1;
         if (w.empty()) continue;
         const auto bad = [&](size_t line, const std::string& what) {
@@ -119,9 +106,7 @@ void readAscii(const std::string& path, const std::string& text, Corners& corner
 }  // namespace
 
 Scene importStl(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError(path, "cannot open: " + std::string(std::strerror(errno)));
-    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string bytes = readModelFile(path);
     Corners corners;
     uint32_t count = 0;
     if (bytes.size() >= 84) std::memcpy(&count, bytes.data() + 80, 4);

@@ -1,8 +1,13 @@
 // SPDX-License-Identifier: MIT
 #include "import/triangulate.h"
 
+#include "scene/errors.h"
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <fstream>
 
 namespace occ {
 
@@ -88,6 +93,29 @@ bool triangulatePolygon(const std::vector<glm::vec3>& positions, std::vector<uin
     }
     triangles.insert(triangles.end(), {corners[prev[i]], corners[i], corners[next[i]]});
     return true;
+}
+
+std::string readModelFile(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(path, "cannot open: " + std::string(std::strerror(errno)));
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (in.bad()) throw InputError(path, "read error");
+    return bytes;
+}
+
+std::vector<std::string> lineWords(std::string_view line) {
+    std::vector<std::string> out;
+    size_t p = 0;
+    const auto blank = [](char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v' || c == '\n'; };
+    while (p < line.size()) {
+        while (p < line.size() && blank(line[p])) ++p;
+        if (p < line.size() && line[p] == '#') break;
+        size_t q = p;
+        while (q < line.size() && !blank(line[q])) ++q;
+        if (q > p) out.emplace_back(line.substr(p, q - p));
+        p = q;
+    }
+    return out;
 }
 
 void addPolygonObjects(const PolygonSoup& soup, const std::string& name, Scene& scene) {

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace occ {
@@ -36,6 +37,13 @@ struct PolygonSoup {
         face_offsets.push_back(uint32_t(corners.size()));
     }
 };
+
+// The whole of a model file, for the text and binary readers; InputError(path, ...) if it cannot
+// be read.
+std::string readModelFile(const std::string& path);
+
+// The whitespace-separated words of one line, up to a '#' comment.
+std::vector<std::string> lineWords(std::string_view line);
 
 // Appends to `scene` one mesh and object per group that has triangles (one for the whole soup,
 // named `name`, when it has no groups), each holding only the vertices it uses; faces are
