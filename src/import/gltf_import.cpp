@@ -670,6 +670,28 @@ std::vector<unsigned char> prepareForTinygltf(const std::string& path, const std
     return out;
 }
 
+// The version of a glTF 1.0 file ("1.0", the asset's version or the shape of its objects), or ""
+// when the JSON does not look like glTF 1.0.
+std::string gltfOneVersion(const std::vector<unsigned char>& bytes, bool binary) {
+    size_t begin = 0, length = bytes.size();
+    if (binary) {
+        if (bytes.size() < 20) return "";
+        begin = 20;
+        length = std::min<size_t>(readU32(bytes, 12), bytes.size() - 20);
+    }
+    const nlohmann::json json = nlohmann::json::parse(bytes.begin() + long(begin), bytes.begin() + long(begin + length),
+                                                      nullptr, false);
+    if (json.is_discarded() || !json.is_object()) return "";
+    if (json.contains("asset") && json["asset"].is_object() && json["asset"].contains("version")) {
+        const nlohmann::json& v = json["asset"]["version"];
+        if (v.is_number()) return v.dump() + ".0";
+        if (v.is_string() && v.get<std::string>().rfind("1.", 0) == 0) return v.get<std::string>();
+    }
+    for (const char* key : {"accessors", "meshes", "nodes"})
+        if (json.contains(key) && json[key].is_object()) return "1.0";
+    return "";
+}
+
 void decodeMeshopt(const std::string& path, tinygltf::Model& model, const std::map<int, size_t>& lengths) {
     for (const auto& [buffer, length] : lengths)
         if (size_t(buffer) < model.buffers.size()) model.buffers[size_t(buffer)].data.assign(length, 0);
@@ -765,6 +787,12 @@ Scene importGltf(const std::string& path, const ImportOptions& options) {
         throw InputError(path, std::string("invalid glTF json or buffer: ") + e.what());
     }
     if (!ok) {
+        // glTF 1.0 (objects keyed by name, asset.version a number or "1.x") fails tinygltf's 2.0
+        // schema with an unrelated message; name the version instead.
+        const std::string version = gltfOneVersion(loaded, binary);
+        if (!version.empty())
+            throw InputError(path, "/asset/version: unsupported glTF version '" + version +
+                                       "' (expected 2.x; convert glTF 1.0 files to 2.0 first)");
         std::string what = oneLine(err.empty() ? warn : err);
         // tinygltf names a failed external buffer "File not found"; say which kind of thing.
         if (what.find("File not found") != std::string::npos || what.find("Failed to load external") != std::string::npos)

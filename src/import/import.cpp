@@ -38,7 +38,20 @@ Scene importModel(const std::string& path, const ImportOptions& options) {
         throw InputError(path, "unsupported file extension '" + ext +
                                    "' (expected .gltf, .glb, .obj, .ply, .off or .stl)");
 
-    if (scene.triangleCount() == 0) throw InputError(path, "no triangles in the scene (empty model)");
+    if (scene.triangleCount() == 0) {
+        // Say what the file did have, so that a point cloud or a wireframe is not taken for a
+        // broken reader.
+        const SkippedPrimitives& s = scene.skipped;
+        std::string had;
+        const auto add = [&](uint64_t n, const char* what) {
+            if (n) had += (had.empty() ? "" : ", ") + std::to_string(n) + " " + what;
+        };
+        add(s.points, s.points == 1 ? "point primitive" : "point primitives");
+        add(s.lines, s.lines == 1 ? "line primitive" : "line primitives");
+        add(s.degenerate, s.degenerate == 1 ? "degenerate face" : "degenerate faces");
+        if (had.empty()) throw InputError(path, "no triangles in the scene (empty model)");
+        throw InputError(path, "no triangles to draw: the scene has only " + had + " (occswitch draws triangles)");
+    }
     return scene;
 }
 

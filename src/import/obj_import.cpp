@@ -20,7 +20,7 @@
 namespace occ {
 
 Scene importObj(const std::string& path) {
-    const std::string text = readModelFile(path);
+    const std::string text = readTextModelFile(path);
 
     Scene scene;
     PolygonSoup soup;
@@ -93,7 +93,7 @@ Scene importObj(const std::string& path) {
     }
     // One object for the file when at most one group has faces.
     if (std::count(group_has_faces.begin(), group_has_faces.end(), true) <= 1) soup.face_group.clear();
-    addPolygonObjects(soup, std::filesystem::path(path).stem().string(), scene);
+    addPolygonObjects(soup, path, scene);
     return scene;
 }
 

@@ -64,7 +64,7 @@ bool parseIndex(const std::string& s, long long& v) {
 }  // namespace
 
 Scene importOff(const std::string& path) {
-    const std::string text = readModelFile(path);
+    const std::string text = readTextModelFile(path);
     const std::vector<DataLine> lines = dataLines(text);
     const auto where = [&](size_t line) { return "line " + std::to_string(line) + ": "; };
     if (lines.empty()) throw InputError(path, "empty file, an OFF file starts with 'OFF'");
@@ -197,7 +197,7 @@ Scene importOff(const std::string& path) {
             soup.addFace(corners);
         }
     }
-    addPolygonObjects(soup, std::filesystem::path(path).stem().string(), scene);
+    addPolygonObjects(soup, path, scene);
     return scene;
 }
 

@@ -213,9 +213,10 @@ Scene importPly(const std::string& path) {
             }
             if (p.name.empty()) bad("property without a name");
             elements.back().properties.push_back(p);
-        } else {
-            bad("unknown header keyword '" + key + "'");
         }
+        // Any other header line is read as a comment: old exporters (Blender 2.4x) wrote their
+        // credit line without the 'comment' keyword. A misspelt element or property line then leaves
+        // the data longer than the header declares, which fails below as data left over.
     }
     if (!has_format) throw InputError(path, "the header has no format line");
 
@@ -291,7 +292,7 @@ Scene importPly(const std::string& path) {
         if (soup.corners[i] >= soup.positions.size())
             throw InputError(path, "face vertex index " + std::to_string(soup.corners[i]) + " out of range (" +
                                        std::to_string(soup.positions.size()) + " vertices)");
-    addPolygonObjects(soup, std::filesystem::path(path).stem().string(), scene);
+    addPolygonObjects(soup, path, scene);
     return scene;
 }
 

@@ -140,7 +140,7 @@ Scene importStl(const std::string& path) {
     soup.corners = std::move(corners.triangles);
     soup.face_offsets.resize(soup.corners.size() / 3 + 1);
     for (size_t f = 0; f < soup.face_offsets.size(); ++f) soup.face_offsets[f] = uint32_t(3 * f);
-    addPolygonObjects(soup, std::filesystem::path(path).stem().string(), scene);
+    addPolygonObjects(soup, path, scene);
     return scene;
 }
 

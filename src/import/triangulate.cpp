@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 
 namespace occ {
@@ -103,6 +104,47 @@ std::string readModelFile(const std::string& path) {
     return bytes;
 }
 
+std::string readTextModelFile(const std::string& path) {
+    std::string bytes = readModelFile(path);
+    const auto starts = [&](const char* mark, size_t n) { return bytes.size() >= n && bytes.compare(0, n, mark, n) == 0; };
+    if (starts("\xEF\xBB\xBF", 3)) return bytes.substr(3);
+    const bool big = starts("\xFE\xFF", 2), little = starts("\xFF\xFE", 2);
+    if (!big && !little) return bytes;
+    if (bytes.size() % 2) throw InputError(path, "truncated: UTF-16 text with an odd number of bytes");
+    std::string text;
+    text.reserve(bytes.size() / 2);
+    const auto unit = [&](size_t at) {
+        const unsigned a = static_cast<unsigned char>(bytes[at]), b = static_cast<unsigned char>(bytes[at + 1]);
+        return big ? (a << 8 | b) : (b << 8 | a);
+    };
+    for (size_t at = 2; at < bytes.size(); at += 2) {
+        uint32_t c = unit(at);
+        if (c >= 0xD800 && c < 0xDC00 && at + 3 < bytes.size()) {  // a surrogate pair
+            const uint32_t low = unit(at + 2);
+            if (low >= 0xDC00 && low < 0xE000) {
+                c = 0x10000 + ((c - 0xD800) << 10) + (low - 0xDC00);
+                at += 2;
+            }
+        }
+        if (c < 0x80) {
+            text += char(c);
+        } else if (c < 0x800) {
+            text += char(0xC0 | c >> 6);
+            text += char(0x80 | (c & 0x3F));
+        } else if (c < 0x10000) {
+            text += char(0xE0 | c >> 12);
+            text += char(0x80 | (c >> 6 & 0x3F));
+            text += char(0x80 | (c & 0x3F));
+        } else {
+            text += char(0xF0 | c >> 18);
+            text += char(0x80 | (c >> 12 & 0x3F));
+            text += char(0x80 | (c >> 6 & 0x3F));
+            text += char(0x80 | (c & 0x3F));
+        }
+    }
+    return text;
+}
+
 std::vector<std::string> lineWords(std::string_view line) {
     std::vector<std::string> out;
     size_t p = 0;
@@ -118,7 +160,11 @@ std::vector<std::string> lineWords(std::string_view line) {
     return out;
 }
 
-void addPolygonObjects(const PolygonSoup& soup, const std::string& name, Scene& scene) {
+void addPolygonObjects(const PolygonSoup& soup, const std::string& path, Scene& scene) {
+    if (soup.faceCount() == 0 && !soup.positions.empty() && scene.skipped.points == 0 && scene.skipped.lines == 0)
+        throw InputError(path, "no triangles to draw: " + std::to_string(soup.positions.size()) +
+                                   " vertices and no faces (a point cloud? occswitch draws triangles)");
+    const std::string name = std::filesystem::path(path).stem().string();
     const uint32_t groups = soup.face_group.empty() ? 1u : uint32_t(soup.group_names.size());
     std::vector<uint32_t> remap(soup.positions.size(), UINT32_MAX), triangles;
     for (uint32_t g = 0; g < groups; ++g) {

@@ -41,13 +41,18 @@ struct PolygonSoup {
 // The whole of a model file, for the text and binary readers; InputError(path, ...) if it cannot
 // be read.
 std::string readModelFile(const std::string& path);
+// The same for a text format (OBJ, OFF): a UTF-8 byte-order mark is dropped and UTF-16 text (with
+// its byte-order mark, as Windows tools write it) is converted to UTF-8, so that the first record
+// is not lost to the mark.
+std::string readTextModelFile(const std::string& path);
 
 // The whitespace-separated words of one line, up to a '#' comment.
 std::vector<std::string> lineWords(std::string_view line);
 
 // Appends to `scene` one mesh and object per group that has triangles (one for the whole soup,
-// named `name`, when it has no groups), each holding only the vertices it uses; faces are
-// triangulated by triangulatePolygon, and the degenerate ones counted in scene.skipped.
-void addPolygonObjects(const PolygonSoup& soup, const std::string& name, Scene& scene);
+// named after the file `path`, when it has no groups), each holding only the vertices it uses;
+// faces are triangulated by triangulatePolygon, and the degenerate ones counted in scene.skipped.
+// Vertices without any face, point or line (a point cloud) are InputError(path, ...).
+void addPolygonObjects(const PolygonSoup& soup, const std::string& path, Scene& scene);
 
 }  // namespace occ

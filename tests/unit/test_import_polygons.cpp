@@ -217,5 +217,51 @@ TEST(ImportOff, AssimpsModelsImportWhole) {
     EXPECT_EQ(w.skipped.degenerate, 0u);
 }
 
+// ---- text encodings, point clouds, old headers ---------------------------------------------
+
+// `text` (ASCII or UTF-8 of two-byte characters) as UTF-16 with its byte-order mark.
+std::string utf16(const std::string& text, bool big) {
+    std::string out = big ? std::string("\xFE\xFF", 2) : std::string("\xFF\xFE", 2);
+    for (size_t i = 0; i < text.size(); ++i) {
+        unsigned c = static_cast<unsigned char>(text[i]);
+        if (c >= 0xC0 && i + 1 < text.size()) c = (c & 0x1F) << 6 | (static_cast<unsigned char>(text[++i]) & 0x3F);
+        const char hi = char(c >> 8), lo = char(c & 0xFF);
+        out += big ? std::string{hi, lo} : std::string{lo, hi};
+    }
+    return out;
+}
+
+TEST(ImportText, ByteOrderMarksAndUtf16AreRead) {
+    const std::string body = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    // With a UTF-8 mark the first vertex must not be lost to it (the face would then be out of range).
+    EXPECT_EQ(importModel(writeFixture("bom8.obj", "\xEF\xBB\xBF" + body)).triangleCount(), 1u);
+    for (const bool big : {false, true}) {
+        const std::string path = writeFixture(big ? "be.obj" : "le.obj", utf16("# \xC3\xA9t\xC3\xA9\n" + body, big));
+        EXPECT_EQ(importModel(path).triangleCount(), 1u) << path;
+    }
+    EXPECT_EQ(importModel(writeFixture("le.off", utf16("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", false))).triangleCount(),
+              1u);
+    expectRejected("odd.obj", std::string("\xFF\xFEv\0 ", 5), "UTF-16 text with an odd number of bytes");
+}
+
+TEST(ImportText, APointCloudSaysSo) {
+    expectRejected("cloud.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", "3 vertices and no faces");
+    expectRejected("cloud.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                                "property float z\nend_header\n0 0 0\n1 0 0\n", "2 vertices and no faces");
+    expectRejected("lines.obj", "v 0 0 0\nv 1 0 0\nl 1 2\nl 2 1\n", "only 2 line primitives");
+}
+
+TEST(ImportPly, AHeaderLineWithoutCommentIsACommentAndAMisspeltOneFails) {
+    const std::string head = "ply\nformat ascii 1.0\nCreated by Blender3D 247\nelement vertex 3\n"
+                             "property float x\nproperty float y\nproperty float z\n";
+    const std::string tail = "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                             "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    EXPECT_EQ(importModel(writeFixture("blender.ply", head + tail)).triangleCount(), 1u);
+    // "proprety" is read past like a comment; the extra column then leaves data over.
+    expectRejected("misspelt.ply",
+                   head + "proprety float nx\n" + tail.substr(0, tail.find("0 0 0")) + "0 0 0 1\n1 0 0 1\n0 1 0 1\n3 0 1 2\n",
+                   "data after the last element");
+}
+
 }  // namespace
 }  // namespace occ
