@@ -314,7 +314,7 @@ TEST(CameraPathFile, WriteRefusesWhatCouldNotBeReadBack) {
 }
 
 TEST(CameraPathFile, WriteReplacesTheFileAndLeavesNoTemporary) {
-    const std::filesystem::path dir = scratchDir() / "atomic";
+    const std::filesystem::path dir = scratchDir() / "camera_path_atomic";
     std::filesystem::create_directories(dir);
     const std::string path = (dir / "p.cam").string();
     writeCameraPath(path, std::vector<CameraPose>(3, pose({0, 0, 1}, {0, 0, 0})));
