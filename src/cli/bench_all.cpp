@@ -474,7 +474,8 @@ RunResult Bench::render(const std::string& name, const PreparedScene& scene, std
         if (::geteuid() == 0) argv.push_back("--allow-run-as-root");
     }
     const std::vector<std::string> base{exe_,  "render", scene.oss.string(), "--path", scene.cam.string(),
-                                        "--stats", (raw_ / (name + ".csv")).string()};
+                                        "--stats", (raw_ / (name + ".csv")).string(),
+                                        "--budget", "10%"};
     argv.insert(argv.end(), base.begin(), base.end());
     argv.insert(argv.end(), extra.begin(), extra.end());
     RunResult r = runner_.run(name, argv);

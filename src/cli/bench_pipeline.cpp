@@ -83,6 +83,7 @@ int runPipelineBench(const PipelineBenchOptions& o) {
     base.width = o.width;
     base.height = o.height;
     base.pvs_occluder_triangles = o.pvs_occluder_triangles;
+    base.budget_share = 0.1;  // the papers' sizing, as every bench result in docs/ has it
 
     std::vector<RunSummary> runs;
     for (auto [mode, name] : {std::pair{StreamMode::Coherent, "sc"}, std::pair{StreamMode::NonCoherent, "snc"},

@@ -37,7 +37,7 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
     const unsigned threads = prep.threads ? prep.threads : std::max(1u, std::thread::hardware_concurrency());
     std::fprintf(stderr,
                  "prep: %s -> %s: %zu objects, %zu progressive meshes (%llu triangles, %llu with instances; "
-                 "%llu degenerate input triangles dropped), |COS| = %zu at CT %.2f, %.2f s on %u threads "
+                 "%llu repeated-corner triangles dropped), |COS| = %zu at CT %.2f, %.2f s on %u threads "
                  "(%.2f M unique triangles/s), %llu bytes\n",
                  input.c_str(), output.c_str(), prepared.objects.size(), prepared.meshes.size(),
                  (unsigned long long)unique_triangles, (unsigned long long)instanced_triangles,

@@ -22,6 +22,7 @@
 #endif
 
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
 #include <cstdio>
 #include <filesystem>
@@ -35,7 +36,7 @@ namespace occ::cli {
 namespace {
 
 struct RenderOptions {
-    std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto";
+    std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto", budget = "auto";
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
     double rank_timeout = 5.0;
     int device = -1;
@@ -75,6 +76,7 @@ private:
 int runRender(RenderOptions o) {
     parseViewportSize("--size", o.size, o.pipeline.width, o.pipeline.height);
     o.pipeline.pvs_occluder_triangles = parseOccluderTriangles(o.pvs_occluders);
+    parseBudget(o.budget, o.pipeline.budget, o.pipeline.budget_share);
     o.pipeline.mode = parseCullMode(o.mode);
     o.pipeline.stream = parseStreamMode(o.stream);
     if (o.pipeline.pvs_occluder_lag > 2) throw UsageError("render: --pvs-occluder-lag must be 1 or 2");
@@ -255,6 +257,24 @@ uint64_t parseOccluderTriangles(const std::string& text) {
     return n;
 }
 
+void parseBudget(const std::string& text, double& vertices, double& share) {
+    vertices = share = 0;
+    if (text == "auto") return;
+    double v = 0;
+    char unit = 0, extra = 0;
+    const int n = std::sscanf(text.c_str(), "%lf%c%c", &v, &unit, &extra);
+    if (n == 2 && unit == '%' && v > 0 && v <= 100) {
+        share = v / 100;
+        return;
+    }
+    if (n == 1 && v >= 1 && v < 1e15 && text[0] != '-') {
+        vertices = std::floor(v);
+        return;
+    }
+    throw UsageError("--budget " + text + ": expected auto, a number of vertices (>= 1) or a share of the scene's "
+                     "vertices such as 10%");
+}
+
 Command addRenderCommand(CLI::App& app) {
     auto o = std::make_shared<RenderOptions>();
     o->pipeline.pvs_occluder_lag = 0;  // 0 = what the rank layout has
@@ -305,7 +325,9 @@ Command addRenderCommand(CLI::App& app) {
     sub->add_option("--pvs-occluder-lag", o->pipeline.pvs_occluder_lag,
                     "take those from the PVS this many frames back: 1 or 2 (default: 1, and 2 with 3 ranks,\n"
                     "whose occluder rank works a frame ahead; 2 with 1 rank gives the 3-rank answer)");
-    sub->add_option("--budget", o->pipeline.budget, "vertex budget N per frame (0 = 10% of the scene's vertices)")
+    sub->add_option("--budget", o->budget,
+                    "vertex budget N per frame: a count, a share of the scene's vertices (10%), or auto =\n"
+                    "one vertex per pixel of --size, at most the scene's vertices (small models draw whole)")
         ->capture_default_str();
     sub->add_option("--pet", o->pipeline.pet, "pixel error threshold: smaller objects are not drawn")
         ->capture_default_str();

@@ -20,6 +20,9 @@ void parseViewportSize(const std::string& option, const std::string& text, uint3
 // Parses --pvs-occluders: "auto" (PipelineOptions::kAutoOccluderTriangles) or a triangle count
 // (0 = off); throws UsageError otherwise.
 uint64_t parseOccluderTriangles(const std::string& text);
+// Parses --budget: "auto" (both 0), a vertex count (>= 1) or a share of the scene's vertices
+// ("10%", into share as 0.1); UsageError otherwise.
+void parseBudget(const std::string& text, double& vertices, double& share);
 
 Command addInfoCommand(CLI::App& app);
 Command addGenCommand(CLI::App& app);

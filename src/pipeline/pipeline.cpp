@@ -52,6 +52,8 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     if (!(options.alpha > 1.0f)) throw UsageError("--alpha must be > 1");
     if (!(options.pet >= 0.0f)) throw UsageError("--pet must be >= 0");
     if (!(options.budget >= 0.0)) throw UsageError("--budget must be >= 0");
+    if (!(options.budget_share >= 0.0 && options.budget_share <= 1.0))
+        throw UsageError("--budget: a share of the scene's vertices must be in (0, 100] %");
     if (!(options.lod_hysteresis >= 0.0f && options.lod_hysteresis < 1.0f))
         throw UsageError("--lod-hysteresis must be in [0, 1)");
     if (options.pvs_occluder_lag < 1 || options.pvs_occluder_lag > 2)
@@ -61,7 +63,10 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     const uint32_t n = scene_.object_count;
     double scene_vertices = 0;
     for (uint32_t i = 0; i < n; ++i) scene_vertices += scene_.host_objects[i].vertex_count;
-    budget_ = options.budget > 0 ? options.budget : 0.1 * scene_vertices;
+    budget_ = options.budget > 0        ? options.budget
+              : options.budget_share > 0 ? options.budget_share * scene_vertices
+                                         : std::min(scene_vertices, PipelineOptions::kVerticesPerPixel *
+                                                                        double(options.width) * double(options.height));
     if (options_.pvs_occluder_triangles == PipelineOptions::kAutoOccluderTriangles)
         options_.pvs_occluder_triangles =
             std::max(PipelineOptions::kMinAutoOccluderTriangles, uint64_t(std::llround(budget_ / 4)));

@@ -50,6 +50,7 @@ PipelineOptions smallOptions(StreamMode stream) {
     o.height = 120;
     o.stream = stream;
     o.pvs_occluder_triangles = 20000;
+    o.budget_share = 0.1;  // smaller than the scene, so that LOD selection has work to do
     return o;
 }
 
