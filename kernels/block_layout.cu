@@ -621,7 +621,7 @@ LayoutTotals placeLayout(const VisibleLods& visible, DevicePtr<const LayoutBlock
         if (!drawable(vertex_capacity, triangle_capacity))
             throw std::length_error("the active arrays would hold " + std::to_string(need_v) + " vertices and " +
                                     std::to_string(need_t) +
-                                    " triangles, more than 32-bit indices reach: lower --budget");
+                                    " triangles, more than 32-bit indices reach: lower the vertex budget");
         heap.vertex_capacity = vertex_capacity;
         heap.triangle_capacity = triangle_capacity;
         heap.vertex_top = need_v;

@@ -10,6 +10,7 @@
 #if defined(__CUDACC__)
 #include <cuda_gl_interop.h>
 #include <cuda_runtime.h>
+#include <thrust/system_error.h>
 
 // Every CUDA runtime call goes through this: a failure becomes one SystemError naming the call,
 // where it was made and CUDA's own words (e.g. "no CUDA-capable device is detected").
@@ -107,6 +108,11 @@ void pinnedFree(void* p) {
 }
 void deviceSynchronize() { OCC_CUDA_CHECK(cudaDeviceSynchronize()); }
 const char* deviceBackend() { return "cuda"; }
+std::string deviceErrorText(const std::exception& e) {
+    if (const auto* thrust_error = dynamic_cast<const thrust::system_error*>(&e))
+        return std::string("CUDA: ") + thrust_error->what();
+    return "";
+}
 
 DeviceInfo selectDevice(int requested) {
     if (g_selected && requested == g_requested) return g_device;
@@ -119,7 +125,7 @@ DeviceInfo selectDevice(int requested) {
                                "); occswitch-cuda needs an NVIDIA GPU and its driver, occswitch runs on the CPU");
     }
     if (requested >= count)
-        throw occ::UsageError("--device " + std::to_string(requested) + ": this machine has " + std::to_string(count) +
+        throw occ::OptionError("device", std::to_string(requested) + ": this machine has " + std::to_string(count) +
                               " CUDA device" + (count > 1 ? "s" : "") + " (0 to " + std::to_string(count - 1) + ")");
     const int ordinal = requested >= 0 ? requested : nodeLocalRank() % count;
     OCC_CUDA_CHECK(cudaSetDevice(ordinal));
@@ -234,11 +240,12 @@ void* pinnedAlloc(size_t bytes) { return alignedAlloc(bytes); }
 void pinnedFree(void* p) { std::free(p); }
 void deviceSynchronize() {}
 const char* deviceBackend() { return "cpu-tbb"; }
+std::string deviceErrorText(const std::exception&) { return ""; }
 
 DeviceInfo selectDevice(int requested) {
     if (requested > 0)
-        throw occ::UsageError("--device " + std::to_string(requested) +
-                              ": this build runs its kernels on the CPU, device 0 (occswitch-cuda uses GPUs)");
+        throw occ::OptionError("device", std::to_string(requested) +
+                                              ": this build runs its kernels on the CPU, device 0 (occswitch-cuda uses GPUs)");
     g_device = DeviceInfo{-1, "CPU (host memory, TBB)", "", 0};
     g_requested = requested;
     g_selected = true;

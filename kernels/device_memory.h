@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <algorithm>
 #include <cstdint>
+#include <exception>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -93,6 +94,9 @@ void requireDeviceMemory(uint64_t bytes, const std::string& what);
 void deviceSynchronize();
 // "cpu-tbb" or "cuda".
 const char* deviceBackend();
+// For a failure a device algorithm reported in its own exception type (Thrust's system_error
+// under CUDA, which is not a SystemError): "CUDA: " and its message. "" for any other exception.
+std::string deviceErrorText(const std::exception& e);
 // Whether this build's device can run kernels here: always in the CPU build; under CUDA, when
 // a CUDA device is visible (else false, with CUDA's reason in *why when why is not null).
 bool deviceAvailable(std::string* why = nullptr);

@@ -342,7 +342,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
         PipelineOptions o = options;
         if (o.pvs_occluder_lag == 0) o.pvs_occluder_lag = layout.occluderLag();
         if (o.pvs_occluder_lag < layout.occluderLag())
-            throw UsageError("render: --pvs-occluder-lag " + std::to_string(o.pvs_occluder_lag) + " with " +
+            throw OptionError("pvs_occluder_lag", std::to_string(o.pvs_occluder_lag) + " with " +
                              std::to_string(layout.size()) + " ranks: the switch's occluder rank has the PVS of " +
                              std::to_string(layout.occluderLag()) + " frames back at the newest");
         Pipeline pipeline(file, o);

@@ -25,7 +25,7 @@ render() { "$exe" render "$dir/p.oss" --path "$dir/walk.cam" --size 256x192 "$@"
 # A CSV column by name, one value per data row.
 column() { awk -F, -v name="$2" 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == name) c = i; next } { print $c }' "$1"; }
 
-# The default budget (10 % of the scene's vertices, 5.6 K here) draws this small plant's ~150
+# A budget of 10 % of the scene's vertices (5.6 K here) would draw this small plant's ~150
 # visible objects coarsely: 24 dB. 20 K vertices keeps what is seen near full detail, so that
 # PSNR >= 30 dB checks the drawing, not the budget.
 render --headless --exact --reference --budget 20000 --out "$dir/F" --debug-views "$dir/D" --debug-frames 0,20 \

@@ -26,11 +26,29 @@ for column in frame objects_in_frustum objects_occluded objects_visible aos_size
   echo "$header" | tr ',' '\n' | grep -qx "$column" || fail "CSV lacks column $column"
 done
 "$exe" render "$dir/p.oss" --path "$dir/orbit.cam" --no-display >/dev/null || fail "orbit"
-for bad in "--size 0x10" "--size big" "--mode none" "--stream fast" "--alpha 1" "--pet -1"; do
+# Each impossible option is named by its flag, also when the library found it out of range.
+for bad in "--size 0x10" "--size big" "--mode none" "--stream fast" "--alpha 1" "--pet -1" "--budget -3" \
+           "--budget 200%" "--budget many" "--lod-hysteresis 1" "--aos 100000"; do
   "$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display $bad >/dev/null 2>"$dir/err"; status=$?
   [ $status -eq 2 ] || fail "render $bad: exit $status"
-  grep -q "^error: " "$dir/err" || fail "render $bad: $(cat "$dir/err")"
+  [ "$(wc -l <"$dir/err")" -eq 1 ] && grep -q -- "^error: ${bad%% *}" "$dir/err" || fail "render $bad: $(cat "$dir/err")"
 done
+# The default budget follows the screen: one vertex per pixel, at most the scene's vertices.
+"$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display --size 64x48 --stats "$dir/b.csv" >/dev/null ||
+  fail "render 64x48"
+python3 - "$dir/b.csv" <<'PY' || fail "default budget at 64x48"
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+assert rows and all(int(r["budget_vertices"]) == 64 * 48 for r in rows), rows[0]["budget_vertices"]
+PY
+"$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display --budget 10% --stats "$dir/b.csv" >/dev/null ||
+  fail "render --budget 10%"
+vertices=$("$exe" info "$dir/p.oss" | python3 -c "import json,sys; print(json.load(sys.stdin)['vertices'])")
+python3 - "$dir/b.csv" "$vertices" <<'PY' || fail "--budget 10% of $vertices vertices"
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+assert all(abs(int(r["budget_vertices"]) - 0.1 * int(sys.argv[2])) <= 1 for r in rows), rows[0]["budget_vertices"]
+PY
 "$exe" render "$dir/p.oss" --path "$dir/missing.cam" --no-display >/dev/null 2>"$dir/err"
 [ $? -eq 2 ] && grep -q "missing.cam" "$dir/err" || fail "a missing path file: $(cat "$dir/err")"
 # A model file renders directly: prepared once into MODEL.oss beside it, reused while unchanged,

@@ -107,7 +107,11 @@ int runRender(RenderOptions o) {
         w.path = o.path;
         w.out = o.out.empty() ? "." : o.out;
         if (!o.out.empty()) makeOutputFolder(o.out);
-        return render::runWindow(file, o.pipeline, w);
+        try {
+            return render::runWindow(file, o.pipeline, w);
+        } catch (const render::WindowUnavailable& e) {
+            throw SystemError(std::string(e.what()) + "; --headless renders without a window");
+        }
     }
 #endif
     const std::vector<CameraPose> cameras = readCameraPath(o.path);

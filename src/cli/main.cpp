@@ -1,14 +1,26 @@
 // SPDX-License-Identifier: MIT
 #include "cli/commands.h"
+#include "device_memory.h"
 #include "scene/errors.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <new>
+#include <string>
 
 namespace {
 
 constexpr int kExitInputError = 2;
+
+// The command-line flag of a library parameter (OptionError::option()): its name with dashes,
+// but for the two whose flags differ.
+std::string flagFor(std::string option) {
+    if (option == "viewport") return "--size";
+    if (option == "tiles") return "--nx/--ny/--nz";
+    std::replace(option.begin(), option.end(), '_', '-');
+    return "--" + option;
+}
 
 }  // namespace
 
@@ -35,6 +47,10 @@ int main(int argc, char** argv) {
     } catch (const occ::InputError& e) {
         std::cerr << "error: " << e.what() << "\n";
         return kExitInputError;
+    } catch (const occ::OptionError& e) {
+        // The library names its parameter; the user typed a flag.
+        std::cerr << "error: " << flagFor(e.option()) << " " << e.detail() << "\n";
+        return kExitInputError;
     } catch (const occ::UsageError& e) {
         std::cerr << "error: " << e.what() << "\n";
         return kExitInputError;
@@ -45,6 +61,12 @@ int main(int argc, char** argv) {
         std::cerr << "error: out of memory\n";
         return kExitInputError;
     } catch (const std::exception& e) {
+        // A device algorithm's failure (Thrust's system_error under CUDA) is the machine's.
+        const std::string device = occ::k::deviceErrorText(e);
+        if (!device.empty()) {
+            std::cerr << "error: " << device << "\n";
+            return 1;
+        }
         // Anything else is our bug, not the input's; still one line and a failing status.
         std::cerr << "error: internal: " << e.what() << "\n";
         return 1;

@@ -13,13 +13,14 @@ namespace occ {
 
 void writeGrid(const std::string& path, const Scene& model, const GridOptions& options) {
     const uint64_t tiles = uint64_t(options.nx) * options.ny * options.nz;
-    if (tiles == 0) throw UsageError("grid: --nx, --ny and --nz must each be at least 1");
+    if (tiles == 0) throw OptionError("tiles", std::to_string(options.nx) + "x" + std::to_string(options.ny) + "x" +
+                                            std::to_string(options.nz) + ": every count must be at least 1");
     // glTF node indices are 32-bit and every tile holds one node per object plus its own.
     if (tiles * (model.objects.size() + 1) > (1ull << 31))
-        throw UsageError("grid: " + std::to_string(tiles) + " tiles of " + std::to_string(model.objects.size()) +
+        throw OptionError("tiles", std::to_string(tiles) + " tiles of " + std::to_string(model.objects.size()) +
                          " objects exceed the 2^31 nodes a glTF file can index");
     if (!(options.spacing >= 0.0f) || !std::isfinite(options.spacing))
-        throw UsageError("grid: --spacing must be a finite number >= 0");
+        throw OptionError("spacing", "must be a finite number >= 0");
 
     const Bounds bounds = model.worldBounds();
     const glm::vec3 extent = bounds.max - bounds.min;

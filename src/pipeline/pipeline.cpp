@@ -35,29 +35,30 @@ CullMode parseCullMode(const std::string& s) {
     if (s == "full") return CullMode::Full;
     if (s == "lod") return CullMode::Lod;
     if (s == "oc+lod") return CullMode::OcLod;
-    throw UsageError("--mode " + s + ": expected full, lod or oc+lod");
+    throw OptionError("mode", "'" + s + "': expected full, lod or oc+lod");
 }
 
 StreamMode parseStreamMode(const std::string& s) {
     if (s == "sc") return StreamMode::Coherent;
     if (s == "snc") return StreamMode::NonCoherent;
     if (s == "ns") return StreamMode::None;
-    throw UsageError("--stream " + s + ": expected sc, snc or ns");
+    throw OptionError("stream", "'" + s + "': expected sc, snc or ns");
 }
 
 Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(file), options_(options) {
     if (options.width == 0 || options.height == 0 || options.width > 16384 || options.height > 16384)
-        throw UsageError("--size: width and height must be in [1, 16384]");
-    if (options.aos > 65536) throw UsageError("--aos " + std::to_string(options.aos) + " is more than 65536 occluders");
-    if (!(options.alpha > 1.0f)) throw UsageError("--alpha must be > 1");
-    if (!(options.pet >= 0.0f)) throw UsageError("--pet must be >= 0");
-    if (!(options.budget >= 0.0)) throw UsageError("--budget must be >= 0");
+        throw OptionError("viewport", std::to_string(options.width) + "x" + std::to_string(options.height) +
+                          ": width and height must be in [1, 16384]");
+    if (options.aos > 65536) throw OptionError("aos", std::to_string(options.aos) + " is more than 65536 occluders");
+    if (!(options.alpha > 1.0f)) throw OptionError("alpha", OptionError::value(options.alpha) + ": must be > 1");
+    if (!(options.pet >= 0.0f)) throw OptionError("pet", OptionError::value(options.pet) + ": must be >= 0");
+    if (!(options.budget >= 0.0)) throw OptionError("budget", "must be >= 0");
     if (!(options.budget_share >= 0.0 && options.budget_share <= 1.0))
-        throw UsageError("--budget: a share of the scene's vertices must be in (0, 100] %");
+        throw OptionError("budget", "a share of the scene's vertices must be in (0, 100] %");
     if (!(options.lod_hysteresis >= 0.0f && options.lod_hysteresis < 1.0f))
-        throw UsageError("--lod-hysteresis must be in [0, 1)");
+        throw OptionError("lod_hysteresis", OptionError::value(options.lod_hysteresis) + ": must be in [0, 1)");
     if (options.pvs_occluder_lag < 1 || options.pvs_occluder_lag > 2)
-        throw UsageError("--pvs-occluder-lag must be 1 or 2");
+        throw OptionError("pvs_occluder_lag", std::to_string(options.pvs_occluder_lag) + ": must be 1 or 2");
 
     scene_ = DeviceScene::upload(file);
     const uint32_t n = scene_.object_count;

@@ -45,7 +45,8 @@ void parallelFor(const std::vector<uint32_t>& order, unsigned threads, F&& body)
 }  // namespace
 
 PreparedScene prepareScene(const Scene& scene, const PrepOptions& options, PrepProgress* progress) {
-    if (!(options.ct >= 0.0f && options.ct <= 1.0f)) throw UsageError("--ct must be in [0, 1]");
+    if (!(options.ct >= 0.0f && options.ct <= 1.0f))
+        throw OptionError("ct", OptionError::value(options.ct) + ": must be in [0, 1]");
     const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
 
     // Only meshes some object uses are prepared.

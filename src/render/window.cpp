@@ -73,8 +73,8 @@ int runWindow(const OssFile& file, const PipelineOptions& options, const WindowO
     if (!glfwInit()) {
         const char* why = nullptr;
         glfwGetError(&why);
-        throw SystemError(std::string("window: GLFW cannot start (") + (why ? why : "no reason given") +
-                          "); without an X display use --headless, or run under xvfb-run");
+        throw WindowUnavailable(std::string("window: GLFW cannot start (") + (why ? why : "no reason given") +
+                          "); without an X display render headless (EGL) or under xvfb-run");
     }
     // Destroyed after the display below: its destructor still needs the window's context.
     struct Glfw {
@@ -92,8 +92,8 @@ int runWindow(const OssFile& file, const PipelineOptions& options, const WindowO
     if (!window) {
         const char* why = nullptr;
         glfwGetError(&why);
-        throw SystemError(std::string("window: no OpenGL 4.5 core window (") + (why ? why : "no reason given") +
-                          "); the X server needs GLX and a 24-bit screen, or use --headless");
+        throw WindowUnavailable(std::string("window: no OpenGL 4.5 core window (") + (why ? why : "no reason given") +
+                          "); the X server needs GLX and a 24-bit screen, or render headless (EGL)");
     }
     glfwMakeContextCurrent(window);
     glfwSwapInterval(0);

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -22,6 +23,27 @@ private:
 class UsageError : public std::runtime_error {
 public:
     using std::runtime_error::runtime_error;
+};
+
+// Raised by the library for a parameter out of its range. option() names the parameter as the
+// library's own options do ("alpha", "viewport", "device"), never a command-line flag; the
+// command line prints it under its flag (cli/main.cpp), other callers as it is:
+// what() is "option: detail".
+class OptionError : public UsageError {
+public:
+    // A parameter's value as a user would type it ("0.5", "3", not "0.500000").
+    static std::string value(double v) {
+        char text[32];
+        std::snprintf(text, sizeof text, "%g", v);
+        return text;
+    }
+    OptionError(const std::string& option, const std::string& detail)
+        : UsageError(option + ": " + detail), option_(option), detail_(detail) {}
+    const std::string& option() const { return option_; }
+    const std::string& detail() const { return detail_; }
+
+private:
+    std::string option_, detail_;
 };
 
 // Raised when the machine cannot do what was asked: no OpenGL or EGL, a failed GL or CUDA call,

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // One libFuzzer target per decoder of untrusted bytes (OCC_FUZZ_TARGET picks it): the model
 // importers (by file extension: the bytes go to a file of that kind), the .oss reader and the
-// wire messages. A decoder may reject its input (InputError, std::bad_alloc for an absurd size);
+// wire messages. A decoder may reject its input (InputError for files, RankError for messages,
+// std::bad_alloc for an absurd size);
 // anything else (a crash, a sanitizer report, another exception) is a finding.
 #include "import/import.h"
 #include "net/messages.h"
@@ -40,10 +41,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
 #if defined(OCC_FUZZ_MESSAGES)
     const DecodeContext ctx{};
     const std::span<const uint8_t> bytes(data, size);
-    try { (void)decodeCameraPacket(bytes, ctx); } catch (const InputError&) {}
-    try { (void)decodeVisibleSetDelta(bytes, ctx); } catch (const InputError&) {}
-    try { (void)decodeEndOfFrame(bytes, ctx); } catch (const InputError&) {}
-    try { (void)decodeReport(bytes, ctx); } catch (const InputError&) {}
+    try { (void)decodeCameraPacket(bytes, ctx); } catch (const RankError&) {}
+    try { (void)decodeVisibleSetDelta(bytes, ctx); } catch (const RankError&) {}
+    try { (void)decodeEndOfFrame(bytes, ctx); } catch (const RankError&) {}
+    try { (void)decodeReport(bytes, ctx); } catch (const RankError&) {}
 #else
     const std::string& path = scratchFile(OCC_FUZZ_EXTENSION);
     writeFile(path, data, size);
