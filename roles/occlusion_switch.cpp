@@ -3,6 +3,7 @@
 
 #include "net/messages.h"
 #include "net/rank_error.h"
+#include "scene/csv.h"
 #include "scene/errors.h"
 
 #include <algorithm>
@@ -262,10 +263,14 @@ std::string row(int rank, const char* role, const FrameStats& s, const NetColumn
     return std::to_string(rank) + "," + role + "," + frameStatsRow(s) + netRow(net) + drawn + "\n";
 }
 
+// The frame of a stats row (rank,role,frame,...); InputError when it has none.
 uint64_t frameOfRow(const std::string& line) {
-    // rank,role,frame,...
-    const size_t a = line.find(','), b = line.find(',', a + 1);
-    return std::stoull(line.substr(b + 1, line.find(',', b + 1) - b - 1));
+    const std::vector<std::string> fields = csvFields(line, "stats row");
+    const std::string& frame = fields.size() > 2 ? fields[2] : std::string();
+    char* end = nullptr;
+    const unsigned long long f = std::strtoull(frame.c_str(), &end, 10);
+    if (frame.empty() || frame[0] == '-' || *end != '\0') throw InputError("stats row", "no frame number");
+    return f;
 }
 
 void addToSummary(RunSummary& sum, const FrameStats& s, const NetColumns& net, double ms_frame) {

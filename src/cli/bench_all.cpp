@@ -2,6 +2,7 @@
 #include "cli/bench_all.h"
 
 #include "scene/atomic_file.h"
+#include "scene/csv.h"
 #include "scene/errors.h"
 #include "scene/oss_file.h"
 
@@ -235,72 +236,10 @@ private:
 // ---------------------------------------------------------------------------------------------
 // CSV files the runs write
 
-class Csv {
-public:
-    explicit Csv(fs::path path) : path_(std::move(path)) {
-        std::ifstream in(path_);
-        if (!in) throw InputError(path_.string(), "cannot read the run's CSV");
-        std::string line;
-        if (!std::getline(in, line)) throw InputError(path_.string(), "empty CSV");
-        header_ = split(line);
-        while (std::getline(in, line)) {
-            if (line.empty()) continue;
-            rows_.push_back(split(line));
-            if (rows_.back().size() != header_.size())
-                throw InputError(path_.string(), "line " + std::to_string(rows_.size() + 1) + " has " +
-                                                     std::to_string(rows_.back().size()) + " fields, the header " +
-                                                     std::to_string(header_.size()));
-        }
-        if (rows_.empty()) throw InputError(path_.string(), "no rows");
-    }
-    bool has(const std::string& column) const {
-        return std::find(header_.begin(), header_.end(), column) != header_.end();
-    }
-    size_t col(const std::string& column) const {
-        const auto it = std::find(header_.begin(), header_.end(), column);
-        if (it == header_.end()) throw InputError(path_.string(), "no column '" + column + "'");
-        return size_t(it - header_.begin());
-    }
-    size_t rows() const { return rows_.size(); }
-    const std::vector<std::string>& header() const { return header_; }
-    const std::vector<std::string>& row(size_t r) const { return rows_[r]; }
-    static std::string join(const std::vector<std::string>& fields) {
-        std::string line;
-        for (size_t i = 0; i < fields.size(); ++i) line += (i ? "," : "") + fields[i];
-        return line;
-    }
-    const std::string& text(size_t row, size_t column) const { return rows_[row][column]; }
-    double num(size_t row, size_t column) const {
-        const std::string& s = rows_[row][column];
-        if (s.empty()) return NAN;
-        char* end = nullptr;
-        const double v = std::strtod(s.c_str(), &end);
-        return end == s.c_str() ? NAN : v;
-    }
-    double num(size_t row, const std::string& column) const { return num(row, col(column)); }
-    const fs::path& path() const { return path_; }
-
-private:
-    static std::vector<std::string> split(const std::string& line) {
-        std::vector<std::string> fields;
-        size_t start = 0;
-        for (;;) {
-            const size_t comma = line.find(',', start);
-            fields.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
-            if (comma == std::string::npos) break;
-            start = comma + 1;
-        }
-        return fields;
-    }
-    fs::path path_;
-    std::vector<std::string> header_;
-    std::vector<std::vector<std::string>> rows_;
-};
-
 // The per-frame stats of one `render` run. Means are over the display's (rank 0's) frames
 // without the first, which streams the whole first view and warms every cache.
 struct RenderStats {
-    explicit RenderStats(const fs::path& path) : csv(path) {
+    explicit RenderStats(const fs::path& path) : csv(CsvTable::read(path.string())) {
         const bool ranked = csv.has("rank");
         for (size_t r = 0; r < csv.rows(); ++r)
             if (!ranked || csv.text(r, csv.col("rank")) == "0") display.push_back(r);
@@ -328,7 +267,7 @@ struct RenderStats {
         for (size_t r : measured) total += frameMs(r);
         return total / double(measured.size());
     }
-    Csv csv;
+    CsvTable csv;
     std::vector<size_t> display;   // rank 0's rows in frame order
     std::vector<size_t> measured;  // the same without frame 0
 };
@@ -684,8 +623,8 @@ void Bench::streaming(std::ostringstream& md) {
         const RunResult r = runner_.run("pipeline_" + scene->key,
                                         command({"bench", "pipeline", scene->oss.string(), scene->cam.string(),
                                                  "--out", dir.string()}));
-        const Csv p(dir / "pipeline_bench.csv");
-        if (!header) csv << "scene," << Csv::join(p.header()) << "\n";
+        const CsvTable p = CsvTable::read((dir / "pipeline_bench.csv").string());
+        if (!header) csv << "scene," << csvRow(p.header()) << "\n";
         header = true;
         double sc_ms = NAN;
         std::string detail;
@@ -693,7 +632,7 @@ void Bench::streaming(std::ostringstream& md) {
             // SC, SnC and NS only; the run's lod row (no occlusion culling) is the breakdown's business.
             const std::string mode = p.text(row, p.col("mode"));
             if (mode != "sc" && mode != "snc" && mode != "ns") continue;
-            csv << scene->key << "," << Csv::join(p.row(row)) << "\n";
+            csv << scene->key << "," << csvRow(p.row(row)) << "\n";
             const double ms = p.num(row, "ms_total");
             const double streamed = p.num(row, "streamed_triangles_per_frame");
             const double active = p.num(row, "active_triangles_per_frame");

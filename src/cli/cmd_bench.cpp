@@ -11,6 +11,7 @@
 #include "prep/rearrange.h"
 #include "prep/weld.h"
 #include "scene/atomic_file.h"
+#include "scene/csv.h"
 #include "scene/errors.h"
 
 #include <meshoptimizer.h>
@@ -152,13 +153,6 @@ std::string loadAverage() {
     double one = 0, five = 0, fifteen = 0;
     if (!(in >> one >> five >> fifteen)) return "unknown";
     return format("%.2f %.2f %.2f", one, five, fifteen);
-}
-
-std::string csvField(const std::string& s) {
-    if (s.find_first_of(",\"\n") == std::string::npos) return s;
-    std::string quoted = "\"";
-    for (char c : s) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
-    return quoted + "\"";
 }
 
 // The LOD of a progressive mesh with the most vertices whose triangle count is <= target (the
