@@ -496,7 +496,7 @@ int runBenchPrep(const BenchPrepOptions& o) {
 
     if (!o.out.empty()) {
         const std::filesystem::path dir(o.out);
-        std::ofstream csv(dir / "prep_bench.csv");
+        std::ostringstream csv, md;
         csv << "mesh,name,input_triangles,welded_triangles,welded_vertices,diagonal,samples,target_percent,"
                "target_triangles,ours_q,ours_k,ours_triangles,ours_error,ours_mean_error,meshopt_triangles,meshopt_error,"
                "meshopt_mean_error,meshopt_result_error,matched_triangles,matched_error,matched_mean_error\n";
@@ -513,16 +513,14 @@ int runBenchPrep(const BenchPrepOptions& o) {
                               double(r.meshopt_own_error[t]))
                     << format("%u,%.6g,%.6g\n", r.matched[t].triangles, r.matched[t].error, r.matched[t].mean_error);
         }
-        std::ofstream md(dir / "prep_summary.md");
         md << "# occswitch bench prep\n\n"
            << header << "\n"
            << table.str() << "\n"
            << errors.str() << "\n"
            << notes << "\n```\n"
            << verdict.str() << "```\n";
-        csv.close();
-        md.close();
-        if (!csv || !md) throw UsageError("--out " + o.out + ": could not write the results");
+        writeFileAtomic((dir / "prep_bench.csv").string(), csv.str());
+        writeFileAtomic((dir / "prep_summary.md").string(), md.str());
         std::fprintf(stderr, "wrote %s and %s\n", (dir / "prep_bench.csv").c_str(), (dir / "prep_summary.md").c_str());
     }
     return 0;
