@@ -2,7 +2,10 @@
 // glTF as the ecosystem optimizes it (issue 13): files written here by Debian's gltfpack
 // (meshoptimizer) and draco_transcoder (Draco) from the engine, imported with the engine's
 // triangle count.
+#include "import/glb_writer.h"
+#include "import/grid.h"
 #include "import/import.h"
+#include "import/plant.h"
 #include "prep/weld.h"
 #include "scene/errors.h"
 #include "test_support.h"
@@ -10,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 
 namespace occ {
@@ -139,6 +143,94 @@ TEST_F(OptimizedGltf, AnUnsupportedRequiredExtensionIsNamed) {
 TEST_F(OptimizedGltf, SceneNumberChoosesTheScene) {
     EXPECT_EQ(importModel(test::kEngine, {0}).triangleCount(), kEngineTriangles);
     EXPECT_THROW(importModel(test::kEngine, {1}), InputError);
+    // Two scenes over the same triangle: the file's default (1) has it twice, scene 0 once.
+    std::vector<unsigned char> bin(44, 0);
+    const float pos[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    std::memcpy(bin.data(), pos, 36);
+    const uint16_t idx[3] = {0, 1, 2};
+    std::memcpy(bin.data() + 36, idx, 6);
+    const std::string two = test::writeFixture(
+        "two_scenes.gltf",
+        R"({"asset":{"version":"2.0"},"scene":1,"scenes":[{"nodes":[0]},{"nodes":[0,1]}],)"
+        R"("nodes":[{"mesh":0},{"mesh":0,"translation":[5,0,0]}],)"
+        R"("meshes":[{"primitives":[{"attributes":{"POSITION":0},"indices":1}]}],)"
+        R"("accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3"},)"
+        R"({"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}],)"
+        R"("bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":6}],)"
+        R"("buffers":[{"byteLength":44,"uri":"data:application/octet-stream;base64,)" + test::base64(bin) + R"("}]})");
+    EXPECT_EQ(importModel(two).objects.size(), 2u);
+    EXPECT_EQ(importModel(two, {0}).objects.size(), 1u);
+    EXPECT_EQ(importModel(two, {1}).objects.size(), 2u);
+    EXPECT_THROW(importModel(two, {2}), InputError);
+}
+
+// Every integer position type KHR_mesh_quantization allows (signed and unsigned bytes and
+// shorts, normalized or not), each at the 4-byte aligned stride the extension requires.
+TEST_F(OptimizedGltf, EveryQuantizedPositionTypeDequantizes) {
+    struct Case {
+        int type;
+        size_t size;
+        double max;  // the normalized divisor
+        bool is_signed;
+    };
+    for (const Case c : {Case{5120, 1, 127, true}, Case{5121, 1, 255, false}, Case{5122, 2, 32767, true},
+                         Case{5123, 2, 65535, false}})
+        for (const bool normalized : {false, true}) {
+            SCOPED_TRACE(std::to_string(c.type) + (normalized ? " normalized" : ""));
+            const size_t stride = c.size == 1 ? 4 : 8;
+            std::vector<unsigned char> bin(3 * stride + 8, 0);
+            const int64_t big = c.size == 1 ? 100 : 20000, neg = c.is_signed ? -big : big / 2;
+            const int64_t raw[3][3] = {{0, 0, 0}, {big, 0, 0}, {0, neg, 0}};
+            for (int v = 0; v < 3; ++v)
+                for (int k = 0; k < 3; ++k) {
+                    const int64_t x = raw[v][k];
+                    std::memcpy(bin.data() + size_t(v) * stride + size_t(k) * c.size, &x, c.size);  // little-endian
+                }
+            const uint16_t idx[3] = {0, 1, 2};
+            std::memcpy(bin.data() + 3 * stride, idx, 6);
+            const std::string json =
+                R"({"asset":{"version":"2.0"},"extensionsUsed":["KHR_mesh_quantization"],)"
+                R"("extensionsRequired":["KHR_mesh_quantization"],"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],)"
+                R"("meshes":[{"primitives":[{"attributes":{"POSITION":0},"indices":1}]}],)"
+                R"("accessors":[{"bufferView":0,"componentType":)" + std::to_string(c.type) +
+                (normalized ? R"(,"normalized":true)" : "") + R"(,"count":3,"type":"VEC3"},)" +
+                R"({"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}],)" +
+                R"("bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":)" + std::to_string(3 * stride) +
+                R"(,"byteStride":)" + std::to_string(stride) + R"(},{"buffer":0,"byteOffset":)" +
+                std::to_string(3 * stride) + R"(,"byteLength":6}],)" + R"("buffers":[{"byteLength":)" +
+                std::to_string(bin.size()) + R"(,"uri":"data:application/octet-stream;base64,)" + test::base64(bin) +
+                R"("}]})";
+            const Scene s = importModel(test::writeFixture("q" + std::to_string(c.type) + (normalized ? "n" : "") + ".gltf", json));
+            ASSERT_EQ(s.meshes.size(), 1u);
+            const double scale = normalized ? c.max : 1.0;
+            const std::vector<glm::vec3>& p = s.meshes[0].positions;
+            ASSERT_EQ(p.size(), 3u);
+            EXPECT_FLOAT_EQ(p[1].x, float(double(big) / scale));
+            EXPECT_FLOAT_EQ(p[2].y, float(double(neg) / scale));
+        }
+}
+
+// Scenes occswitch generates, through the same optimizers: the plant (every mesh its own;
+// gltfpack merges them by material) and an engine grid (instanced by nodes, and by
+// EXT_mesh_gpu_instancing with -mi) keep every triangle; Draco's quantization makes a few
+// degenerate (at most 0.05 %), which prep then drops.
+TEST_F(OptimizedGltf, GeneratedScenesKeepTheirTrianglesThroughTheOptimizers) {
+    const std::string plant = (test::scratchDir() / "plant300.glb").string();
+    writeSceneGlb(plant, generatePlant(PlantOptions{300, 1}));
+    const std::string grid = (test::scratchDir() / "grid2x2.glb").string();
+    writeGrid(grid, importModel(test::kEngine), GridOptions{2, 1, 2, 0.0f});
+    for (const std::string& source : {plant, grid}) {
+        const Scene original = importModel(source);
+        const uint64_t kept = keptTriangles(original);
+        for (const std::string tool : {"gltfpack -i", "gltfpack -cc -i", "gltfpack -cc -mi -i", "draco_transcoder -i"}) {
+            SCOPED_TRACE(source + " through " + tool);
+            const Scene s = importModel(written("opt.glb", tool + " " + source + " -o"));
+            EXPECT_GE(s.triangleCount(), kept);
+            EXPECT_LE(s.triangleCount(), original.triangleCount());
+            EXPECT_NEAR(double(keptTriangles(s)), double(kept), 0.0005 * double(kept));
+            expectSameBounds(original, s, 1e-3f);
+        }
+    }
 }
 
 }  // namespace
