@@ -35,13 +35,21 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
     for (const ProgressiveMesh& m : prepared.meshes) unique_triangles += m.triangleCount(), dropped += m.dropped_triangles;
     for (const ObjectRecord& r : prepared.objects) instanced_triangles += prepared.meshes[r.mesh].triangleCount();
     const unsigned threads = prep.threads ? prep.threads : std::max(1u, std::thread::hardware_concurrency());
+    // What import skipped, in info's words (points, lines, degenerate_faces), when it skipped any.
+    std::string skipped;
+    const auto add = [&](uint64_t n, const char* what) {
+        if (n) skipped += (skipped.empty() ? "; skipped at import: " : ", ") + std::to_string(n) + " " + what;
+    };
+    add(scene.skipped.points, "points");
+    add(scene.skipped.lines, "lines");
+    add(scene.skipped.degenerate, "degenerate faces");
     std::fprintf(stderr,
                  "prep: %s -> %s: %zu objects, %zu progressive meshes (%llu triangles, %llu with instances; "
-                 "%llu repeated-corner triangles dropped), |COS| = %zu at CT %.2f, %.2f s on %u threads "
+                 "%llu repeated-corner triangles dropped%s), |COS| = %zu at CT %.2f, %.2f s on %u threads "
                  "(%.2f M unique triangles/s), %llu bytes\n",
                  input.c_str(), output.c_str(), prepared.objects.size(), prepared.meshes.size(),
                  (unsigned long long)unique_triangles, (unsigned long long)instanced_triangles,
-                 (unsigned long long)dropped, prepared.cos.size(),
+                 (unsigned long long)dropped, skipped.c_str(), prepared.cos.size(),
                  double(prepared.ct), seconds, threads, unique_triangles / seconds / 1e6,
                  (unsigned long long)std::filesystem::file_size(output));
 }
