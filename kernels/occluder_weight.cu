@@ -124,7 +124,7 @@ struct TakeWithinBudget {
     const ObjectInfo* objects;
     const uint64_t* keys;
     uint32_t count;
-    const uint8_t* taken;
+    uint8_t* taken;
     uint64_t budget;
     uint32_t* out;
     uint32_t* chosen;
@@ -139,8 +139,10 @@ struct TakeWithinBudget {
             const uint64_t t = objects[id].triangle_count;
             if (triangles + t > budget) continue;
             triangles += t;
+            taken[id] = 1;  // a candidate listed twice is taken once
             out[n++] = id;
         }
+        for (uint32_t j = 0; j < n; ++j) taken[out[j]] = 0;
         *chosen = n;
     }
 };

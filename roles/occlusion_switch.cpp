@@ -285,6 +285,7 @@ void addToSummary(RunSummary& sum, const FrameStats& s, const NetColumns& net, d
         sum.bus_h2d_bytes += s.bus_h2d_bytes;
         sum.bus_d2h_bytes += s.bus_d2h_bytes;
         sum.streamed_bytes += s.streamed_bytes;
+        sum.pvs_churn += double(s.pvs_added + s.pvs_removed);
         sum.latency_ms += net.latency_ms;
         sum.latency_frames = uint32_t(net.latency_frames);
     }

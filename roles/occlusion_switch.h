@@ -65,6 +65,7 @@ struct RunSummary {
     double ms_wait = 0;                   // rank 0: mean per frame
     // Rank 0, frames after the first: host <-> device bytes and the streamed geometry among them.
     uint64_t bus_h2d_bytes = 0, bus_d2h_bytes = 0, streamed_bytes = 0;
+    double pvs_churn = 0;                 // rank 0, frames after the first: sum of pvs_added + pvs_removed
 };
 
 // The --stats header of a multi-role run: "rank,role," + frameStatsHeader() + the message

@@ -43,7 +43,8 @@ def rows(name, rank='0'):
 def same(a, b, what):
     assert len(a) == len(b) == 60, f'{what}: {len(a)} and {len(b)} rows'
     for x, y in zip(a, b):
-        for c in ('frame', 'visible_hash', 'objects_visible', 'active_vertices', 'active_triangles'):
+        for c in ('frame', 'visible_hash', 'objects_visible', 'active_vertices', 'active_triangles', 'pvs_added',
+                  'pvs_removed'):
             assert x[c] == y[c], f'{what}: frame {x["frame"]}: {c} {x[c]} != {y[c]}'
 r3, r3full = rows('r3.csv'), rows('r3full.csv')
 same(rows('r1lag2.csv'), r3, '1 rank (lag 2) vs 3 ranks')

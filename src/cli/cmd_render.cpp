@@ -149,6 +149,7 @@ int runRender(RenderOptions o) {
         throw UsageError("render: --rank-timeout must be in (0, 3600] seconds");
     run.timeout = std::chrono::milliseconds(int64_t(o.rank_timeout * 1000));
     double false_culls = 0, accuracy = 0, exact_occluded = 0, psnr = 0, min_psnr = 1e9, changed = 0, draw_ms = 0;
+    double exact_churn = 0;  // frames after the first
 #ifdef OCC_HAVE_GL
     std::unique_ptr<render::HeadlessContext> context;
     std::unique_ptr<render::FrameDisplay> display;
@@ -167,6 +168,7 @@ int runRender(RenderOptions o) {
             false_culls += double(d.false_culls);
             exact_occluded += double(d.exact_occluded);
             accuracy += d.culling_accuracy;
+            if (f > 0) exact_churn += double(d.exact_added + d.exact_removed);
             psnr += d.psnr_db;
             min_psnr = std::min(min_psnr, d.psnr_db);
             changed += d.changed_pixel_share;
@@ -226,15 +228,17 @@ int runRender(RenderOptions o) {
     if (draws) std::printf("display: %s, mean %.2f ms/frame to draw\n", context->description().c_str(), draw_ms / frames);
     if (o.exact)
         std::printf("exact: %.0f false culls in all (must be 0), %.1f exactly occluded objects per frame, "
-                    "culling accuracy %.2f%% (mean over frames)\n",
-                    false_culls, exact_occluded / frames, accuracy / frames);
+                    "culling accuracy %.2f%% (mean over frames); churn per frame (added + removed) of the PVS "
+                    "%.1f, of the exact visible set %.1f\n",
+                    false_culls, exact_occluded / frames, accuracy / frames, sum.pvs_churn / later,
+                    exact_churn / later);
     if (o.reference)
         std::printf("reference: PSNR %.2f dB mean, %.2f dB lowest; %.3f%% of pixels changed (mean)\n", psnr / frames,
                     min_psnr, changed / frames);
     if (!o.out.empty()) std::printf("frames: %s/frame_*.png\n", o.out.c_str());
     if (!o.debug_views.empty()) std::printf("debug views: %s/\n", o.debug_views.c_str());
 #else
-    (void)false_culls, (void)accuracy, (void)exact_occluded, (void)psnr, (void)min_psnr, (void)changed, (void)draw_ms;
+    (void)false_culls, (void)exact_churn, (void)accuracy, (void)exact_occluded, (void)psnr, (void)min_psnr, (void)changed, (void)draw_ms;
 #endif
     return 0;
 }

@@ -52,6 +52,10 @@ struct FrameStats {
     uint64_t bus_d2h_bytes = 0;
     // XXH3-64 of the PVS's ids (not their LOD counts): what must be the same on every back end.
     uint64_t pvs_hash = 0;
+    // PVS churn: objects in this frame's visible set that the previous frame drawn here did not
+    // have, and the other way round (on the display; 0 on a culling rank, which draws nothing).
+    uint64_t pvs_added = 0;
+    uint64_t pvs_removed = 0;
     double ms[size_t(Stage::Count)] = {};
     double ms_total = 0;
 };
@@ -66,6 +70,12 @@ public:
 private:
     k::BusCounters last_;
 };
+
+// How many ids of ascending `now` are not in ascending `before` (added), and the other way round.
+struct Churn {
+    uint64_t added = 0, removed = 0;
+};
+Churn setChurn(const std::vector<uint32_t>& before, const std::vector<uint32_t>& now);
 
 // Writes the CSV header line and rows; the columns are the fields above in order.
 std::string frameStatsHeader();

@@ -205,9 +205,21 @@ void Pipeline::occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& 
     // The earlier PVS stays on the device for this: nothing crosses the bus.
     k::DevicePtr<const uint32_t> source;
     uint32_t source_count = 0;
-    for (const CulledFrame& h : history_)
-        if (frame >= options_.pvs_occluder_lag && h.frame == frame - options_.pvs_occluder_lag)
-            source = h.device_pvs.ptr(), source_count = uint32_t(h.pvs.size());
+    const CulledFrame* older = nullptr;
+    const uint64_t lag = options_.pvs_occluder_lag;
+    if (frame >= lag)
+        for (const CulledFrame& h : history_) {
+            if (h.frame == frame - lag) source = h.device_pvs.ptr(), source_count = uint32_t(h.pvs.size());
+            if (frame >= 2 * lag && h.frame == frame - 2 * lag && !h.pvs.empty()) older = &h;
+        }
+    if (older && source_count > 0) {
+        // Both sets, one after the other; the choice takes an id listed twice once.
+        occluder_candidates_.growTo(source_count + older->pvs.size());
+        k::copyOnDevice(occluder_candidates_.ptr(), source, source_count);
+        k::copyOnDevice(occluder_candidates_.ptr() + source_count, older->device_pvs.ptr(), older->pvs.size());
+        source = occluder_candidates_.ptr();
+        source_count += uint32_t(older->pvs.size());
+    }
     if (!frustumIsFor(pose)) frustumPass(pose, stats);
     StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
@@ -269,7 +281,7 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
         }
         k::copyToHost(pvs_vc_.data(), pvs_vc_device_.ptr(), count);
     }
-    std::swap(history_[0], history_[1]);
+    std::rotate(history_, history_ + kHistory - 1, history_ + kHistory);  // the oldest becomes [0]
     CulledFrame& h = history_[0];
     h.frame = frame;
     h.pvs.assign(pvs_.begin(), pvs_.end());
@@ -307,6 +319,10 @@ void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
     stats.budget_vertices = uint64_t(budget_);
     stats.objects_visible = pvs_.size();
     stats.pvs_hash = XXH3_64bits(pvs_.data(), pvs_.size() * sizeof(uint32_t));
+    const Churn churn = setChurn(drawn_pvs_, pvs_);
+    stats.pvs_added = churn.added;
+    stats.pvs_removed = churn.removed;
+    drawn_pvs_ = pvs_;
     // The layout, on the device; the host gets back what it must stream and a few totals.
     const bool coherent = options_.stream == StreamMode::Coherent;
     const k::VisibleLods visible{pvs_device_.ptr(), pvs_vc_device_.ptr(), pvs_tc_device_.ptr(), uint32_t(pvs_.size())};

@@ -198,6 +198,7 @@ private:
     bool has_frustum_pose_ = false;
 
     // Host memory: the visible set, as the network sends it.
+    std::vector<uint32_t> drawn_pvs_;  // the visible set streamPass last laid out, for the churn
     std::vector<uint32_t> pvs_, pvs_vc_, pvs_tc_;  // Eq. 1's choice for each PVS object (pvs_tc_: setVisible's)
     // The visible sets of the last two frames this pipeline culled, newest first (frame
     // UINT64_MAX: none yet): the PVS supplies a later frame's occluders, the counts the hysteresis.
@@ -207,7 +208,15 @@ private:
         k::DeviceArray<uint32_t> device_pvs;  // the same, for the occluder choice
         std::vector<std::pair<uint32_t, uint32_t>> lod;
     };
-    CulledFrame history_[2];
+    // The last four culled frames, newest first. The occluder pass of frame f takes as
+    // candidates the PVS of frame f - lag and of frame f - 2 lag (lag = pvs_occluder_lag):
+    // an object that was visible in either stays a candidate, so that the PVS cannot swing
+    // between two occluder sets frame by frame (a large PVS giving many occluders, then a small
+    // PVS giving few). Four frames, so that one rank with lag 2 has what the 3-rank switch's
+    // occluder rank has (frames f - 2 and f - 4).
+    static constexpr size_t kHistory = 4;
+    CulledFrame history_[kHistory];
+    k::DeviceArray<uint32_t> occluder_candidates_;
 
     // The layout, on the device: the last frame's and this frame's blocks (layouts_[cur_index_ ^ 1]
     // is the last built), each resident object's place, the heap's few totals (host) and the

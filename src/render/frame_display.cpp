@@ -49,7 +49,7 @@ std::string fixed(double v, int digits) {
 std::string displayStatsHeader(const DisplayOptions& options) {
     std::string h = ",ms_draw,uploaded_bytes,draw_calls";
     if (options.exact || options.reference) h += ",ms_exact";
-    if (options.exact) h += ",exact_visible,false_culls,exact_occluded,culling_accuracy";
+    if (options.exact) h += ",exact_visible,false_culls,exact_occluded,culling_accuracy,exact_added,exact_removed";
     if (options.reference) h += ",psnr_db,changed_pixel_share";
     return h;
 }
@@ -70,6 +70,8 @@ std::string displayStatsRow(const DisplayStats& s, const DisplayOptions& options
         add(std::to_string(s.false_culls));
         add(std::to_string(s.exact_occluded));
         add(fixed(s.culling_accuracy, 2));
+        add(std::to_string(s.exact_added));
+        add(std::to_string(s.exact_removed));
     }
     if (options.reference) {
         add(fixed(s.psnr_db, 2));
@@ -150,6 +152,13 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
         in_pvs_.assign(n, 0);
         for (uint32_t id : pipeline.visibleObjects()) in_pvs_[id] = 1;
         for (uint32_t i = 0; i < n; ++i) s.false_culls += seen_[i] && !in_pvs_[i];
+        exact_now_.clear();
+        for (uint32_t i = 0; i < n; ++i)
+            if (seen_[i]) exact_now_.push_back(i);
+        const Churn churn = setChurn(exact_before_, exact_now_);
+        s.exact_added = churn.added;
+        s.exact_removed = churn.removed;
+        std::swap(exact_before_, exact_now_);
 
         // Peng 2014's exact culling: each frustum object's box against the full-detail depth
         // buffer at every pixel it covers (hzmTest against the full buffer's pyramid is that test).

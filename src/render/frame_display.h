@@ -31,6 +31,10 @@ struct DisplayStats {
     uint64_t false_culls = 0;     // of those, objects the pipeline left out of the PVS (must be 0)
     uint64_t exact_occluded = 0;  // frustum objects whose box is behind the full-detail depth everywhere
     double culling_accuracy = 0;  // percent: objects we culled by occlusion / exact_occluded (100 if 0 / 0)
+    // The exact visible set's churn against the previous frame displayed (compare pvs_added and
+    // pvs_removed: the least any PVS must change).
+    uint64_t exact_added = 0;
+    uint64_t exact_removed = 0;
     // With DisplayOptions::reference:
     double psnr_db = 0;               // RGB, against the full-detail picture; 100 for identical pictures
     double changed_pixel_share = 0;   // percent of pixels that differ in any channel
@@ -84,6 +88,7 @@ private:
     FrameTarget frame_;
     std::unique_ptr<FrameTarget> full_;
     std::vector<uint8_t> picture_, full_picture_, in_pvs_, seen_;
+    std::vector<uint32_t> exact_before_, exact_now_;  // the exact visible set of the last frame and this one
     bool picture_read_ = false;
     std::vector<uint32_t> items_, candidates_;
     k::DeviceArray<float> full_hzm_;
