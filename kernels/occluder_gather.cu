@@ -105,4 +105,110 @@ void gatherOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const glm::m
                                 raw(out.edge_neighbours.ptr())});
 }
 
+namespace {
+
+// clip.z + clip.w of a world point: >= 0 in front of the near plane (OpenGL clip space).
+struct NearDistance {
+    glm::vec4 row;  // row 2 + row 3 of view_proj
+    OCC_HD float operator()(const glm::vec3& p) const { return row.x * p.x + row.y * p.y + row.z * p.z + row.w; }
+};
+
+struct CountNearClipped {
+    const glm::vec3* positions;
+    const uint32_t* triangles;
+    NearDistance near;
+    uint32_t* counts;
+    OCC_HD void operator()(uint32_t t) const {
+        uint32_t in = 0;
+        for (int c = 0; c < 3; ++c) in += near(positions[triangles[3 * t + c]]) > 0.0f ? 1u : 0u;
+        counts[t] = in == 1 ? 1u : in == 2 ? 2u : 0u;  // 0 and 3: nothing to add
+    }
+};
+
+struct WriteNearClipped {
+    glm::vec3* positions;
+    uint32_t* triangles;
+    uint8_t* edge_flags;
+    uint32_t* neighbours;
+    const uint32_t* counts;
+    const uint64_t* offsets;
+    NearDistance near;
+    uint64_t vertex_base, triangle_base;
+
+    // The point of edge from -> to (from in front, to behind) 0.1 % short of the plane.
+    OCC_HD glm::vec3 onPlane(const glm::vec3& from, float d_from, const glm::vec3& to, float d_to) const {
+        const float t = 0.999f * d_from / (d_from - d_to);
+        return from + t * (to - from);
+    }
+    OCC_HD void put(uint64_t k, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) const {
+        const uint64_t v = vertex_base + 3 * k, tri = triangle_base + k;
+        positions[v] = a;
+        positions[v + 1] = b;
+        positions[v + 2] = c;
+        for (uint32_t j = 0; j < 3; ++j) {
+            triangles[3 * tri + j] = uint32_t(v + j);
+            neighbours[3 * tri + j] = UINT32_MAX;
+        }
+        edge_flags[tri] = 0;
+    }
+    OCC_HD void operator()(uint32_t t) const {
+        if (counts[t] == 0) return;
+        glm::vec3 p[3];
+        float d[3];
+        for (int c = 0; c < 3; ++c) {
+            p[c] = positions[triangles[3 * t + c]];
+            d[c] = near(p[c]);
+        }
+        // Rotate so that the lone corner (in front for one new triangle, behind for two) is
+        // first, keeping the cyclic order and so the winding.
+        const bool one = counts[t] == 1;
+        int lone = 0;
+        for (int c = 0; c < 3; ++c)
+            if ((d[c] > 0.0f) == one) lone = c;
+        const glm::vec3 a = p[lone], b = p[(lone + 1) % 3], c = p[(lone + 2) % 3];
+        const float da = d[lone], db = d[(lone + 1) % 3], dc = d[(lone + 2) % 3];
+        const uint64_t k = offsets[t];
+        if (one) {
+            put(k, a, onPlane(a, da, b, db), onPlane(a, da, c, dc));
+        } else {
+            // a behind, b and c in front: the quad b, c, c->a, b->a.
+            const glm::vec3 ca = onPlane(c, dc, a, da), ba = onPlane(b, db, a, da);
+            put(k, b, c, ca);
+            put(k + 1, b, ca, ba);
+        }
+    }
+};
+
+template <class T>
+void growKeeping(DeviceArray<T>& a, uint64_t n) {
+    if (a.size() < n) a.resizeKeep(n + n / 2);
+}
+
+}  // namespace
+
+uint64_t appendNearClipped(OccluderGeometry& g, const Camera& camera) {
+    const uint64_t triangles = g.triangle_total, vertices = g.vertex_total;
+    if (triangles == 0 || triangles > UINT32_MAX) return 0;
+    const glm::mat4& m = camera.view_proj;  // m[column][row]
+    const NearDistance near{glm::vec4(m[0][2] + m[0][3], m[1][2] + m[1][3], m[2][2] + m[2][3], m[3][2] + m[3][3])};
+    g.sizes.growTo(triangles);
+    g.offsets.growTo(triangles);
+    const auto n = uint32_t(triangles);
+    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), n,
+                       CountNearClipped{raw(g.positions.ptr()), raw(g.triangles.ptr()), near, raw(g.sizes.ptr())});
+    const uint64_t added = exclusiveScan(g.sizes.ptr(), n, g.offsets.ptr());
+    if (added == 0) return 0;
+    growKeeping(g.positions, vertices + 3 * added);
+    growKeeping(g.triangles, 3 * (triangles + added));
+    growKeeping(g.edge_flags, triangles + added);
+    growKeeping(g.edge_neighbours, 3 * (triangles + added));
+    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), n,
+                       WriteNearClipped{raw(g.positions.ptr()), raw(g.triangles.ptr()), raw(g.edge_flags.ptr()),
+                                        raw(g.edge_neighbours.ptr()), raw(g.sizes.ptr()), raw(g.offsets.ptr()), near,
+                                        vertices, triangles});
+    g.vertex_total = vertices + 3 * added;
+    g.triangle_total = triangles + added;
+    return added;
+}
+
 }  // namespace occ::k

@@ -40,4 +40,15 @@ struct OccluderGeometry {
 void gatherOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const glm::mat4> world, const MeshGeometry& meshes,
                      DevicePtr<const uint32_t> ids, uint32_t count, OccluderGeometry& out);
 
+// The depth raster skips a triangle whole when a corner is behind the near plane (it has no
+// screen position), so a floor or wall the camera stands on or beside would occlude nothing.
+// appendNearClipped appends to g, for each of its triangle_total triangles that crosses the
+// camera's near plane, the part in front of it as one or two new triangles on new vertices
+// (winding kept, every edge a boundary: edge flag 0, neighbours UINT32_MAX). The new corners on
+// the plane are pulled 0.1 % of their edge toward the corners in front, so each new triangle is
+// inside the original one: what the raster writes stays a subset of the occluder, and the
+// culling conservative. Updates the totals and returns how many triangles it appended (the
+// original ones stay, and stay skipped). Runs on the device; reads back 8 bytes.
+uint64_t appendNearClipped(OccluderGeometry& g, const Camera& camera);
+
 }  // namespace occ::k

@@ -154,6 +154,7 @@ void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
     // Occluders are rastered at full detail, in world space, from the resident meshes.
     k::gatherOccluders(scene_.objects.ptr(), scene_.world.ptr(), scene_.meshes(), occluders_.ptr(), occluder_count_,
                        occluder_geometry_);
+    k::appendNearClipped(occluder_geometry_, camera);
     const k::OccluderGeometry& g = occluder_geometry_;
     k::depthRaster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(),
                    g.edge_neighbours.ptr(), camera, hzm_.ptr(), raster_scratch_);

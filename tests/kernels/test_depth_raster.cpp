@@ -2,6 +2,7 @@
 #include "depth_raster.h"
 #include "hzm.h"
 #include "hzm_build.h"
+#include "occluder_gather.h"
 
 #include "device_test_support.h"
 
@@ -286,6 +287,67 @@ TEST_F(DepthRaster, TriangleCrossingNearPlaneIsSkipped) {
     EXPECT_GT(coveredCount(rasterize(in_front, c)), 10);
     EXPECT_EQ(coveredCount(rasterize(inside_near, c)), 0);
     EXPECT_EQ(coveredCount(rasterize(behind_eye, c)), 0);
+}
+
+// appendNearClipped (occluder_gather.h): the part of a crossing triangle in front of the near
+// plane, as one or two triangles inside the original, rasters; every depth written is at or
+// behind the floor's true depth through that pixel centre, so culling stays conservative.
+TEST_F(DepthRaster, NearClippedPartsOfACrossingFloorRasterConservatively) {
+    const Camera c = perspectiveCamera(32, 32, 0.5f, 100.0f);
+    // A floor at y = -1 from 10 in front of the eye to 2 behind it (two corners in front), and a
+    // strip with one corner in front.
+    Mesh floor;
+    floor.add(glm::vec3(-3, -1, -10), glm::vec3(3, -1, -10), glm::vec3(0, -1, 2));
+    Mesh strip;
+    strip.add(glm::vec3(0, -1, -6), glm::vec3(3, -1, 3), glm::vec3(-3, -1, 3));
+    ASSERT_EQ(coveredCount(rasterize(floor, c)), 0);  // skipped whole without clipping
+    ASSERT_EQ(coveredCount(rasterize(strip, c)), 0);
+    const glm::dmat4 view_proj(c.view_proj), inverse = glm::inverse(view_proj);
+    Mesh front;  // the same floor ending just beyond the near plane: nothing to clip, the same bound
+    front.add(glm::vec3(-3, -1, -10), glm::vec3(3, -1, -10), glm::vec3(0, -1, -0.6f));
+    for (const auto& [mesh, expected_new] : {std::pair{front, 0u}, std::pair{floor, 2u}, std::pair{strip, 1u}}) {
+        OccluderGeometry g;
+        g.positions = toDevice(mesh.positions);
+        g.triangles = toDevice(mesh.triangles);
+        g.edge_flags = toDevice(std::vector<uint8_t>(1, 0));
+        g.edge_neighbours = toDevice(std::vector<uint32_t>(3, UINT32_MAX));
+        g.vertex_total = 3;
+        g.triangle_total = 1;
+        ASSERT_EQ(appendNearClipped(g, c), expected_new);
+        ASSERT_EQ(g.triangle_total, 1 + expected_new);
+        Mesh clipped;
+        clipped.positions = toHost(g.positions, g.vertex_total);
+        clipped.triangles = toHost(g.triangles, 3 * g.triangle_total);
+        const std::vector<uint8_t> flags = toHost(g.edge_flags, g.triangle_total);
+        EXPECT_EQ(std::count(flags.begin() + 1, flags.end(), uint8_t(0)), std::ptrdiff_t(expected_new));
+        for (size_t v = 3; v < clipped.positions.size(); ++v) {
+            const glm::vec4 clip = c.view_proj * glm::vec4(clipped.positions[v], 1.0f);
+            EXPECT_GT(clip.z + clip.w, 0.0f) << "new corner " << v << " is not in front of the near plane";
+            EXPECT_NEAR(clipped.positions[v].y, -1.0f, 1e-5f);  // on the floor
+        }
+        const std::vector<float> depth = rasterize(clipped, c);
+        EXPECT_GT(coveredCount(depth), 20);
+        for (uint32_t py = 0; py < c.height; ++py)
+            for (uint32_t px = 0; px < c.width; ++px) {
+                const float d = depth[py * c.width + px];
+                if (d >= 1.0f) continue;
+                // The floor's depth through this pixel centre (the ray's intersection with
+                // y = -1), allowing for the raster's snapping of corners to 1/256 pixel as for
+                // any triangle: the least of it over centres moved by 1/256 pixel.
+                double truth = 2;
+                for (const double oy : {-1.0 / 256, 0.0, 1.0 / 256})
+                    for (const double ox : {-1.0 / 256, 0.0, 1.0 / 256}) {
+                        const double x = (px + 0.5 + ox) / c.width * 2 - 1, y = (py + 0.5 + oy) / c.height * 2 - 1;
+                        const glm::dvec4 n4 = inverse * glm::dvec4(x, y, -1, 1), f4 = inverse * glm::dvec4(x, y, 1, 1);
+                        const glm::dvec3 n = glm::dvec3(n4) / n4.w, f = glm::dvec3(f4) / f4.w;
+                        ASSERT_LT(f.y, n.y) << "a covered pixel whose ray does not go down to the floor";
+                        const double t = (-1.0 - n.y) / (f.y - n.y);
+                        const glm::dvec4 hit = view_proj * glm::dvec4(n + t * (f - n), 1.0);
+                        truth = std::min(truth, hit.z / hit.w * 0.5 + 0.5);
+                    }
+                EXPECT_GE(double(d), truth - 1e-6) << "pixel " << px << "," << py << " written nearer than the floor";
+            }
+    }
 }
 
 TEST_F(DepthRaster, BothWindingsDrawTheSame) {
