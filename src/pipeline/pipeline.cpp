@@ -86,6 +86,7 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     k::deviceMemset(pvs_occluder_scratch_.taken.ptr(), 0, room);
     hzm_.resize(size_t(k::hzmTotalTexels(options.width, options.height)));
     pvs_device_.resize(room);
+    bootstrap_pvs_.resize(room);
     pvs_vc_device_.resize(room);
     pvs_tc_device_.resize(room);
     for (k::DeviceArray<k::LayoutBlock>& l : layouts_) l.resize(room);
@@ -224,6 +225,16 @@ void Pipeline::occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& 
     if (!frustumIsFor(pose)) frustumPass(pose, stats);
     StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
+    if (source_count == 0 && options_.pvs_occluder_triangles > 0 && frustum_count_ > 0) {
+        // No earlier PVS (the first frame, or the first two of the switch): a first pass with
+        // the AOS alone gives this frame's own PVS as the candidates.
+        chooseOccluders(camera, source, 0);
+        rasterOccluders(camera, stats);
+        k::hzmBuild(hzm_.ptr(), options_.width, options_.height);
+        k::hzmTest(scene_.objects.ptr(), frustum_ids_.ptr(), frustum_count_, camera, hzmLevels(), occluded_.ptr());
+        source_count = k::compactSelected(frustum_ids_.ptr(), occluded_.ptr(), frustum_count_, 0, bootstrap_pvs_.ptr());
+        source = bootstrap_pvs_.ptr();
+    }
     chooseOccluders(camera, source, source_count);
     clock.lap(Stage::OccluderSelect);
     rasterOccluders(camera, stats);

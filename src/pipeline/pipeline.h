@@ -217,6 +217,10 @@ private:
     static constexpr size_t kHistory = 4;
     CulledFrame history_[kHistory];
     k::DeviceArray<uint32_t> occluder_candidates_;
+    // The first frames have no earlier PVS: the occluder pass then culls the frame once with the
+    // AOS alone and takes that PVS as its candidates (bootstrap_pvs_), so that the first frame
+    // does not stream every object the AOS leaves visible.
+    k::DeviceArray<uint32_t> bootstrap_pvs_;
 
     // The layout, on the device: the last frame's and this frame's blocks (layouts_[cur_index_ ^ 1]
     // is the last built), each resident object's place, the heap's few totals (host) and the
