@@ -4,6 +4,7 @@
 #include "device_access.h"
 
 #include <thrust/copy.h>
+#include <thrust/count.h>
 #include <thrust/execution_policy.h>
 #include <thrust/iterator/counting_iterator.h>
 #include <thrust/iterator/transform_iterator.h>
@@ -170,6 +171,21 @@ uint32_t selectPvsOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const
     if (exclude_count > 0)
         thrust::for_each_n(thrust::device, raw(exclude), exclude_count, MarkTaken{taken, 0});
     return readBack(DevicePtr<const uint32_t>(scratch.chosen.ptr()));
+}
+
+namespace {
+
+struct InFrustum {
+    const uint8_t* in_frustum;
+    OCC_HD bool operator()(uint32_t id) const { return in_frustum[id] != 0; }
+};
+
+}  // namespace
+
+uint32_t countInFrustum(DevicePtr<const uint32_t> ids, uint32_t count, DevicePtr<const uint8_t> in_frustum) {
+    if (count == 0) return 0;
+    countReadback(sizeof(uint32_t));
+    return uint32_t(thrust::count_if(thrust::device, raw(ids), raw(ids) + count, InFrustum{raw(in_frustum)}));
 }
 
 }  // namespace occ::k

@@ -60,4 +60,8 @@ uint32_t selectPvsOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const
                             DevicePtr<const uint32_t> exclude, uint32_t exclude_count, uint64_t triangle_budget,
                             PvsOccluderScratch& scratch, DevicePtr<uint32_t> out);
 
+// How many of ids[0, count) (device memory) are in the frustum (in_frustum as frustumCull
+// writes it): the occluder pass's test for a camera that jumped. Reads back 4 bytes.
+uint32_t countInFrustum(DevicePtr<const uint32_t> ids, uint32_t count, DevicePtr<const uint8_t> in_frustum);
+
 }  // namespace occ::k

@@ -225,10 +225,12 @@ void Pipeline::occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& 
     if (!frustumIsFor(pose)) frustumPass(pose, stats);
     StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
-    if (source_count == 0 && options_.pvs_occluder_triangles > 0 && frustum_count_ > 0) {
-        // No earlier PVS (the first frame, or the first two of the switch): a first pass with
-        // the AOS alone gives this frame's own PVS as the candidates.
-        chooseOccluders(camera, source, 0);
+    // No earlier PVS (the first frame, or the first two of the switch), or one the camera has
+    // left (a jump: less than half of it is still in the frustum): a first pass with the AOS and
+    // what is left of that PVS gives this frame's own PVS as the candidates.
+    const bool jumped = source_count > 0 && 2 * k::countInFrustum(source, source_count, in_frustum_.ptr()) < source_count;
+    if ((source_count == 0 || jumped) && options_.pvs_occluder_triangles > 0 && frustum_count_ > 0) {
+        chooseOccluders(camera, source, source_count);
         rasterOccluders(camera, stats);
         k::hzmBuild(hzm_.ptr(), options_.width, options_.height);
         k::hzmTest(scene_.objects.ptr(), frustum_ids_.ptr(), frustum_count_, camera, hzmLevels(), occluded_.ptr());
