@@ -297,6 +297,29 @@ TEST_F(PipelineFrames, TheBusCarriesTheStreamedGeometryAndLittleMore) {
     }
 }
 
+// A frame without a usable earlier PVS (the first, or one after the camera jumped) takes its
+// occluder candidates from a first pass of its own: it culls as much as a frame with history
+// from the same camera, and more than the AOS alone does.
+TEST_F(PipelineFrames, TheFirstFrameAndAJumpCullAsASteadyFrameDoes) {
+    const PipelineFixture& f = fixture();
+    const CameraPose& inside = f.cameras[5];
+    const CameraPose& elsewhere = f.cameras[f.cameras.size() - 1];  // on the orbit, outside
+    PipelineOptions aos_only = smallOptions(StreamMode::Coherent);
+    aos_only.pvs_occluder_triangles = 0;
+    Pipeline plain(*f.file, aos_only);
+    const uint64_t aos_visible = plain.runFrame(inside, 0).objects_visible;
+
+    Pipeline pipeline(*f.file, smallOptions(StreamMode::Coherent));
+    const uint64_t first = pipeline.runFrame(inside, 0).objects_visible;
+    const uint64_t steady = pipeline.runFrame(inside, 1).objects_visible;
+    EXPECT_LT(first, aos_visible);
+    EXPECT_LE(double(first), 1.1 * double(steady));
+    // Away and back: the frame after each jump is as good as the steady one.
+    pipeline.runFrame(elsewhere, 2);
+    pipeline.runFrame(elsewhere, 3);
+    EXPECT_LE(double(pipeline.runFrame(inside, 4).objects_visible), 1.1 * double(steady));
+}
+
 TEST_F(PipelineFrames, ImpossibleOptionsAreRefused) {
     const PipelineFixture& f = fixture();
     PipelineOptions o = smallOptions(StreamMode::Coherent);
