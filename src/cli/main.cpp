@@ -5,13 +5,21 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <iostream>
 #include <new>
 #include <string>
 
 namespace {
 
 constexpr int kExitInputError = 2;
+
+// Prints "error: " + what as one line in one write: under mpirun the ranks share stderr, and
+// pieces written one by one interleave with another rank's line.
+int fail(const std::string& what, int status) {
+    const std::string line = "error: " + what + "\n";
+    std::fwrite(line.data(), 1, line.size(), stderr);
+    std::fflush(stderr);
+    return status;
+}
 
 // The command-line flag of a library parameter (OptionError::option()): its name with dashes,
 // but for the two whose flags differ.
@@ -42,34 +50,24 @@ int main(int argc, char** argv) {
     } catch (const CLI::Success& e) {
         return app.exit(e);
     } catch (const CLI::ParseError& e) {
-        std::cerr << "error: " << e.what() << " (see occswitch --help)\n";
-        return kExitInputError;
+        return fail(std::string(e.what()) + " (see occswitch --help)", kExitInputError);
     } catch (const occ::InputError& e) {
-        std::cerr << "error: " << e.what() << "\n";
-        return kExitInputError;
+        return fail(e.what(), kExitInputError);
     } catch (const occ::OptionError& e) {
         // The library names its parameter; the user typed a flag.
-        std::cerr << "error: " << flagFor(e.option()) << " " << e.detail() << "\n";
-        return kExitInputError;
+        return fail(flagFor(e.option()) + " " + e.detail(), kExitInputError);
     } catch (const occ::UsageError& e) {
-        std::cerr << "error: " << e.what() << "\n";
-        return kExitInputError;
+        return fail(e.what(), kExitInputError);
     } catch (const occ::SystemError& e) {
-        std::cerr << "error: " << e.what() << "\n";
-        return 1;
+        return fail(e.what(), 1);
     } catch (const std::bad_alloc&) {
-        std::cerr << "error: out of memory\n";
-        return kExitInputError;
+        return fail("out of memory", kExitInputError);
     } catch (const std::exception& e) {
         // A device algorithm's failure (Thrust's system_error under CUDA) is the machine's.
         const std::string device = occ::k::deviceErrorText(e);
-        if (!device.empty()) {
-            std::cerr << "error: " << device << "\n";
-            return 1;
-        }
+        if (!device.empty()) return fail(device, 1);
         // Anything else is our bug, not the input's; still one line and a failing status.
-        std::cerr << "error: internal: " << e.what() << "\n";
-        return 1;
+        return fail(std::string("internal: ") + e.what(), 1);
     }
     return 0;
 }
