@@ -163,6 +163,11 @@ void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
     stats.occluder_triangles = g.triangle_total;
 }
 
+uint32_t Pipeline::hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out) {
+    k::hzmTest(scene_.objects.ptr(), frustum_ids_.ptr(), frustum_count_, camera, hzmLevels(), occluded_.ptr());
+    return k::compactSelected(frustum_ids_.ptr(), occluded_.ptr(), frustum_count_, 0, out);
+}
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -233,8 +238,7 @@ void Pipeline::occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& 
         chooseOccluders(camera, source, source_count);
         rasterOccluders(camera, stats);
         k::hzmBuild(hzm_.ptr(), options_.width, options_.height);
-        k::hzmTest(scene_.objects.ptr(), frustum_ids_.ptr(), frustum_count_, camera, hzmLevels(), occluded_.ptr());
-        source_count = k::compactSelected(frustum_ids_.ptr(), occluded_.ptr(), frustum_count_, 0, bootstrap_pvs_.ptr());
+        source_count = hzmCull(camera, bootstrap_pvs_.ptr());
         source = bootstrap_pvs_.ptr();
     }
     chooseOccluders(camera, source, source_count);
@@ -255,8 +259,7 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     uint32_t count = in_count;
     k::DevicePtr<const uint32_t> pvs = frustum_ids_.ptr();
     if (options_.mode == CullMode::OcLod) {
-        k::hzmTest(scene_.objects.ptr(), frustum_ids_.ptr(), in_count, camera, hzmLevels(), occluded_.ptr());
-        count = k::compactSelected(frustum_ids_.ptr(), occluded_.ptr(), in_count, 0, pvs_device_.ptr());
+        count = hzmCull(camera, pvs_device_.ptr());
         pvs = pvs_device_.ptr();
         clock.lap(Stage::HzmTest);
     }

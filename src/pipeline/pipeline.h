@@ -170,6 +170,8 @@ public:
 private:
     void chooseOccluders(const k::Camera& camera, k::DevicePtr<const uint32_t> source, uint32_t source_count);
     void rasterOccluders(const k::Camera& camera, FrameStats& stats);
+    // The frustum objects the HZM does not prove hidden, into out (ascending); returns how many.
+    uint32_t hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out);
 
     const OssFile& file_;
     PipelineOptions options_;
