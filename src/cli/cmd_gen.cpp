@@ -1,12 +1,15 @@
 // SPDX-License-Identifier: MIT
 #include "cli/commands.h"
 
+#include "cli/progress.h"
+
 #include "import/glb_writer.h"
 #include "import/grid.h"
 #include "import/import.h"
 #include "import/plant.h"
 #include "scene/errors.h"
 
+#include <chrono>
 #include <filesystem>
 #include <iostream>
 
@@ -26,7 +29,8 @@ struct GenOptions {
 void checkOutputPath(const std::string& out) {
     const std::filesystem::path p(out);
     std::string ext = p.extension().string();
-    if (ext != ".glb") throw UsageError("-o " + out + ": the output must be a .glb file");
+    if (ext != ".glb" && ext != ".gltf")
+        throw UsageError("-o " + out + ": the output must be a .glb file (or .gltf, its buffer in a .bin beside it)");
     const std::filesystem::path dir = p.parent_path().empty() ? "." : p.parent_path();
     std::error_code ec;
     if (!std::filesystem::is_directory(dir, ec)) throw UsageError("-o " + out + ": folder " + dir.string() + " does not exist");
@@ -51,9 +55,25 @@ int runGrid(const GenOptions& o) {
 
 int runPlant(const GenOptions& o) {
     checkOutputPath(o.out);
-    const Scene plant = generatePlant(o.plant);
-    writeSceneGlb(o.out, plant);
-    report("plant, seed " + std::to_string(o.plant.seed), o.out, plant, 1);
+    plantLayout(o.plant);  // bad options fail before anything is written
+    PlantProgress progress;
+    const auto start = std::chrono::steady_clock::now();
+    {
+        ProgressBar bar("gen plant", "objects", "tri", [&] {
+            return ProgressBar::Sample{double(progress.objects), double(o.plant.objects), double(progress.triangles)};
+        });
+        writePlant(o.out, o.plant, &progress);
+    }
+    std::error_code ec;
+    const auto bytes = std::filesystem::file_size(o.out, ec);
+    const auto bin = std::filesystem::file_size(std::filesystem::path(o.out).replace_extension(".bin"), ec);
+    std::cerr << "wrote " << o.out << ": plant, seed " << o.plant.seed << ", " << progress.objects << " objects, "
+              << progress.triangles << " triangles, " << bytes << " bytes"
+              << (std::filesystem::path(o.out).extension() == ".gltf"
+                      ? " + " + std::to_string(ec ? 0 : bin) + " in " +
+                            std::filesystem::path(o.out).replace_extension(".bin").string()
+                      : std::string())
+              << ", " << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() << " s\n";
     return 0;
 }
 
@@ -80,7 +100,8 @@ Command addGenCommand(CLI::App& app) {
                  "Deterministic: same options, same bytes.");
     plant->add_option("--objects", o->plant.objects, "number of objects")->capture_default_str();
     plant->add_option("--seed", o->plant.seed, "random seed")->capture_default_str();
-    plant->add_option("-o,--out", o->out, "output .glb file")->required();
+    plant->add_option("-o,--out", o->out, "output .glb file, or .gltf (+ .bin) for plants over the 4 GiB of a .glb")
+        ->required();
 
     return {gen, [o, grid] { return grid->parsed() ? runGrid(*o) : runPlant(*o); }};
 }

@@ -16,41 +16,36 @@
 namespace occ::cli {
 
 void prepareModel(const std::string& input, const std::string& output, const ImportOptions& import,
-                  const PrepOptions& prep) {
+                  const PrepOptions& prep, ReadMode stream) {
     const auto start = std::chrono::steady_clock::now();
-    const Scene scene = importModel(input, import);
+    const std::unique_ptr<SceneSource> source = openSceneSource(input, import, stream);
     PrepProgress progress;
-    PreparedScene prepared;
+    PrepSummary s;
     {
         ProgressBar bar("prep", "meshes", "tri", [&progress] {
             return ProgressBar::Sample{double(progress.meshes_done), double(progress.meshes_total),
                                        double(progress.triangles_done)};
         });
-        prepared = prepareScene(scene, prep, &progress);
+        s = prepareToFile(*source, output, prep, &progress);
     }
-    writeOss(output, prepared);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-
-    uint64_t unique_triangles = 0, instanced_triangles = 0, dropped = 0;
-    for (const ProgressiveMesh& m : prepared.meshes) unique_triangles += m.triangleCount(), dropped += m.dropped_triangles;
-    for (const ObjectRecord& r : prepared.objects) instanced_triangles += prepared.meshes[r.mesh].triangleCount();
     const unsigned threads = prep.threads ? prep.threads : std::max(1u, std::thread::hardware_concurrency());
     // What import skipped, in info's words (points, lines, degenerate_faces), when it skipped any.
     std::string skipped;
     const auto add = [&](uint64_t n, const char* what) {
         if (n) skipped += (skipped.empty() ? "; skipped at import: " : ", ") + std::to_string(n) + " " + what;
     };
-    add(scene.skipped.points, "points");
-    add(scene.skipped.lines, "lines");
-    add(scene.skipped.degenerate, "degenerate faces");
+    add(s.skipped.points, "points");
+    add(s.skipped.lines, "lines");
+    add(s.skipped.degenerate, "degenerate faces");
     std::fprintf(stderr,
-                 "prep: %s -> %s: %zu objects, %zu progressive meshes (%llu triangles, %llu with instances; "
-                 "%llu repeated-corner triangles dropped%s), |COS| = %zu at CT %.2f, %.2f s on %u threads "
-                 "(%.2f M unique triangles/s), %llu bytes\n",
-                 input.c_str(), output.c_str(), prepared.objects.size(), prepared.meshes.size(),
-                 (unsigned long long)unique_triangles, (unsigned long long)instanced_triangles,
-                 (unsigned long long)dropped, skipped.c_str(), prepared.cos.size(),
-                 double(prepared.ct), seconds, threads, unique_triangles / seconds / 1e6,
+                 "prep: %s -> %s: %llu objects, %llu progressive meshes (%llu triangles, %llu with instances; "
+                 "%llu repeated-corner triangles dropped%s), |COS| = %llu at CT %.2f, %.2f s on %u threads "
+                 "(%.2f M unique triangles/s, %s), %llu bytes\n",
+                 input.c_str(), output.c_str(), (unsigned long long)s.objects, (unsigned long long)s.meshes,
+                 (unsigned long long)s.unique_triangles, (unsigned long long)s.instanced_triangles,
+                 (unsigned long long)s.dropped_triangles, skipped.c_str(), (unsigned long long)s.cos,
+                 double(prep.ct), seconds, threads, s.unique_triangles / seconds / 1e6, source->how(),
                  (unsigned long long)std::filesystem::file_size(output));
 }
 
@@ -60,6 +55,7 @@ struct PrepCommandOptions {
     std::string input, output;
     PrepOptions prep;
     std::string collapser = "fast";
+    std::string stream = "auto";
     ImportOptions import;
 };
 
@@ -73,7 +69,8 @@ int runPrep(PrepCommandOptions o) {
     if (o.prep.threads > 1024) throw UsageError("--threads " + std::to_string(o.prep.threads) + " is not a sensible thread count");
     o.prep.collapser = o.collapser == "openmesh" ? Collapser::OpenMesh : Collapser::Fast;
 
-    prepareModel(o.input, o.output, o.import, o.prep);
+    prepareModel(o.input, o.output, o.import, o.prep,
+                 o.stream == "always" ? ReadMode::Stream : o.stream == "never" ? ReadMode::Whole : ReadMode::Auto);
     return 0;
 }
 
@@ -103,6 +100,11 @@ Command addPrepCommand(CLI::App& app) {
     sub->add_option("--ct", o->prep.ct, "compactness threshold CT for candidate occluders, in [0, 1]")
         ->capture_default_str();
     sub->add_option("--threads", o->prep.threads, "worker threads (0 = all cores)")->capture_default_str();
+    sub->add_option("--stream", o->stream,
+                    "glTF: read meshes one at a time from the file instead of importing it whole: auto (files\n"
+                    "over 256 MiB), always, never. Meshopt, Draco, sparse or instanced files import whole.")
+        ->check(CLI::IsMember({"auto", "always", "never"}))
+        ->capture_default_str();
     sub->add_option("--collapser", o->collapser, "fast (ours) or openmesh (reference Decimater)")
         ->check(CLI::IsMember({"fast", "openmesh"}))
         ->capture_default_str();

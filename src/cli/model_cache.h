@@ -18,6 +18,6 @@ std::string preparedScene(const std::string& input);
 // prep's work (import, progressive meshes, .oss written atomically), shared by `prep` and the
 // cache; prints prep's summary line.
 void prepareModel(const std::string& input, const std::string& output, const ImportOptions& import = {},
-                  const PrepOptions& prep = {});
+                  const PrepOptions& prep = {}, ReadMode stream = ReadMode::Auto);
 
 }  // namespace occ::cli

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "import/import.h"
 
+#include "import/gltf_common.h"
+
 #include "scene/errors.h"
 
 #include <tiny_gltf.h>
@@ -22,6 +24,12 @@
 namespace occ {
 
 namespace {
+
+using gltf::componentSize;
+using gltf::componentValue;
+using gltf::indexValue;
+using gltf::isSupportedExtension;
+using gltf::triangulatePrimitive;
 
 constexpr uint32_t kGlbMagic = 0x46546C67;      // "glTF"
 constexpr uint32_t kGlbChunkJson = 0x4E4F534A;  // "JSON"
@@ -93,73 +101,6 @@ std::string oneLine(std::string s) {
 bool ignoreImage(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int,
                  void*) {
     return true;
-}
-
-// The extensions this importer reads (the geometry ones) or may ignore (they change how a
-// model looks, not its triangles). Any other required extension is refused by name.
-bool isSupportedExtension(const std::string& name) {
-    return name.rfind("KHR_materials_", 0) == 0 || name == "KHR_texture_transform" ||
-           name == "KHR_lights_punctual" || name == "KHR_texture_basisu" || name == "EXT_texture_webp" ||
-           name == "KHR_mesh_quantization" || name == "EXT_mesh_gpu_instancing" || name == "EXT_meshopt_compression" ||
-           name == "KHR_meshopt_compression" || name == "KHR_draco_mesh_compression";
-}
-
-// Bytes per component of a glTF component type (0 for an unknown one).
-size_t componentSize(int type) {
-    switch (type) {
-    case TINYGLTF_COMPONENT_TYPE_BYTE:
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return 1;
-    case TINYGLTF_COMPONENT_TYPE_SHORT:
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return 2;
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
-    case TINYGLTF_COMPONENT_TYPE_FLOAT: return 4;
-    default: return 0;
-    }
-}
-
-// One unsigned integer component (an index).
-uint32_t indexValue(const unsigned char* p, int type) {
-    if (type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) return *p;
-    if (type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) {
-        uint16_t v;
-        std::memcpy(&v, p, 2);
-        return v;
-    }
-    uint32_t v;
-    std::memcpy(&v, p, 4);
-    return v;
-}
-
-// One component as a float: normalized integers as the spec maps them to [-1, 1] or [0, 1],
-// others by value (KHR_mesh_quantization puts the dequantization into the node transform).
-float componentValue(const unsigned char* p, int type, bool normalized) {
-    switch (type) {
-    case TINYGLTF_COMPONENT_TYPE_BYTE: {
-        const int8_t v = int8_t(*p);
-        return normalized ? std::max(float(v) / 127.0f, -1.0f) : float(v);
-    }
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? float(*p) / 255.0f : float(*p);
-    case TINYGLTF_COMPONENT_TYPE_SHORT: {
-        int16_t v;
-        std::memcpy(&v, p, 2);
-        return normalized ? std::max(float(v) / 32767.0f, -1.0f) : float(v);
-    }
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
-        uint16_t v;
-        std::memcpy(&v, p, 2);
-        return normalized ? float(v) / 65535.0f : float(v);
-    }
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
-        uint32_t v;
-        std::memcpy(&v, p, 4);
-        return normalized ? float(double(v) / 4294967295.0) : float(v);
-    }
-    default: {
-        float v;
-        std::memcpy(&v, p, 4);
-        return v;
-    }
-    }
 }
 
 class GltfFlattener {
@@ -379,7 +320,7 @@ private:
                 throw InputError(path_, where + "/indices: index value " + std::to_string(raw[i]) + " at element " +
                                             std::to_string(i) + " out of range (" +
                                             std::to_string(mesh.positions.size()) + " vertices)");
-        triangulate(draco != prim.extensions.end() ? TINYGLTF_MODE_TRIANGLES : prim.mode, raw, mesh.indices);
+        triangulatePrimitive(path_, draco != prim.extensions.end() ? TINYGLTF_MODE_TRIANGLES : prim.mode, raw, mesh.indices);
 
         if (prim.material >= 0) {
             if (size_t(prim.material) >= model_.materials.size())
@@ -432,25 +373,6 @@ private:
         indices.resize(size_t(mesh->num_faces()) * 3);
         for (draco::FaceIndex f(0); f < mesh->num_faces(); ++f)
             for (int k = 0; k < 3; ++k) indices[3 * size_t(f.value()) + size_t(k)] = mesh->face(f)[k].value();
-    }
-
-    void triangulate(int mode, const std::vector<uint32_t>& raw, std::vector<uint32_t>& out) {
-        if (mode == TINYGLTF_MODE_TRIANGLES) {
-            if (raw.size() % 3 != 0)
-                throw InputError(path_, "triangle list has " + std::to_string(raw.size()) +
-                                            " indices, not a multiple of 3");
-            out = raw;
-        } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
-            for (size_t i = 2; i < raw.size(); ++i) {
-                // Every other triangle of a strip is flipped back to keep one winding.
-                const bool odd = (i % 2) == 1;
-                out.insert(out.end(), {raw[i - 2 + odd], raw[i - 1 - odd], raw[i]});
-            }
-        } else if (mode == TINYGLTF_MODE_TRIANGLE_FAN) {
-            for (size_t i = 2; i < raw.size(); ++i) out.insert(out.end(), {raw[0], raw[i - 1], raw[i]});
-        } else {
-            throw InputError(path_, "unsupported primitive mode " + std::to_string(mode));
-        }
     }
 
     // The bytes of `count` elements of `element_size` from byte `byte_offset` of buffer view

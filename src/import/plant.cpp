@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "import/plant.h"
 
+#include "import/glb_writer.h"
+
 #include "scene/errors.h"
 #include "scene/splitmix.h"
 
@@ -298,8 +300,8 @@ uint32_t roundToUint(float x) { return uint32_t(x + 0.5f); }
 
 class PlantGenerator {
 public:
-    PlantGenerator(uint64_t seed, const PlantLayout& layout, Scene& scene)
-        : seed_(seed), layout_(layout), scene_(scene) {}
+    PlantGenerator(uint64_t seed, const PlantLayout& layout, const PlantSink& sink)
+        : seed_(seed), layout_(layout), sink_(sink) {}
 
     // Appends exactly `budget` objects for bay-floor `index` (x fastest, then z, then floor):
     // the structure first, then equipment and overhead runs until the budget is spent.
@@ -336,11 +338,9 @@ private:
     glm::vec3 bayPoint(float x, float y, float z) const { return origin_ + glm::vec3(x, y, z); }
 
     void emit(const char* kind, Mesh&& mesh, const glm::mat4& world, const glm::vec4& colour) {
-        const uint32_t index = uint32_t(scene_.meshes.size());
-        mesh.name = std::string(kind) + "_" + std::to_string(index);
+        mesh.name = std::string(kind) + "_" + std::to_string(emitted_++);
         mesh.color = colour;
-        scene_.meshes.push_back(std::move(mesh));
-        scene_.objects.push_back(Object{index, world, colour});
+        sink_(std::move(mesh), world);
         --remaining_;
     }
 
@@ -704,7 +704,8 @@ private:
 
     const uint64_t seed_;
     const PlantLayout layout_;
-    Scene& scene_;
+    const PlantSink& sink_;
+    uint64_t emitted_ = 0;
     Random rng_{0};
     uint32_t remaining_ = 0;
     uint32_t floor_ = 0;
@@ -732,17 +733,41 @@ PlantLayout plantLayout(const PlantOptions& options) {
 }
 
 Scene generatePlant(const PlantOptions& options) {
-    const PlantLayout layout = plantLayout(options);
     Scene scene;
     scene.meshes.reserve(options.objects);
     scene.objects.reserve(options.objects);
-    PlantGenerator generator(options.seed, layout, scene);
+    generatePlant(options, [&scene](Mesh&& mesh, const glm::mat4& world) {
+        scene.objects.push_back(Object{uint32_t(scene.meshes.size()), world, mesh.color});
+        scene.meshes.push_back(std::move(mesh));
+    });
+    return scene;
+}
+
+void generatePlant(const PlantOptions& options, const PlantSink& sink) {
+    const PlantLayout layout = plantLayout(options);
+    PlantGenerator generator(options.seed, layout, sink);
     const uint64_t bay_floors = uint64_t(layout.floors) * layout.baysX * layout.baysZ;
     const uint64_t objects = options.objects;
     // Spread the objects evenly; the bay-floor count was chosen for about 40 each.
     for (uint64_t b = 0; b < bay_floors; ++b)
         generator.generateBayFloor(b, uint32_t(objects * (b + 1) / bay_floors - objects * b / bay_floors));
-    return scene;
+}
+
+void writePlant(const std::string& path, const PlantOptions& options, PlantProgress* progress) {
+    GltfStreamWriter writer(path);
+    std::vector<uint32_t> roots;
+    roots.reserve(options.objects);
+    generatePlant(options, [&](Mesh&& mesh, const glm::mat4& world) {
+        GltfNode node;
+        node.mesh = int32_t(writer.addMesh(mesh));
+        node.matrix = world;
+        roots.push_back(writer.addNode(node));
+        if (progress) {
+            progress->triangles += mesh.triangleCount();
+            ++progress->objects;
+        }
+    });
+    writer.finish(roots);
 }
 
 }  // namespace occ

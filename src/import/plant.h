@@ -3,7 +3,10 @@
 
 #include "scene/scene.h"
 
+#include <atomic>
 #include <cstdint>
+#include <functional>
+#include <string>
 
 namespace occ {
 
@@ -58,5 +61,17 @@ PlantLayout plantLayout(const PlantOptions& options);
 // The result depends only on the options (a splitmix64 stream per bay-floor; no standard
 // distributions). Throws UsageError as plantLayout does.
 Scene generatePlant(const PlantOptions& options);
+
+// The same plant handed out one object at a time (object i's mesh and world matrix, in order,
+// Mesh::color its colour), so a plant larger than memory can be written as it is made.
+using PlantSink = std::function<void(Mesh&& mesh, const glm::mat4& world)>;
+void generatePlant(const PlantOptions& options, const PlantSink& sink);
+
+// generatePlant streamed into a glTF file (GltfStreamWriter: .glb, or .gltf + .bin beyond the
+// 4 GiB of a .glb), holding one mesh at a time; counts what it wrote in *progress as it goes.
+struct PlantProgress {
+    std::atomic<uint64_t> objects{0}, triangles{0};
+};
+void writePlant(const std::string& path, const PlantOptions& options, PlantProgress* progress = nullptr);
 
 }  // namespace occ

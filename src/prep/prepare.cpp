@@ -7,8 +7,12 @@
 #include "prep/rearrange.h"
 #include "prep/weld.h"
 #include "scene/errors.h"
+#include "scene/oss_file.h"
 
 #include <algorithm>
+#include <condition_variable>
+#include <exception>
+#include <mutex>
 #include <numeric>
 #include <thread>
 
@@ -29,92 +33,186 @@ ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser) {
 
 namespace {
 
-// Runs body(i) for i in [0, count) on `threads` workers, in the given order of indices.
-template <class F>
-void parallelFor(const std::vector<uint32_t>& order, unsigned threads, F&& body) {
+// Completed meshes wait here until every earlier one is written, so that the output does not
+// depend on which worker finished first; workers stay at most kWindowPerThread meshes per
+// thread ahead of the writer, which bounds the memory held to a few meshes per thread.
+constexpr size_t kWindowPerThread = 4;
+
+struct Finished {
+    bool ready = false;
+    bool empty = false;  // the source mesh has no triangles: its objects are dropped
+    ProgressiveMesh mesh;
+};
+
+}  // namespace
+
+PrepSummary prepareFromSource(const SceneSource& source, const PrepOptions& options, PrepProgress* progress,
+                              const std::function<uint32_t(ProgressiveMesh&&)>& add_mesh,
+                              std::vector<ObjectRecord>& objects_out, std::vector<uint32_t>& cos_out) {
+    if (!(options.ct >= 0.0f && options.ct <= 1.0f))
+        throw OptionError("ct", OptionError::value(options.ct) + ": must be in [0, 1]");
+    const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+    const std::vector<Object>& objects = source.objects();
+    const uint32_t mesh_count = source.meshCount();
+
+    // Only meshes some object uses are prepared, in the source's order; per mesh its objects.
+    std::vector<uint32_t> first(size_t(mesh_count) + 1, 0), members(objects.size());
+    for (const Object& o : objects) ++first[o.mesh + 1];
+    for (uint32_t m = 0; m < mesh_count; ++m) first[m + 1] += first[m];
+    {
+        std::vector<uint32_t> fill(first.begin(), first.end() - 1);
+        for (uint32_t i = 0; i < objects.size(); ++i) members[fill[objects[i].mesh]++] = i;
+    }
+    std::vector<uint32_t> order;
+    for (uint32_t m = 0; m < mesh_count; ++m)
+        if (first[m + 1] > first[m]) order.push_back(m);
+    if (progress) {
+        progress->meshes_total = order.size();
+        progress->triangles_total = 0;
+        for (uint32_t m : order) progress->triangles_total += source.meshTriangles(m);
+    }
+
+    std::vector<ObjectRecord> records(objects.size());
+    std::vector<uint8_t> dropped(objects.size(), 0);
+    PrepSummary summary;
+    const size_t window = kWindowPerThread * threads + 4;
+    std::vector<Finished> slots(window);
+    std::mutex mutex;
+    std::condition_variable advanced;
+    size_t written = 0;  // meshes of `order` handed to add_mesh (or dropped)
     std::atomic<size_t> next{0};
+    std::exception_ptr failure;
+    bool failed = false;
+
+    // Called with the lock held: writes every finished mesh that is next in order.
+    const auto writeReady = [&] {
+        while (written < order.size() && slots[written % window].ready) {
+            Finished& f = slots[written % window];
+            const uint32_t m = order[written];
+            if (f.empty) {
+                for (uint32_t k = first[m]; k < first[m + 1]; ++k) dropped[members[k]] = 1;
+            } else {
+                summary.unique_triangles += f.mesh.triangleCount();
+                summary.instanced_triangles += uint64_t(f.mesh.triangleCount()) * (first[m + 1] - first[m]);
+                summary.dropped_triangles += f.mesh.dropped_triangles;
+                const uint32_t index = add_mesh(std::move(f.mesh));
+                for (uint32_t k = first[m]; k < first[m + 1]; ++k) records[members[k]].mesh = index;
+                ++summary.meshes;
+            }
+            f = Finished{};
+            ++written;
+        }
+        advanced.notify_all();
+    };
+
     const auto worker = [&] {
-        for (size_t i; (i = next.fetch_add(1)) < order.size();) body(order[i]);
+        for (size_t k; (k = next.fetch_add(1)) < order.size();) {
+            {
+                std::unique_lock lock(mutex);
+                advanced.wait(lock, [&] { return failed || k < written + window; });
+                if (failed) return;
+            }
+            try {
+                const uint32_t m = order[k];
+                Finished f;
+                const Mesh mesh = source.mesh(m);
+                f.empty = mesh.indices.empty();
+                if (!f.empty) {
+                    f.mesh = buildProgressiveMesh(mesh, options.collapser);
+                    const OccluderData occ =
+                        computeOccluderData(f.mesh.positions, f.mesh.triangles, options.compactness_resolution);
+                    for (uint32_t j = first[m]; j < first[m + 1]; ++j) {
+                        const Object& o = objects[members[j]];
+                        ObjectRecord& r = records[members[j]];
+                        r.color = o.color;
+                        r.world = o.world;
+                        for (const glm::vec3& p : f.mesh.positions) r.aabb.extend(glm::vec3(o.world * glm::vec4(p, 1.0f)));
+                        r.oobb = transformBox(occ.oobb, o.world);
+                        int t = 0;
+                        for (int a = 1; a < 3; ++a)
+                            if (r.oobb.half_extent[a] < r.oobb.half_extent[t]) t = a;
+                        r.occluder_normal = r.oobb.axis[t];
+                        r.compactness = std::clamp(occ.compactness, 0.0f, 1.0f);  // the file format requires [0, 1]
+                    }
+                }
+                if (progress) {
+                    progress->triangles_done += source.meshTriangles(m);
+                    ++progress->meshes_done;
+                }
+                std::lock_guard lock(mutex);
+                f.ready = true;
+                slots[k % window] = std::move(f);
+                writeReady();
+            } catch (...) {
+                std::lock_guard lock(mutex);
+                if (!failed) failure = std::current_exception();
+                failed = true;
+                advanced.notify_all();
+                return;
+            }
+        }
     };
     std::vector<std::thread> pool;
     for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker);
     worker();
     for (std::thread& t : pool) t.join();
+    if (failure) std::rethrow_exception(failure);
+
+    // Objects of meshes without triangles go; the others keep their order.
+    objects_out.clear();
+    objects_out.reserve(objects.size());
+    for (size_t i = 0; i < records.size(); ++i)
+        if (!dropped[i]) objects_out.push_back(records[i]);
+    records = {};
+    cos_out.clear();
+    for (uint32_t i = 0; i < objects_out.size(); ++i)
+        if (objects_out[i].compactness >= options.ct) cos_out.push_back(i);
+    std::stable_sort(cos_out.begin(), cos_out.end(), [&](uint32_t a, uint32_t b) {
+        return objects_out[a].compactness > objects_out[b].compactness;
+    });
+    summary.objects = objects_out.size();
+    summary.cos = cos_out.size();
+    summary.skipped = source.skipped();
+    return summary;
 }
 
-}  // namespace
-
 PreparedScene prepareScene(const Scene& scene, const PrepOptions& options, PrepProgress* progress) {
-    if (!(options.ct >= 0.0f && options.ct <= 1.0f))
-        throw OptionError("ct", OptionError::value(options.ct) + ": must be in [0, 1]");
-    const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+    // The scene is not copied: a source over it that hands out its meshes.
+    class View final : public SceneSource {
+    public:
+        explicit View(const Scene& s) : s_(s) {}
+        const std::vector<Object>& objects() const override { return s_.objects; }
+        uint32_t meshCount() const override { return uint32_t(s_.meshes.size()); }
+        uint64_t meshTriangles(uint32_t m) const override { return s_.meshes[m].triangleCount(); }
+        Mesh mesh(uint32_t m) const override { return s_.meshes[m]; }
+        SkippedPrimitives skipped() const override { return s_.skipped; }
+        const char* how() const override { return "in memory"; }
 
-    // Only meshes some object uses are prepared.
-    std::vector<uint8_t> used(scene.meshes.size(), 0);
-    for (const Object& o : scene.objects) used[o.mesh] = 1;
-    std::vector<uint32_t> order;
-    for (uint32_t m = 0; m < scene.meshes.size(); ++m)
-        if (used[m]) order.push_back(m);
-    // Largest first, so that one big mesh does not start last and keep one core busy alone.
-    std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
-        return scene.meshes[a].indices.size() > scene.meshes[b].indices.size();
-    });
-    if (progress) {
-        progress->meshes_total = order.size();
-        progress->triangles_total = 0;
-        for (uint32_t m : order) progress->triangles_total += scene.meshes[m].triangleCount();
-    }
-
+    private:
+        const Scene& s_;
+    } view(scene);
     PreparedScene out;
     out.ct = options.ct;
-    out.meshes.resize(scene.meshes.size());
-    std::vector<OccluderData> occluders(scene.meshes.size());
-    parallelFor(order, threads, [&](uint32_t m) {
-        out.meshes[m] = buildProgressiveMesh(scene.meshes[m], options.collapser);
-        occluders[m] = computeOccluderData(out.meshes[m].positions, out.meshes[m].triangles,
-                                           options.compactness_resolution);
-        if (progress) {
-            progress->triangles_done += scene.meshes[m].triangleCount();
-            ++progress->meshes_done;
-        }
-    });
-
-    // Unused meshes are not stored: renumber the used ones densely.
-    std::vector<uint32_t> new_index(scene.meshes.size(), UINT32_MAX);
-    std::vector<ProgressiveMesh> kept;
-    for (uint32_t m = 0; m < scene.meshes.size(); ++m)
-        if (used[m]) {
-            new_index[m] = uint32_t(kept.size());
-            kept.push_back(std::move(out.meshes[m]));
-        }
-
-    out.objects.resize(scene.objects.size());
-    std::vector<uint32_t> ids(scene.objects.size());
-    std::iota(ids.begin(), ids.end(), 0u);
-    parallelFor(ids, threads, [&](uint32_t i) {
-        const Object& o = scene.objects[i];
-        const ProgressiveMesh& pm = kept[new_index[o.mesh]];
-        ObjectRecord& r = out.objects[i];
-        r.mesh = new_index[o.mesh];
-        r.color = o.color;
-        r.world = o.world;
-        for (const glm::vec3& p : pm.positions) r.aabb.extend(glm::vec3(o.world * glm::vec4(p, 1.0f)));
-        const OccluderData& occ = occluders[o.mesh];
-        r.oobb = transformBox(occ.oobb, o.world);
-        int thin = 0;
-        for (int a = 1; a < 3; ++a)
-            if (r.oobb.half_extent[a] < r.oobb.half_extent[thin]) thin = a;
-        r.occluder_normal = r.oobb.axis[thin];
-        r.compactness = std::clamp(occ.compactness, 0.0f, 1.0f);  // the file format requires [0, 1]
-    });
-    out.meshes = std::move(kept);
-
-    for (uint32_t i = 0; i < out.objects.size(); ++i)
-        if (out.objects[i].compactness >= options.ct) out.cos.push_back(i);
-    std::stable_sort(out.cos.begin(), out.cos.end(), [&](uint32_t a, uint32_t b) {
-        return out.objects[a].compactness > out.objects[b].compactness;
-    });
+    prepareFromSource(
+        view, options, progress,
+        [&out](ProgressiveMesh&& m) {
+            out.meshes.push_back(std::move(m));
+            return uint32_t(out.meshes.size() - 1);
+        },
+        out.objects, out.cos);
     return out;
+}
+
+PrepSummary prepareToFile(const SceneSource& source, const std::string& path, const PrepOptions& options,
+                          PrepProgress* progress) {
+    OssStreamWriter writer(path);
+    std::vector<ObjectRecord> objects;
+    std::vector<uint32_t> cos;
+    PrepSummary summary = prepareFromSource(
+        source, options, progress, [&writer](ProgressiveMesh&& m) { return writer.addMesh(m); }, objects, cos);
+    if (objects.empty()) throw InputError(path, "the model has no triangles: nothing to prepare");
+    writer.finish(objects, cos, options.ct);
+    return summary;
 }
 
 }  // namespace occ

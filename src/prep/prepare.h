@@ -1,10 +1,13 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include "import/scene_source.h"
 #include "scene/prepared_scene.h"
 
 #include <atomic>
 #include <functional>
+#include <string>
+#include <vector>
 
 namespace occ {
 
@@ -29,9 +32,31 @@ struct PrepProgress {
 // Weld + collapse sequence + §4.2 arrays + Algorithm 1 for one mesh (local space).
 ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser);
 
-// Preprocesses a scene: one progressive mesh per unique mesh (instances share it), computed in
-// parallel over meshes, largest first; per object the world AABB, OOBB, occluder normal and
-// compactness; the candidate occluder set. Throws UsageError for a ct outside [0, 1].
+// What a preparation made, for its summary line.
+struct PrepSummary {
+    uint64_t objects = 0, meshes = 0, cos = 0;
+    uint64_t unique_triangles = 0, instanced_triangles = 0, dropped_triangles = 0;
+    SkippedPrimitives skipped;
+};
+
+// Preprocesses a scene: one progressive mesh per used mesh (instances share it), in the
+// source's mesh order, computed in parallel (options.threads) and handed to add_mesh in that
+// order as each is done, so that only a few meshes per thread are held at a time; per object
+// the world AABB, OOBB, occluder normal and compactness; the candidate occluder set. Objects
+// whose mesh has no triangles are dropped (the rest keep their order). The output does not
+// depend on the thread count. Throws OptionError for a ct outside [0, 1]; rethrows the first
+// failure of a worker (a mesh the source cannot read) after stopping the others.
+PrepSummary prepareFromSource(const SceneSource& source, const PrepOptions& options, PrepProgress* progress,
+                              const std::function<uint32_t(ProgressiveMesh&&)>& add_mesh,
+                              std::vector<ObjectRecord>& objects, std::vector<uint32_t>& cos);
+
+// prepareFromSource of a scene in memory, collected into a PreparedScene.
 PreparedScene prepareScene(const Scene& scene, const PrepOptions& options, PrepProgress* progress = nullptr);
+
+// prepareFromSource streamed into a .oss file at `path` (OssStreamWriter): memory stays a few
+// meshes per thread plus the object records, however large the scene. InputError(path) for a
+// source without triangles; nothing is left at `path` on failure.
+PrepSummary prepareToFile(const SceneSource& source, const std::string& path, const PrepOptions& options,
+                          PrepProgress* progress = nullptr);
 
 }  // namespace occ

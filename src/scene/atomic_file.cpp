@@ -3,10 +3,12 @@
 
 #include "scene/errors.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <vector>
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -23,7 +25,7 @@ std::string temporaryFor(const std::string& path) {
 }  // namespace
 
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)), temporary_(temporaryFor(path_)) {
-    file_ = std::fopen(temporary_.c_str(), "wb");
+    file_ = std::fopen(temporary_.c_str(), "w+b");
     if (!file_)
         throw InputError(path_, "cannot create " + temporary_ + ": " + std::strerror(errno) +
                                     (errno == ENOENT ? " (missing folder?)" : ""));
@@ -46,6 +48,49 @@ void AtomicFile::fail(const std::string& what) {
 void AtomicFile::write(const void* data, size_t bytes) {
     if (!file_) throw InputError(path_, "write after commit");
     if (bytes > 0 && std::fwrite(data, 1, bytes, file_) != bytes) fail("cannot write (disk full?)");
+    size_ += bytes;
+}
+
+void AtomicFile::writeAt(uint64_t offset, const void* data, size_t bytes) {
+    if (!file_) throw InputError(path_, "write after commit");
+    if (offset + bytes > size_) throw InputError(path_, "writeAt past the end of what was written");
+    if (std::fflush(file_) != 0) fail("cannot write (disk full?)");
+    const auto* p = static_cast<const char*>(data);
+    for (size_t done = 0; done < bytes;) {
+        const ssize_t n = ::pwrite(::fileno(file_), p + done, bytes - done, off_t(offset + done));
+        if (n <= 0) fail("cannot write (disk full?)");
+        done += size_t(n);
+    }
+}
+
+void AtomicFile::append(AtomicFile& other) {
+    if (!file_ || !other.file_) throw InputError(path_, "append after commit");
+    if (std::fflush(file_) != 0 || std::fflush(other.file_) != 0) fail("cannot write (disk full?)");
+    const int in = ::fileno(other.file_), out = ::fileno(file_);
+    loff_t from = 0, to = loff_t(size_);
+    uint64_t left = other.size_;
+    while (left > 0) {
+        ssize_t n = ::copy_file_range(in, &from, out, &to, size_t(std::min<uint64_t>(left, 1u << 30)), 0);
+        if (n < 0 && (errno == EXDEV || errno == ENOSYS || errno == EINVAL)) {
+            // Another file system: copy through a buffer.
+            static thread_local std::vector<char> buffer(1 << 20);
+            n = ::pread(in, buffer.data(), size_t(std::min<uint64_t>(left, buffer.size())), from);
+            if (n > 0) {
+                for (ssize_t w = 0; w < n;) {
+                    const ssize_t k = ::pwrite(out, buffer.data() + w, size_t(n - w), to + w);
+                    if (k <= 0) fail("cannot write (disk full?)");
+                    w += k;
+                }
+                from += n;
+                to += n;
+            }
+        }
+        if (n <= 0) fail("cannot copy " + other.temporary_ + " into it");
+        left -= uint64_t(n);
+    }
+    size_ += other.size_;
+    // The stream's own position must follow the bytes written behind its back.
+    if (std::fseek(file_, 0, SEEK_END) != 0) fail("cannot seek");
 }
 
 void AtomicFile::commit() {

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <cstdio>
 #include <string>
 #include <string_view>
@@ -22,6 +23,12 @@ public:
 
     void write(const void* data, size_t bytes);
     void write(std::string_view text) { write(text.data(), text.size()); }
+    // Bytes written so far.
+    uint64_t size() const { return size_; }
+    // Overwrites bytes already written (a header whose lengths are known only at the end).
+    void writeAt(uint64_t offset, const void* data, size_t bytes);
+    // Appends the whole of another AtomicFile's content (not yet committed), copied in the kernel.
+    void append(AtomicFile& other);
     void commit();
     const std::string& path() const { return path_; }
 
@@ -29,6 +36,7 @@ private:
     [[noreturn]] void fail(const std::string& what);
     std::string path_, temporary_;
     std::FILE* file_ = nullptr;
+    uint64_t size_ = 0;
 };
 
 // The whole of `bytes` to `path`, through an AtomicFile.

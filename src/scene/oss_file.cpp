@@ -203,6 +203,20 @@ public:
                 XXH3_64bits_digest(state_.get())};
     }
 
+    // Appends the first `n` bytes of file `fd` (a spooled section), copied in the kernel.
+    void appendFrom(int fd, uint64_t n) {
+        flush();
+        loff_t from = 0, to = loff_t(position_);
+        while (n > 0) {
+            const ssize_t c = ::copy_file_range(fd, &from, fd_, &to, size_t(std::min<uint64_t>(n, 1u << 30)), 0);
+            if (c < 0 && errno == EINTR) continue;
+            if (c <= 0) ioFailure("cannot copy a spooled section into");
+            n -= uint64_t(c);
+        }
+        position_ = uint64_t(to);
+        if (::lseek(fd_, off_t(position_), SEEK_SET) < 0) ioFailure("cannot seek in");
+    }
+
     // Writes the header over the placeholder at offset 0, syncs, and renames into place.
     void commit(const Header& header) {
         flush();
@@ -279,70 +293,148 @@ private:
     uint64_t section_offset_ = 0;
 };
 
-void requireLayoutInputs(const PreparedScene& scene) {
-    constexpr uint64_t kMax32 = std::numeric_limits<uint32_t>::max();
-    auto bad = [](const std::string& what) { throw std::invalid_argument("writeOss: " + what); };
-    if (scene.meshes.size() > kMax32) bad(str(uint64_t(scene.meshes.size())) + " meshes do not fit in 32 bits");
-    if (scene.objects.size() > kMax32) bad(str(uint64_t(scene.objects.size())) + " objects do not fit in 32 bits");
-    if (scene.cos.size() > kMax32) bad(str(uint64_t(scene.cos.size())) + " COS entries do not fit in 32 bits");
-    for (size_t i = 0; i < scene.meshes.size(); ++i) {
-        const ProgressiveMesh& m = scene.meshes[i];
-        const auto mesh = [&] { return "mesh " + str(uint64_t(i)) + ": "; };
-        const uint64_t n = m.positions.size();
-        if (n >= kMax32) bad(mesh() + str(n) + " vertices do not fit in 32 bits");
-        if (m.triangles.size() % 3 != 0) bad(mesh() + "triangle index count is not a multiple of 3");
-        if (m.triangles.size() / 3 > kMax32) bad(mesh() + "triangle count does not fit in 32 bits");
-        if (m.ecol.size() != n) bad(mesh() + "ecol has " + str(uint64_t(m.ecol.size())) + " entries, expected " + str(n));
-        if (m.error.size() != n) bad(mesh() + "error has " + str(uint64_t(m.error.size())) + " entries, expected " + str(n));
-        if (m.map.size() != n + 1) bad(mesh() + "map has " + str(uint64_t(m.map.size())) + " entries, expected " + str(n + 1));
+// One section's bytes while the meshes stream in: an unnamed temporary file in the target's
+// folder (removed by the kernel when closed), written through a buffer and hashed as it goes.
+class SectionSpool {
+public:
+    explicit SectionSpool(const std::string& path) : path_(path), state_(XXH3_createState(), &XXH3_freeState) {
+        if (!state_) throw std::bad_alloc();
+        std::string dir = std::filesystem::path(path).parent_path().string();
+        if (dir.empty()) dir = ".";
+        fd_ = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+        if (fd_ < 0) {
+            // No O_TMPFILE here: a named file, unlinked at once.
+            static std::atomic<uint64_t> counter{0};
+            const std::string tmp = path + ".spool." + std::to_string(::getpid()) + "." + std::to_string(counter++);
+            fd_ = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+            if (fd_ < 0) throw InputError(path_, "cannot create temporary file " + tmp + ": " + std::strerror(errno));
+            ::unlink(tmp.c_str());
+        }
+        XXH3_64bits_reset(state_.get());
+        buffer_.reserve(kBufferSize);
     }
+    ~SectionSpool() {
+        if (fd_ >= 0) ::close(fd_);
+    }
+    SectionSpool(const SectionSpool&) = delete;
+    SectionSpool& operator=(const SectionSpool&) = delete;
+
+    void put(const void* data, uint64_t n) {
+        if (n == 0) return;
+        XXH3_64bits_update(state_.get(), data, n);
+        size_ += n;
+        const auto* p = static_cast<const std::byte*>(data);
+        if (buffer_.size() + n > kBufferSize) flush();
+        if (n >= kBufferSize) {
+            writeAll(p, n);
+        } else {
+            buffer_.insert(buffer_.end(), p, p + n);
+        }
+    }
+    void flush() {
+        writeAll(buffer_.data(), buffer_.size());
+        buffer_.clear();
+    }
+    int fd() const { return fd_; }
+    uint64_t size() const { return size_; }
+    uint64_t digest() const { return XXH3_64bits_digest(state_.get()); }
+
+private:
+    static constexpr uint64_t kBufferSize = 1 << 20;
+    void writeAll(const std::byte* p, uint64_t n) {
+        while (n > 0) {
+            const ssize_t w = ::write(fd_, p, std::min<uint64_t>(n, 1u << 30));
+            if (w < 0 && errno == EINTR) continue;
+            if (w <= 0) throw InputError(path_, std::string("cannot write temporary file of a section: ") + std::strerror(errno));
+            p += w;
+            n -= uint64_t(w);
+        }
+    }
+    std::string path_;
+    std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state_;
+    int fd_ = -1;
+    uint64_t size_ = 0;
+    std::vector<std::byte> buffer_;
+};
+
+void requireMeshLayout(const ProgressiveMesh& m, uint64_t index) {
+    constexpr uint64_t kMax32 = std::numeric_limits<uint32_t>::max();
+    auto bad = [&](const std::string& what) { throw std::invalid_argument("writeOss: mesh " + str(index) + ": " + what); };
+    const uint64_t n = m.positions.size();
+    if (n >= kMax32) bad(str(n) + " vertices do not fit in 32 bits");
+    if (m.triangles.size() % 3 != 0) bad("triangle index count is not a multiple of 3");
+    if (m.triangles.size() / 3 > kMax32) bad("triangle count does not fit in 32 bits");
+    if (m.ecol.size() != n) bad("ecol has " + str(uint64_t(m.ecol.size())) + " entries, expected " + str(n));
+    if (m.error.size() != n) bad("error has " + str(uint64_t(m.error.size())) + " entries, expected " + str(n));
+    if (m.map.size() != n + 1) bad("map has " + str(uint64_t(m.map.size())) + " entries, expected " + str(n + 1));
 }
 
 }  // namespace
 
-void writeOss(const std::string& path, const PreparedScene& scene) {
-    requireLayoutInputs(scene);
+struct OssStreamWriter::Impl {
+    explicit Impl(const std::string& p)
+        : path(p), file(p), positions(p), ecol(p), error(p), triangles(p), map(p) {}
+    std::string path;
+    TempFileWriter file;
+    SectionSpool positions, ecol, error, triangles, map;
+    std::vector<MeshRecord> records;
+    uint64_t vertex_count = 0, triangle_count = 0;
+};
 
-    TempFileWriter w(path);
+OssStreamWriter::OssStreamWriter(const std::string& path) : impl_(std::make_unique<Impl>(path)) {}
+OssStreamWriter::~OssStreamWriter() = default;
+
+uint32_t OssStreamWriter::addMesh(const ProgressiveMesh& m) {
+    Impl& w = *impl_;
+    const uint64_t i = w.records.size();
+    requireMeshLayout(m, i);
+    if (i >= std::numeric_limits<uint32_t>::max()) throw std::invalid_argument("writeOss: too many meshes for 32 bits");
+    w.records.push_back(MeshRecord{w.vertex_count, w.triangle_count, w.vertex_count + i, m.vertexCount(),
+                                   m.triangleCount(), m.q, m.refused_faces, m.source_vertices, m.dropped_triangles});
+    w.vertex_count += m.vertexCount();
+    w.triangle_count += m.triangleCount();
+    w.positions.put(m.positions.data(), m.positions.size() * sizeof(glm::vec3));
+    w.ecol.put(m.ecol.data(), m.ecol.size() * sizeof(int32_t));
+    w.error.put(m.error.data(), m.error.size() * sizeof(float));
+    w.triangles.put(m.triangles.data(), m.triangles.size() * sizeof(uint32_t));
+    w.map.put(m.map.data(), m.map.size() * sizeof(uint32_t));
+    return uint32_t(i);
+}
+
+uint32_t OssStreamWriter::meshCount() const { return uint32_t(impl_->records.size()); }
+uint64_t OssStreamWriter::vertexCount() const { return impl_->vertex_count; }
+uint64_t OssStreamWriter::triangleCount() const { return impl_->triangle_count; }
+
+void OssStreamWriter::finish(std::span<const ObjectRecord> objects, std::span<const uint32_t> cos, float ct) {
+    Impl& s = *impl_;
+    constexpr uint64_t kMax32 = std::numeric_limits<uint32_t>::max();
+    if (objects.size() > kMax32) throw std::invalid_argument("writeOss: " + str(uint64_t(objects.size())) + " objects do not fit in 32 bits");
+    if (cos.size() > kMax32) throw std::invalid_argument("writeOss: " + str(uint64_t(cos.size())) + " COS entries do not fit in 32 bits");
+    TempFileWriter& w = s.file;
     Header h{};
     w.zeros(sizeof h);  // placeholder; the header is written last, once the checksums are known
 
-    uint64_t vertex_count = 0, triangle_count = 0;
     w.beginSection();
-    for (size_t i = 0; i < scene.meshes.size(); ++i) {
-        const ProgressiveMesh& m = scene.meshes[i];
-        const MeshRecord r{vertex_count,      triangle_count,    vertex_count + i, m.vertexCount(),
-                           m.triangleCount(), m.q,               m.refused_faces,  m.source_vertices,
-                           m.dropped_triangles};
-        w.put(&r, sizeof r);
-        vertex_count += m.vertexCount();
-        triangle_count += m.triangleCount();
-    }
+    w.put(s.records.data(), s.records.size() * sizeof(MeshRecord));
     h.sections[0] = w.endSection(SectionId::meshes);
-
+    SectionSpool* spools[] = {&s.positions, &s.ecol, &s.error, &s.triangles, &s.map};
+    for (int k = 0; k < 5; ++k) {
+        SectionSpool& spool = *spools[k];
+        spool.flush();
+        w.padToAlignment();
+        const uint64_t offset = w.position();
+        w.appendFrom(spool.fd(), spool.size());
+        const SectionId id = SectionId(k + 2);
+        h.sections[k + 1] = {uint32_t(id), kKinds[uint32_t(id) - 1].element_size, offset, spool.size(), spool.digest()};
+    }
     w.beginSection();
-    for (const ProgressiveMesh& m : scene.meshes) w.put(m.positions.data(), m.positions.size() * sizeof(glm::vec3));
-    h.sections[1] = w.endSection(SectionId::positions);
-    w.beginSection();
-    for (const ProgressiveMesh& m : scene.meshes) w.put(m.ecol.data(), m.ecol.size() * sizeof(int32_t));
-    h.sections[2] = w.endSection(SectionId::ecol);
-    w.beginSection();
-    for (const ProgressiveMesh& m : scene.meshes) w.put(m.error.data(), m.error.size() * sizeof(float));
-    h.sections[3] = w.endSection(SectionId::error);
-    w.beginSection();
-    for (const ProgressiveMesh& m : scene.meshes) w.put(m.triangles.data(), m.triangles.size() * sizeof(uint32_t));
-    h.sections[4] = w.endSection(SectionId::triangles);
-    w.beginSection();
-    for (const ProgressiveMesh& m : scene.meshes) w.put(m.map.data(), m.map.size() * sizeof(uint32_t));
-    h.sections[5] = w.endSection(SectionId::map);
-    w.beginSection();
-    for (const ObjectRecord& o : scene.objects) {
+    for (const ObjectRecord& o : objects) {
         const ObjectDisk d = toDisk(o);
         w.put(&d, sizeof d);
     }
     h.sections[6] = w.endSection(SectionId::objects);
     w.beginSection();
-    w.put(scene.cos.data(), scene.cos.size() * sizeof(uint32_t));
+    w.put(cos.data(), cos.size() * sizeof(uint32_t));
     h.sections[7] = w.endSection(SectionId::cos);
     w.padToAlignment();
 
@@ -351,15 +443,27 @@ void writeOss(const std::string& path, const PreparedScene& scene) {
     h.header_size = sizeof(Header);
     h.file_size = w.position();
     h.section_count = kSectionCount;
-    h.mesh_count = uint32_t(scene.meshes.size());
-    h.object_count = uint32_t(scene.objects.size());
-    h.cos_count = uint32_t(scene.cos.size());
-    h.vertex_count = vertex_count;
-    h.triangle_count = triangle_count;
-    h.ct = scene.ct;
+    h.mesh_count = uint32_t(s.records.size());
+    h.object_count = uint32_t(objects.size());
+    h.cos_count = uint32_t(cos.size());
+    h.vertex_count = s.vertex_count;
+    h.triangle_count = s.triangle_count;
+    h.ct = ct;
     h.header_checksum = XXH3_64bits(&h, kHeaderChecksummedBytes);
     w.commit(h);
 }
+
+void writeOss(const std::string& path, const PreparedScene& scene) {
+    // Layout inputs are checked before anything is created.
+    constexpr uint64_t kMax32 = std::numeric_limits<uint32_t>::max();
+    if (scene.meshes.size() > kMax32)
+        throw std::invalid_argument("writeOss: " + str(uint64_t(scene.meshes.size())) + " meshes do not fit in 32 bits");
+    for (size_t i = 0; i < scene.meshes.size(); ++i) requireMeshLayout(scene.meshes[i], i);
+    OssStreamWriter writer(path);
+    for (const ProgressiveMesh& m : scene.meshes) writer.addMesh(m);
+    writer.finish(scene.objects, scene.cos, scene.ct);
+}
+
 
 OssFile OssFile::open(const std::string& path) {
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);

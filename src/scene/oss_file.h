@@ -11,6 +11,7 @@
 #include <bit>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -121,6 +122,30 @@ ObjectRecord fromDisk(const ObjectDisk& d);
 // throws std::invalid_argument naming the mesh. Throws InputError(path, ...) on I/O failure.
 // Streams section by section, so its memory use does not grow with the scene.
 void writeOss(const std::string& path, const PreparedScene& scene);
+
+// The same file written one mesh at a time, for scenes larger than memory: addMesh in mesh
+// order (each mesh's sections go to unnamed temporary files beside `path`, hashed as they are
+// written), then finish() with the objects and the COS assembles the file (the spooled sections
+// copied in by the kernel) and renames it into place. Same bytes as writeOss of the same scene;
+// same checks (std::invalid_argument) and failures (InputError). Destroyed without finish(),
+// it leaves nothing behind.
+class OssStreamWriter {
+public:
+    explicit OssStreamWriter(const std::string& path);
+    ~OssStreamWriter();
+    OssStreamWriter(const OssStreamWriter&) = delete;
+    OssStreamWriter& operator=(const OssStreamWriter&) = delete;
+
+    uint32_t addMesh(const ProgressiveMesh& mesh);  // returns the mesh's index
+    uint32_t meshCount() const;
+    uint64_t vertexCount() const;
+    uint64_t triangleCount() const;
+    void finish(std::span<const ObjectRecord> objects, std::span<const uint32_t> cos, float ct);
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
 
 // A validated, read-only memory mapping of a .oss file. Views returned by it point into the
 // mapping and live as long as the OssFile. The file must not be modified in place while mapped

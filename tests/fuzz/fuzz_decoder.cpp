@@ -1,10 +1,12 @@
 // SPDX-License-Identifier: MIT
 // One libFuzzer target per decoder of untrusted bytes (OCC_FUZZ_TARGET picks it): the model
-// importers (by file extension: the bytes go to a file of that kind), the .oss reader and the
+// importers (by file extension: the bytes go to a file of that kind; glTF also through the
+// streaming reader), the .oss reader and the
 // wire messages. A decoder may reject its input (InputError for files, RankError for messages,
 // std::bad_alloc for an absurd size);
 // anything else (a crash, a sanitizer report, another exception) is a finding.
 #include "import/import.h"
+#include "import/scene_source.h"
 #include "net/messages.h"
 #include "scene/errors.h"
 #include "scene/oss_file.h"
@@ -58,6 +60,19 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     } catch (const InputError&) {
     } catch (const std::bad_alloc&) {
     }
+#if !defined(OCC_FUZZ_OSS)
+    // glTF also through the streaming reader prep uses for large files, every mesh read.
+    const std::string extension = OCC_FUZZ_EXTENSION;
+    if (extension == ".glb" || extension == ".gltf") {
+        try {
+            std::string why;
+            if (const auto source = streamGltf(path, {}, &why))
+                for (uint32_t m = 0; m < source->meshCount(); ++m) (void)source->mesh(m);
+        } catch (const InputError&) {
+        } catch (const std::bad_alloc&) {
+        }
+    }
+#endif
 #endif
     return 0;
 }
