@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "cli/bench_all.h"
 
+#include "cli/bench_runner.h"
+
 #include "scene/atomic_file.h"
 #include "scene/csv.h"
 #include "scene/errors.h"
@@ -29,14 +31,12 @@
 #include <thread>
 #include <vector>
 
-extern char** environ;
 
 namespace occ::cli {
 
 namespace {
 
-namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
+using namespace bench;
 
 // ---------------------------------------------------------------------------------------------
 // Configurations
@@ -97,28 +97,6 @@ std::string dimsName(const GridDims& d) {
 
 void writeFileAtomic(const fs::path& path, const std::string& text) { occ::writeFileAtomic(path.string(), text); }
 
-std::string readText(const fs::path& path) {
-    std::ifstream f(path, std::ios::binary);
-    std::stringstream ss;
-    ss << f.rdbuf();
-    return ss.str();
-}
-
-// The last `n` lines of a log, indented, for an error report.
-std::string tailOf(const fs::path& log, size_t n) {
-    std::vector<std::string> lines;
-    std::istringstream in(readText(log));
-    for (std::string line; std::getline(in, line);) {
-        // Progress bars redraw with carriage returns; keep what was drawn last.
-        const size_t cr = line.find_last_of('\r');
-        if (cr != std::string::npos) line = line.substr(cr + 1);
-        if (!line.empty()) lines.push_back(line);
-    }
-    std::string out;
-    for (size_t i = lines.size() > n ? lines.size() - n : 0; i < lines.size(); ++i) out += "    " + lines[i] + "\n";
-    return out;
-}
-
 // The first line of `text` that starts with `prefix`, without the prefix; empty if none.
 std::string lineStartingWith(const std::string& text, const std::string& prefix) {
     std::istringstream in(text);
@@ -127,150 +105,8 @@ std::string lineStartingWith(const std::string& text, const std::string& prefix)
     return {};
 }
 
-std::string findInPath(const std::string& name) {
-    const char* path = std::getenv("PATH");
-    if (!path) return {};
-    std::istringstream in(path);
-    for (std::string dir; std::getline(in, dir, ':');) {
-        const fs::path candidate = fs::path(dir.empty() ? "." : dir) / name;
-        if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
-    }
-    return {};
-}
-
 // ---------------------------------------------------------------------------------------------
 // Child processes
-
-volatile std::sig_atomic_t g_interrupted = 0;
-extern "C" void onInterrupt(int) { g_interrupted = 1; }
-
-struct RunResult {
-    double seconds = 0;
-    double peak_mb = 0;  // largest resident set of the child (and of children it waited for)
-    fs::path log;
-};
-
-// Runs the steps of the benchmark as child processes in their own process group, stdout and
-// stderr into a log each, so that a timeout or Ctrl-C stops a whole mpirun job and a failure
-// can be reported with the lines that explain it.
-class Runner {
-public:
-    Runner(fs::path logs, double timeout_s) : logs_(std::move(logs)), timeout_s_(timeout_s) {}
-
-    RunResult run(const std::string& name, const std::vector<std::string>& argv) {
-        RunResult r;
-        r.log = logs_ / (name + ".log");
-        {
-            std::ofstream header(r.log, std::ios::trunc);
-            header << "#";
-            for (const std::string& a : argv) header << ' ' << a;
-            header << "\n";
-            if (!header) throw InputError(r.log.string(), "cannot write the log");
-        }
-        posix_spawn_file_actions_t actions;
-        posix_spawn_file_actions_init(&actions);
-        posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
-        posix_spawn_file_actions_addopen(&actions, 1, r.log.c_str(), O_WRONLY | O_APPEND, 0644);
-        posix_spawn_file_actions_adddup2(&actions, 1, 2);
-        posix_spawnattr_t attributes;
-        posix_spawnattr_init(&attributes);
-        posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETPGROUP);
-        posix_spawnattr_setpgroup(&attributes, 0);
-        std::vector<char*> args;
-        for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-        args.push_back(nullptr);
-        pid_t pid = 0;
-        const auto start = Clock::now();
-        const int rc = ::posix_spawnp(&pid, args[0], &actions, &attributes, args.data(), environ);
-        posix_spawn_file_actions_destroy(&actions);
-        posix_spawnattr_destroy(&attributes);
-        if (rc != 0) throw SystemError("bench all: " + name + ": cannot start " + argv[0] + ": " + std::strerror(rc));
-
-        int status = 0;
-        struct rusage usage {};
-        for (;;) {
-            const pid_t w = ::wait4(pid, &status, WNOHANG, &usage);
-            if (w == pid) break;
-            if (w < 0 && errno != EINTR)
-                throw SystemError("bench all: " + name + ": wait failed: " + std::strerror(errno));
-            const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
-            if (g_interrupted || elapsed > timeout_s_) {
-                stop(pid);
-                if (g_interrupted) throw SystemError("bench all: interrupted during " + name + " (log: " + r.log.string() + ")");
-                throw SystemError("bench all: " + name + " took more than " + fixed(timeout_s_, 0) +
-                                  " s and was stopped; its log: " + r.log.string());
-            }
-            std::this_thread::sleep_for(std::chrono::milliseconds(20));
-        }
-        r.seconds = std::chrono::duration<double>(Clock::now() - start).count();
-        r.peak_mb = double(usage.ru_maxrss) / 1024.0;  // Linux reports kilobytes
-        if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-            const std::string how = WIFEXITED(status) ? "exit status " + std::to_string(WEXITSTATUS(status))
-                                                      : "signal " + std::to_string(WTERMSIG(status));
-            std::fprintf(stderr, "bench all: %s failed; the end of %s:\n%s", name.c_str(), r.log.c_str(),
-                         tailOf(r.log, 8).c_str());
-            throw SystemError("bench all: " + name + " failed (" + how + "); its log: " + r.log.string());
-        }
-        return r;
-    }
-
-private:
-    static void stop(pid_t pid) {
-        ::kill(-pid, SIGTERM);
-        int status = 0;
-        for (int i = 0; i < 250; ++i) {  // 5 s for mpirun to stop its ranks
-            if (::waitpid(pid, &status, WNOHANG) == pid) {
-                ::kill(-pid, SIGKILL);  // anything of the group that outlived it
-                return;
-            }
-            std::this_thread::sleep_for(std::chrono::milliseconds(20));
-        }
-        ::kill(-pid, SIGKILL);
-        ::waitpid(pid, &status, 0);
-    }
-
-    fs::path logs_;
-    double timeout_s_;
-};
-
-// ---------------------------------------------------------------------------------------------
-// CSV files the runs write
-
-// The per-frame stats of one `render` run. Means are over the display's (rank 0's) frames
-// without the first, which streams the whole first view and warms every cache.
-struct RenderStats {
-    explicit RenderStats(const fs::path& path) : csv(CsvTable::read(path.string())) {
-        const bool ranked = csv.has("rank");
-        for (size_t r = 0; r < csv.rows(); ++r)
-            if (!ranked || csv.text(r, csv.col("rank")) == "0") display.push_back(r);
-        if (display.empty()) throw InputError(path.string(), "no rows of rank 0");
-        std::sort(display.begin(), display.end(),
-                  [&](size_t a, size_t b) { return csv.num(a, "frame") < csv.num(b, "frame"); });
-        measured.assign(display.size() > 1 ? display.begin() + 1 : display.begin(), display.end());
-    }
-    double mean(const std::string& column) const {
-        const size_t c = csv.col(column);
-        double sum = 0;
-        size_t n = 0;
-        for (size_t r : measured) {
-            const double v = csv.num(r, c);
-            if (std::isfinite(v)) sum += v, ++n;
-        }
-        return n ? sum / double(n) : NAN;
-    }
-    // What a frame of the display takes: the pipeline stages it runs plus drawing.
-    double frameMs(size_t row) const {
-        return csv.num(row, "ms_total") + (csv.has("ms_draw") ? csv.num(row, "ms_draw") : 0.0);
-    }
-    double meanFrameMs() const {
-        double total = 0;
-        for (size_t r : measured) total += frameMs(r);
-        return total / double(measured.size());
-    }
-    CsvTable csv;
-    std::vector<size_t> display;   // rank 0's rows in frame order
-    std::vector<size_t> measured;  // the same without frame 0
-};
 
 // ---------------------------------------------------------------------------------------------
 // Scenes
@@ -1062,7 +898,7 @@ int runBenchAll(const BenchAllOptions& options) {
     if (findInPath("gnuplot").empty())
         throw SystemError("bench all: gnuplot not found (launch/setup installs gnuplot-nox); the plots need it");
     struct sigaction action {};
-    action.sa_handler = onInterrupt;
+    action.sa_handler = [](int) { g_interrupted = 1; };
     sigemptyset(&action.sa_mask);
     struct sigaction old_int {}, old_term {};
     ::sigaction(SIGINT, &action, &old_int);

@@ -18,7 +18,15 @@ namespace occ::cli {
 void prepareModel(const std::string& input, const std::string& output, const ImportOptions& import,
                   const PrepOptions& prep, ReadMode stream) {
     const auto start = std::chrono::steady_clock::now();
-    const std::unique_ptr<SceneSource> source = openSceneSource(input, import, stream);
+    std::unique_ptr<SceneSource> source;
+    ReadProgress reading;
+    {
+        ProgressBar bar("prep: reading", "MB", "B", [&reading] {
+            return ProgressBar::Sample{double(reading.done) / 1e6, double(reading.total) / 1e6, double(reading.done)};
+        });
+        source = openSceneSource(input, import, stream, &reading);
+    }
+    const double read_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     PrepProgress progress;
     PrepSummary s;
     {
@@ -41,11 +49,11 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
     std::fprintf(stderr,
                  "prep: %s -> %s: %llu objects, %llu progressive meshes (%llu triangles, %llu with instances; "
                  "%llu repeated-corner triangles dropped%s), |COS| = %llu at CT %.2f, %.2f s on %u threads "
-                 "(%.2f M unique triangles/s, %s), %llu bytes\n",
+                 "(%.2f M unique triangles/s; %s, %.2f s to open), %llu bytes\n",
                  input.c_str(), output.c_str(), (unsigned long long)s.objects, (unsigned long long)s.meshes,
                  (unsigned long long)s.unique_triangles, (unsigned long long)s.instanced_triangles,
                  (unsigned long long)s.dropped_triangles, skipped.c_str(), (unsigned long long)s.cos,
-                 double(prep.ct), seconds, threads, s.unique_triangles / seconds / 1e6, source->how(),
+                 double(prep.ct), seconds, threads, s.unique_triangles / seconds / 1e6, source->how(), read_seconds,
                  (unsigned long long)std::filesystem::file_size(output));
 }
 

@@ -35,9 +35,13 @@ namespace occ::cli {
 
 namespace {
 
+// The occluders' raster time a window aims at per frame (--occluder-ms): a tenth of a 10 fps frame.
+constexpr double kWindowOccluderMs = 10.0;
+
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto", budget = "auto";
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
+    double occluder_ms = -1;  // -1: the default of the mode (on in a window)
     double rank_timeout = 5.0;
     int device = -1;
     std::string out, debug_views;
@@ -80,6 +84,7 @@ int runRender(RenderOptions o) {
     o.pipeline.mode = parseCullMode(o.mode);
     o.pipeline.stream = parseStreamMode(o.stream);
     if (o.pipeline.pvs_occluder_lag > 2) throw UsageError("render: --pvs-occluder-lag must be 1 or 2");
+    if (o.occluder_ms >= 0) o.pipeline.occluder_ms = o.occluder_ms;
     if (o.no_display && o.headless) throw UsageError("render: --no-display and --headless exclude each other");
     const bool draws = !o.no_display;
     if (!draws && (o.exact || o.reference || !o.out.empty() || !o.debug_views.empty()))
@@ -101,6 +106,8 @@ int runRender(RenderOptions o) {
 #ifdef OCC_HAVE_GL
     if (draws && !o.headless) {
         if (o.pipeline.pvs_occluder_lag == 0) o.pipeline.pvs_occluder_lag = 1;
+        // In a window the frame rate is what matters: the occluders follow the raster's speed.
+        if (o.occluder_ms < 0) o.pipeline.occluder_ms = kWindowOccluderMs;
         render::WindowOptions w;
         w.width = o.pipeline.width;
         w.height = o.pipeline.height;
@@ -330,6 +337,10 @@ Command addRenderCommand(CLI::App& app) {
                     "also raster last frame's largest visible objects up to this many triangles (0 = off;\n"
                     "auto = a quarter of the vertex budget N, at least 30000)")
         ->capture_default_str();
+    sub->add_option("--occluder-ms", o->occluder_ms,
+                    "adapt the PVS occluders' triangles frame by frame so that rastering them takes about this\n"
+                    "many ms (0 = off: a fixed budget, the same choice every run; default: 10 in a window, off\n"
+                    "for recorded paths)");
     sub->add_option("--pvs-occluder-lag", o->pipeline.pvs_occluder_lag,
                     "take those from the PVS this many frames back: 1 or 2 (default: 1, and 2 with 3 ranks,\n"
                     "whose occluder rank works a frame ahead; 2 with 1 rank gives the 3-rank answer)");

@@ -20,6 +20,7 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
+#include <streambuf>
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -122,7 +123,7 @@ public:
         return true;
     }
     bool end_object() override {
-        if (frames_.size() == 3 && top() == "nodes") finishNode();
+        if (frames_.size() == 3 && top() == "nodes" && inElement()) finishNode();
         frames_.pop_back();
         closed();
         return true;
@@ -175,7 +176,7 @@ private:
             else if (t == "materials") doc_.materials.emplace_back(1.0f);
             else if (t == "scenes") doc_.scenes.emplace_back();
         }
-        if (d == 4 && top() == "meshes" && keyAt(2) == "primitives" && frames_[3].array) {
+        if (d == 4 && top() == "meshes" && inElement() && keyAt(2) == "primitives" && frames_[3].array) {
             doc_.primitives.emplace_back();
             ++doc_.meshes.back().count;
         }
@@ -207,21 +208,25 @@ private:
         return w;
     }
 
+    // Inside an object that is an element of a top-level array (whose entry opened() made).
+    bool inElement() const { return frames_.size() >= 3 && frames_[1].array && !frames_[2].array; }
+
     void handle(const Value& v) {
         const size_t d = frames_.size();
-        if (d == 0) return;
+        if (d == 0 || frames_[0].array) return;
         const std::string& t = top();
-        if (t == "asset" && d == 2 && keyAt(1) == "version") {
+        if (d >= 3 && !inElement()) return;  // not the shape glTF gives these members: ignored
+        if (t == "asset" && d == 2 && !frames_[1].array && keyAt(1) == "version") {
             doc_.version = v.kind == Value::String ? v.text : std::to_string(v.number);
         } else if (t == "scene" && d == 1) {
             doc_.scene = integer(v, "scene");
-        } else if (t == "scenes" && d == 4 && keyAt(2) == "nodes") {
+        } else if (t == "scenes" && d == 4 && keyAt(2) == "nodes" && frames_[3].array) {
             doc_.scenes.back().push_back(integer(v, "node index"));
         } else if (t == "extensionsRequired" && d == 2 && v.kind == Value::String) {
             doc_.required.push_back(v.text);
-        } else if (t == "nodes" && d >= 3) {
+        } else if (t == "nodes" && d >= 3 && (d == 3 || frames_[3].array)) {
             node(v, d);
-        } else if (t == "meshes" && d >= 5 && keyAt(2) == "primitives") {
+        } else if (t == "meshes" && d >= 5 && keyAt(2) == "primitives" && frames_[3].array && !frames_[4].array) {
             Primitive& p = doc_.primitives.back();
             if (d == 5 && keyAt(4) == "indices") p.indices = integer(v, "indices");
             else if (d == 5 && keyAt(4) == "material") p.material = integer(v, "material");
@@ -248,7 +253,8 @@ private:
             Buffer& b = doc_.buffers.back();
             if (keyAt(2) == "byteLength") b.length = uint64_t(integer(v, "byteLength"));
             else if (keyAt(2) == "uri" && v.kind == Value::String) b.uri = v.text;
-        } else if (t == "materials" && d == 5 && keyAt(2) == "pbrMetallicRoughness" && keyAt(3) == "baseColorFactor") {
+        } else if (t == "materials" && d == 5 && keyAt(2) == "pbrMetallicRoughness" && !frames_[3].array &&
+                   keyAt(3) == "baseColorFactor" && frames_[4].array) {
             if (indexAt(4) < 4) doc_.materials.back()[int(indexAt(4))] = float(number(v));
         }
     }
@@ -306,6 +312,39 @@ uint32_t u32At(const unsigned char* p) {
     std::memcpy(&v, p, 4);
     return v;
 }
+
+// The JSON's bytes for the parser: a range of the file read a MiB at a time with pread (no
+// per-character locking as with a FILE*), counting what it has read for a progress line.
+class RangeReader : public std::streambuf {
+public:
+    RangeReader(const std::string& path, int fd, uint64_t offset, uint64_t length, ReadProgress* progress)
+        : path_(path), fd_(fd), next_(offset), end_(offset + length), progress_(progress), buffer_(1 << 20) {
+        if (progress_) progress_->total = length;
+    }
+
+protected:
+    int_type underflow() override {
+        if (gptr() < egptr()) return traits_type::to_int_type(*gptr());
+        if (next_ >= end_) return traits_type::eof();
+        const size_t want = size_t(std::min<uint64_t>(buffer_.size(), end_ - next_));
+        ssize_t n;
+        do n = ::pread(fd_, buffer_.data(), want, off_t(next_));
+        while (n < 0 && errno == EINTR);
+        if (n < 0) throw InputError(path_, std::string("cannot read the JSON: ") + std::strerror(errno));
+        if (n == 0) return traits_type::eof();
+        next_ += uint64_t(n);
+        if (progress_) progress_->done += uint64_t(n);
+        setg(buffer_.data(), buffer_.data(), buffer_.data() + n);
+        return traits_type::to_int_type(*gptr());
+    }
+
+private:
+    const std::string& path_;
+    int fd_;
+    uint64_t next_, end_;
+    ReadProgress* progress_;
+    std::vector<char> buffer_;
+};
 
 class FileCloser {
 public:
@@ -601,7 +640,8 @@ private:
 
 }  // namespace
 
-std::unique_ptr<SceneSource> streamGltf(const std::string& path, const ImportOptions& options, std::string* why) {
+std::unique_ptr<SceneSource> streamGltf(const std::string& path, const ImportOptions& options, std::string* why,
+                                        ReadProgress* progress) {
     std::FILE* raw = std::fopen(path.c_str(), "rb");
     if (!raw) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
     FileCloser file(raw);
@@ -640,10 +680,11 @@ std::unique_ptr<SceneSource> streamGltf(const std::string& path, const ImportOpt
 
     Document doc;
     Handler handler(path, doc);
-    if (std::fseek(raw, long(json_offset), SEEK_SET) != 0) throw InputError(path, "cannot seek to the JSON");
-    // Not strict: parsing stops after the one JSON value, before the GLB's padding and BIN chunk.
+    RangeReader reader(path, ::fileno(raw), json_offset, json_length, progress);
+    // Not strict: parsing stops after the one JSON value, before the GLB's padding.
     try {
-        json::sax_parse(raw, &handler, json::input_format_t::json, false);
+        json::sax_parse(std::istreambuf_iterator<char>(&reader), std::istreambuf_iterator<char>(), &handler,
+                        json::input_format_t::json, false);
     } catch (const nlohmann::json::exception& e) {
         throw InputError(path, std::string("invalid glTF json: ") + e.what());
     }

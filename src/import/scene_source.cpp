@@ -28,7 +28,8 @@ private:
 
 std::unique_ptr<SceneSource> sceneSource(Scene scene) { return std::make_unique<InMemorySource>(std::move(scene)); }
 
-std::unique_ptr<SceneSource> openSceneSource(const std::string& path, const ImportOptions& options, ReadMode mode) {
+std::unique_ptr<SceneSource> openSceneSource(const std::string& path, const ImportOptions& options, ReadMode mode,
+                                             ReadProgress* progress) {
     const std::string ext = lowerExtension(path);
     if (mode != ReadMode::Whole && (ext == ".glb" || ext == ".gltf")) {
         std::error_code ec;
@@ -46,7 +47,7 @@ std::unique_ptr<SceneSource> openSceneSource(const std::string& path, const Impo
         }
         if (mode == ReadMode::Stream || total > kStreamAboveBytes) {
             std::string why;
-            if (auto source = streamGltf(path, options, &why)) return source;
+            if (auto source = streamGltf(path, options, &why, progress)) return source;
             if (mode == ReadMode::Stream || total > kStreamAboveBytes)
                 std::fprintf(stderr, "note: %s uses %s, which only the whole-file import reads: importing it whole\n",
                              path.c_str(), why.c_str());

@@ -4,6 +4,7 @@
 #include "import/import.h"
 #include "scene/scene.h"
 
+#include <atomic>
 #include <memory>
 #include <string>
 #include <vector>
@@ -30,6 +31,11 @@ public:
     virtual const char* how() const = 0;
 };
 
+// Bytes of a model file read so far while a source is opened (the JSON of a streamed glTF).
+struct ReadProgress {
+    std::atomic<uint64_t> done{0}, total{0};
+};
+
 // A scene already in memory as a source.
 std::unique_ptr<SceneSource> sceneSource(Scene scene);
 
@@ -48,10 +54,11 @@ inline constexpr uint64_t kStreamAboveBytes = 256ull << 20;
 // Draco compression or data: URIs is imported whole instead (importModel), as is every other
 // format. Same objects, meshes and errors' meaning either way.
 std::unique_ptr<SceneSource> openSceneSource(const std::string& path, const ImportOptions& options = {},
-                                             ReadMode mode = ReadMode::Auto);
+                                             ReadMode mode = ReadMode::Auto, ReadProgress* progress = nullptr);
 
 // The streaming glTF reader alone: nullptr when the file uses something it does not read
 // (*why says what); throws InputError for a malformed file.
-std::unique_ptr<SceneSource> streamGltf(const std::string& path, const ImportOptions& options, std::string* why);
+std::unique_ptr<SceneSource> streamGltf(const std::string& path, const ImportOptions& options, std::string* why,
+                                        ReadProgress* progress = nullptr);
 
 }  // namespace occ

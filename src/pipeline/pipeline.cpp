@@ -71,6 +71,9 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     if (options_.pvs_occluder_triangles == PipelineOptions::kAutoOccluderTriangles)
         options_.pvs_occluder_triangles =
             std::max(PipelineOptions::kMinAutoOccluderTriangles, uint64_t(std::llround(budget_ / 4)));
+    if (!(options_.occluder_ms >= 0) || !std::isfinite(options_.occluder_ms))
+        throw OptionError("occluder_ms", std::to_string(options_.occluder_ms) + ": must be a finite number >= 0");
+    occluder_budget_ = double(options_.pvs_occluder_triangles);
     host_ = {file.allPositions().data(), file.allTriangles().data(), scene_.host_vertex_first.data(),
              scene_.host_triangle_first.data(), scene_.host_objects.data()};
 
@@ -145,7 +148,7 @@ void Pipeline::chooseOccluders(const k::Camera& camera, k::DevicePtr<const uint3
     uint32_t extra = 0;
     if (options_.pvs_occluder_triangles > 0 && source_count > 0) {
         extra = k::selectPvsOccluders(scene_.objects.ptr(), source, source_count, in_frustum_.ptr(), camera,
-                                      occluders_.ptr(), aos, options_.pvs_occluder_triangles, pvs_occluder_scratch_,
+                                      occluders_.ptr(), aos, uint64_t(occluder_budget_), pvs_occluder_scratch_,
                                       occluders_.ptr() + aos);
     }
     occluder_count_ = aos + extra;
@@ -245,8 +248,21 @@ void Pipeline::occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& 
     clock.lap(Stage::OccluderSelect);
     rasterOccluders(camera, stats);
     clock.lap(Stage::DepthRaster);
+    adaptOccluderBudget(stats);
     k::hzmBuild(hzm_.ptr(), options_.width, options_.height);
     clock.lap(Stage::HzmBuild);
+}
+
+void Pipeline::adaptOccluderBudget(const FrameStats& stats) {
+    const double ms = stats.ms[size_t(Stage::DepthRaster)];
+    // Too few triangles or too short a time say little about the rate.
+    if (options_.occluder_ms <= 0 || options_.pvs_occluder_triangles == 0 || stats.occluder_triangles < 2000 ||
+        !(ms > 0.05))
+        return;
+    const double rate = double(stats.occluder_triangles) / ms;
+    raster_rate_ = raster_rate_ > 0 ? 0.7 * raster_rate_ + 0.3 * rate : rate;
+    occluder_budget_ = std::clamp(raster_rate_ * options_.occluder_ms, double(PipelineOptions::kMinAdaptiveOccluderTriangles),
+                                  double(PipelineOptions::kMaxAdaptiveOccluderTriangles));
 }
 
 void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stats,

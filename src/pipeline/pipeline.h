@@ -49,6 +49,15 @@ struct PipelineOptions {
     static constexpr uint64_t kAutoOccluderTriangles = ~uint64_t(0);
     static constexpr uint64_t kMinAutoOccluderTriangles = 30000;
     uint64_t pvs_occluder_triangles = kAutoOccluderTriangles;
+    // > 0: that budget adapts to the raster, frame by frame, so that gathering and rastering
+    // the occluders takes about this many milliseconds: the next frame's budget is the
+    // smoothed triangles per ms of the last frames times occluder_ms, within
+    // [kMinAdaptiveOccluderTriangles, kMaxAdaptiveOccluderTriangles] (pvs_occluder_triangles
+    // is the first frame's). Occluders stay full detail. Timing makes the choice differ from
+    // run to run, so recorded-path measurements leave it off (0, the default) unless asked.
+    double occluder_ms = 0;
+    static constexpr uint64_t kMinAdaptiveOccluderTriangles = 10000;
+    static constexpr uint64_t kMaxAdaptiveOccluderTriangles = 16000000;
     // Which frame's PVS supplies those: 1 = the last frame's (one rank); 2 = the one before,
     // as the 3-rank occlusion switch has it (its occluder rank works on frame i+1 while the
     // other culls frame i). runFrame with 2 gives the 3-rank answer in one process.
@@ -171,6 +180,7 @@ private:
     void chooseOccluders(const k::Camera& camera, k::DevicePtr<const uint32_t> source, uint32_t source_count);
     void rasterOccluders(const k::Camera& camera, FrameStats& stats);
     // The frustum objects the HZM does not prove hidden, into out (ascending); returns how many.
+    void adaptOccluderBudget(const FrameStats& stats);
     uint32_t hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out);
 
     const OssFile& file_;
@@ -187,6 +197,8 @@ private:
     k::DeviceArray<uint64_t> topk_keys_;
     k::DeviceArray<uint32_t> occluders_;        // AOS, then the PVS occluders
     uint32_t occluder_count_ = 0;
+    double occluder_budget_ = 0;  // triangles of PVS occluders this frame may raster
+    double raster_rate_ = 0;      // occluder triangles per ms, smoothed over the last frames (occluder_ms)
     k::PvsOccluderScratch pvs_occluder_scratch_;
     k::OccluderGeometry occluder_geometry_;
     k::DepthRasterScratch raster_scratch_;

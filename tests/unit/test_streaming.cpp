@@ -225,3 +225,36 @@ TEST(StreamingPrep, ObjectsOfMeshesWithoutTrianglesAreDropped) {
 
 }  // namespace
 }  // namespace occ
+
+namespace occ {
+namespace {
+
+// Every malformed glTF of tests/bad is refused by the streaming reader too: an InputError when
+// opened or when a mesh is read, no triangles at all, or (data: URIs) left to the whole-file
+// importer, which refuses it as test cli/prep_verify_info checks.
+TEST(StreamingGltf, RefusesEveryMalformedFileOfTheBadCorpus) {
+    int checked = 0;
+    for (const auto& e : std::filesystem::directory_iterator(std::string(OCC_TEST_DATA) + "/bad")) {
+        const std::string ext = e.path().extension().string();
+        if (ext != ".glb" && ext != ".gltf") continue;
+        ++checked;
+        const std::string path = e.path().string();
+        std::string why;
+        try {
+            const auto source = streamGltf(path, {}, &why);
+            if (!source) {
+                EXPECT_FALSE(why.empty()) << path;
+                continue;
+            }
+            uint64_t triangles = 0;
+            for (uint32_t m = 0; m < source->meshCount(); ++m) triangles += source->mesh(m).triangleCount();
+            EXPECT_TRUE(source->objects().empty() || triangles == 0) << path << ": accepted";
+        } catch (const InputError& error) {
+            EXPECT_NE(std::string(error.what()).find(path), std::string::npos) << error.what();
+        }
+    }
+    EXPECT_GT(checked, 10);
+}
+
+}  // namespace
+}  // namespace occ

@@ -1,0 +1,28 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace occ::cli {
+
+struct BenchMassiveOptions {
+    std::string out;                  // results folder (created if missing)
+    std::string scenes;               // where the plant is made once and reused (default OUT/scenes)
+    uint32_t objects = 1000000;       // the plant's objects (10^6: 193 M triangles; 1.72 x 10^6: the Boeing's 332 M)
+    uint32_t frames = 300;            // cameras of the walk and of the orbit
+    uint32_t exact_frames = 30;       // the walk's prefix run with the exact visible set
+    double run_timeout_s = 7200;      // a run that takes longer is stopped and reported
+};
+
+// `occswitch bench massive --out DIR`: a plant of the papers' Boeing class, generated (gen
+// plant, streamed) and preprocessed (prep, streamed) once into the scenes folder, their time
+// and peak memory kept beside the files; then a walk and an orbit with oc+lod, the walk with
+// lod alone, and a prefix of the walk against the exact visible set, each a child process.
+// Writes DIR/massive.md and DIR/massive.csv (frame time median / p99 / max and the first
+// frames, streamed share, PVS churn against exact churn, occluder triangles and raster ms,
+// false culls, peak memory of gen, prep and every render), DIR/raw (per-frame stats) and
+// DIR/logs; prints the summary's path on stdout.
+int runBenchMassive(const BenchMassiveOptions& options);
+
+}  // namespace occ::cli

@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# occswitch bench massive at a tiny size end to end: makes the plant (gen and prep, their cost
+# kept beside the files), walks and orbits it, runs the exact prefix, and writes massive.md and
+# massive.csv with four runs whose invariants hold (0 false culls, exact churn known, peak
+# memory measured); a second run reuses the scene; impossible options exit 2.
+set -u
+exe=$1
+dir=$(mktemp -d)
+trap 'rm -rf "$dir"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+out=$dir/out
+field() {  # field ROW COLUMN of massive.csv (rows from 1)
+  awk -F, -v row="$1" -v name="$2" 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == name) c = i; next }
+    NR == row + 1 { if (!c) exit 3; print $c }' "$out/massive.csv"
+}
+
+"$exe" bench massive --out "$out" --objects 1000 --frames 14 --exact-frames 4 >"$dir/stdout" 2>"$dir/stderr" ||
+  { cat "$dir/stderr"; fail "bench massive"; }
+[ "$(cat "$dir/stdout")" = "$out/massive.md" ] || fail "stdout is not the summary's path: $(cat "$dir/stdout")"
+grep -q "^bench massive: gen plant: " "$dir/stderr" || fail "no gen step"
+grep -q "^bench massive: prep: " "$dir/stderr" || fail "no prep step"
+[ -s "$out/scenes/plant_1000.oss" ] && [ -s "$out/scenes/plant_1000.bin" ] || fail "the scene is not in scenes/"
+[ "$(wc -l <"$out/massive.csv")" -eq 5 ] || fail "massive.csv does not have 4 runs"
+[ "$(field 1 frames)" = 14 ] || fail "the walk ran $(field 1 frames) frames"
+[ "$(field 4 frames)" = 5 ] || fail "the exact prefix ran $(field 4 frames) frames, expected 4 + the first"
+[ "$(field 4 false_culls)" = 0 ] || fail "false culls: $(field 4 false_culls)"
+[ "$(field 4 exact_churn)" != n/a ] || fail "no exact churn"
+for r in 1 2 3 4; do
+  awk -v v="$(field $r peak_mb)" 'BEGIN { exit !(v > 1) }' || fail "run $r: no peak memory"
+  awk -v v="$(field $r median_ms)" 'BEGIN { exit !(v > 0) }' || fail "run $r: no median frame time"
+done
+grep -q "gen: [0-9.]* s, [0-9]* MB peak; prep: [0-9.]* s, [0-9]* MB peak" "$out/massive.md" || fail "gen/prep cost missing"
+grep -q "made by this run" "$out/massive.md" || fail "the first run did not say it made the scene"
+
+# Reused: no gen or prep, their cost still reported.
+"$exe" bench massive --out "$out" --objects 1000 --frames 14 --exact-frames 4 >/dev/null 2>"$dir/stderr2" ||
+  { cat "$dir/stderr2"; fail "second bench massive"; }
+grep -q "gen plant" "$dir/stderr2" && fail "the second run made the scene again"
+grep -q "reused; its cost from when it was made" "$out/massive.md" || fail "reuse not said"
+grep -q "gen: [0-9.]* s, [0-9]* MB peak" "$out/massive.md" || fail "gen cost lost on reuse"
+
+# Impossible options.
+"$exe" bench massive --out "$out" --objects 10 2>/dev/null; [ $? -eq 2 ] || fail "--objects 10 did not exit 2"
+"$exe" bench massive --out "$out" --frames 20 --exact-frames 30 2>/dev/null; [ $? -eq 2 ] || fail "--exact-frames > --frames did not exit 2"
+"$exe" bench massive 2>/dev/null; [ $? -eq 2 ] || fail "no --out did not exit 2"
+echo ok
