@@ -320,6 +320,32 @@ TEST_F(PipelineFrames, TheFirstFrameAndAJumpCullAsASteadyFrameDoes) {
     EXPECT_LE(double(pipeline.runFrame(inside, 4).objects_visible), 1.1 * double(steady));
 }
 
+// With occluder_ms the occluder budget follows the raster's measured speed: a time no raster
+// meets brings it down to the floor (so frames raster fewer PVS occluders than the fixed
+// budget), a time every raster meets lets it grow past the fixed budget.
+TEST_F(PipelineFrames, TheAdaptiveOccluderBudgetFollowsTheRasterTime) {
+    const PipelineFixture& f = fixture();
+    PipelineOptions fixed = smallOptions(StreamMode::Coherent);
+    fixed.pvs_occluder_triangles = 40000;
+    PipelineOptions tight = fixed, loose = fixed;
+    tight.occluder_ms = 1e-6;
+    loose.occluder_ms = 1e6;
+    Pipeline a(*f.file, fixed), b(*f.file, tight), c(*f.file, loose);
+    uint64_t sum_fixed = 0, sum_tight = 0, sum_loose = 0;
+    for (size_t frame = 0; frame < 12; ++frame) {
+        const uint64_t fa = a.runFrame(f.cameras[frame], frame).occluder_triangles;
+        const uint64_t fb = b.runFrame(f.cameras[frame], frame).occluder_triangles;
+        const uint64_t fc = c.runFrame(f.cameras[frame], frame).occluder_triangles;
+        if (frame < 3) continue;  // the first frames still raster what the fixed budget gives
+        sum_fixed += fa, sum_tight += fb, sum_loose += fc;
+    }
+    EXPECT_LT(sum_tight, sum_fixed);
+    EXPECT_GE(sum_loose, sum_fixed);
+    PipelineOptions bad = fixed;
+    bad.occluder_ms = -1;
+    EXPECT_THROW(Pipeline(*f.file, bad), UsageError);
+}
+
 TEST_F(PipelineFrames, ImpossibleOptionsAreRefused) {
     const PipelineFixture& f = fixture();
     PipelineOptions o = smallOptions(StreamMode::Coherent);
