@@ -50,17 +50,7 @@ DeviceScene DeviceScene::upload(const OssFile& file) {
         d.host_map_first[m] = meshes[m].map_first;
     }
 
-    // Meshes are independent and most are small: one task each.
     const std::span<const uint32_t> triangles = file.allTriangles();
-    std::vector<uint8_t> edge_flags(triangles.size() / 3);
-    std::vector<uint32_t> edge_neighbours(triangles.size());
-    std::vector<uint32_t> mesh_ids(d.mesh_count);
-    std::iota(mesh_ids.begin(), mesh_ids.end(), 0u);
-    std::for_each(std::execution::par, mesh_ids.begin(), mesh_ids.end(), [&](uint32_t m) {
-        k::sharedEdgeFlags(triangles.data() + 3 * meshes[m].triangle_first, meshes[m].triangle_count,
-                           edge_flags.data() + meshes[m].triangle_first,
-                           edge_neighbours.data() + 3 * meshes[m].triangle_first);
-    });
 
     const std::span<const oss::ObjectDisk> objects = file.objects();
     d.host_objects.resize(d.object_count);
@@ -84,7 +74,7 @@ DeviceScene DeviceScene::upload(const OssFile& file) {
     const uint64_t needed = uint64_t(d.object_count) * (sizeof(k::ObjectInfo) + sizeof(glm::mat4)) +
                             uint64_t(d.mesh_count) * 3 * sizeof(uint64_t) + file.allEcol().size_bytes() +
                             file.allMaps().size_bytes() + file.cos().size_bytes() + file.allPositions().size_bytes() +
-                            triangles.size_bytes() + edge_flags.size() + edge_neighbours.size() * sizeof(uint32_t);
+                            triangles.size_bytes() + triangles.size() / 3 + triangles.size_bytes();
     k::requireDeviceMemory(needed, "the scene " + file.path());
     copyUp(d.objects, d.host_objects);
     copyUp(d.world, d.host_world);
@@ -97,8 +87,38 @@ DeviceScene DeviceScene::upload(const OssFile& file) {
     d.cos_count = uint32_t(file.cos().size());
     copyUp(d.positions, file.allPositions());
     copyUp(d.triangles, triangles);
-    copyUp(d.edge_flags, edge_flags);
-    copyUp(d.edge_neighbours, edge_neighbours);
+
+    // The shared edges of every mesh, computed in batches of meshes through a host buffer of at
+    // most about kEdgeBatchTriangles triangles (13 bytes each), not for the whole scene at once:
+    // on a 3.3 x 10^8-triangle scene that whole-scene buffer was 4.3 GB on top of the device's
+    // copy. Meshes are independent and most are small: one task each.
+    constexpr uint64_t kEdgeBatchTriangles = uint64_t(1) << 24;
+    const uint64_t triangle_total = triangles.size() / 3;
+    d.edge_flags.resize(std::max<uint64_t>(1, triangle_total));
+    d.edge_neighbours.resize(std::max<uint64_t>(1, 3 * triangle_total));
+    std::vector<uint8_t> edge_flags;
+    std::vector<uint32_t> edge_neighbours;
+    std::vector<uint32_t> batch;
+    for (uint32_t first = 0; first < d.mesh_count;) {
+        const uint64_t base = meshes[first].triangle_first;
+        uint32_t last = first;
+        while (last < d.mesh_count &&
+               (last == first || meshes[last].triangle_first + meshes[last].triangle_count - base <= kEdgeBatchTriangles))
+            ++last;
+        const uint64_t count = meshes[last - 1].triangle_first + meshes[last - 1].triangle_count - base;
+        edge_flags.resize(count);
+        edge_neighbours.resize(3 * count);
+        batch.resize(last - first);
+        std::iota(batch.begin(), batch.end(), first);
+        std::for_each(std::execution::par, batch.begin(), batch.end(), [&](uint32_t m) {
+            k::sharedEdgeFlags(triangles.data() + 3 * meshes[m].triangle_first, meshes[m].triangle_count,
+                               edge_flags.data() + (meshes[m].triangle_first - base),
+                               edge_neighbours.data() + 3 * (meshes[m].triangle_first - base));
+        });
+        k::copyToDevice(d.edge_flags.ptr() + base, edge_flags.data(), count);
+        k::copyToDevice(d.edge_neighbours.ptr() + 3 * base, edge_neighbours.data(), 3 * count);
+        first = last;
+    }
     return d;
 }
 
