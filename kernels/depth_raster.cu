@@ -10,11 +10,14 @@
 #include <thrust/for_each.h>
 #include <thrust/functional.h>
 #include <thrust/iterator/counting_iterator.h>
+#include <thrust/copy.h>
 #include <thrust/reduce.h>
+#include <thrust/sort.h>
 #include <thrust/scan.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -46,8 +49,9 @@ struct alignas(64) DepthRasterTriangle {
     // Pixels whose centres may be covered, inclusive, clamped to the viewport; the triangle is
     // empty (skipped, or covers no centre) when x_lo > x_hi.
     uint16_t x_lo, y_lo, x_hi, y_hi;
-    // Bit k set: edge k (opposite corner k) is shared within its mesh, so it takes the tie rule
-    // instead of the margin.
+    // Bit k set: edge k (opposite corner k) is shared within its mesh or across a seam, so it
+    // takes the tie rule instead of the margin. Bit kReversedBit: the stored corners 1 and 2 are
+    // the input's 2 and 1 (the input was clockwise on screen).
     uint32_t shared_edges;
 };
 static_assert(sizeof(DepthRasterTriangle) == 64);
@@ -125,6 +129,7 @@ constexpr int64_t kUnits = kDepthRasterSubpixelUnits;
 constexpr int64_t kHalfPixel = kUnits / 2;
 constexpr int64_t kMargin = kDepthRasterMarginUnits;
 constexpr uint32_t kTile = kDepthRasterTileSize;
+constexpr uint32_t kReversedBit = 8;
 // Triangles per binning chunk, and a cap on the tile x chunk count matrix (32 MB).
 constexpr uint64_t kChunkTriangles = 4096;
 constexpr uint64_t kMaxCountCells = uint64_t(1) << 22;
@@ -172,8 +177,13 @@ struct SetupTriangles {
     uint32_t tri_count;
     DepthRasterTriangle* setup;
     int64_t last_x, last_y;  // viewport size - 1
+    // null, or per triangle the stored edges found shared across a seam (a second pass over
+    // the triangles listed in `only`, which then take the tie rule there and no box margin)
+    const uint8_t* seam_edges = nullptr;
+    const uint32_t* only = nullptr;
 
-    OCC_HD void operator()(uint32_t t) const {
+    OCC_HD void operator()(uint32_t i) const {
+        const uint32_t t = only ? only[i] : i;
         // Most triangles of a detailed occluder cover no pixel centre: leave as early as possible.
         setup[t].x_lo = 1, setup[t].x_hi = 0;
         const DepthRasterVertex c0 = vertices[triangles[3 * t]], v1 = vertices[triangles[3 * t + 1]],
@@ -206,7 +216,8 @@ struct SetupTriangles {
         // box shrunk by the margin: 256*x + 128 in [min + margin, max - margin]. (The box side
         // at a corner is that far in when both edges at the corner keep the margin; shrinking
         // only triangles without a shared edge keeps it simple and loses next to nothing.)
-        const int64_t margin = flags ? 0 : kMargin;
+        const uint32_t seams = seam_edges ? seam_edges[t] : 0u;
+        const int64_t margin = flags || seams ? 0 : kMargin;
         const int64_t x_min = min64(c0.x, min64(v1.x, v2.x)), x_max = max64(c0.x, max64(v1.x, v2.x));
         const int64_t y_min = min64(c0.y, min64(v1.y, v2.y)), y_max = max64(c0.y, max64(v1.y, v2.y));
         const int64_t x_lo = max64(0, -floorDiv(-(x_min + margin - kHalfPixel), kUnits));
@@ -229,7 +240,7 @@ struct SetupTriangles {
         // input's edge 1 either way, edges 1 and 2 are the input's 2 and 0, or 0 and 2 when the
         // winding was reversed.
         const uint32_t e0 = flags & 1u, e1 = flags >> 1 & 1u, e2 = flags >> 2 & 1u;
-        s.shared_edges = reversed ? e1 | e0 << 1 | e2 << 2 : e1 | e2 << 1 | e0 << 2;
+        s.shared_edges = (reversed ? e1 | e0 << 1 | e2 << 2 : e1 | e2 << 1 | e0 << 2) | seams | (reversed ? kReversedBit : 0u);
 
         // The depth plane through the snapped corners, in double (the integers are exact there),
         // per 1/256 pixel: z = z0 + gx * (X - X0) + gy * (Y - Y0) by Cramer's rule.
@@ -253,6 +264,138 @@ struct SetupTriangles {
         s.lower_bound = minf(c0.z, minf(c1.z, c2.z));
         setup[t] = s;
     }
+};
+
+// Seams between occluders. A boundary edge is one of a triangle that covers a pixel centre's box
+// (x_lo <= x_hi) and that keeps the margin there; each is keyed by its two world-space endpoints
+// taken in either order, so that the two sides of a seam get the same key.
+OCC_HD inline uint32_t boundaryEdges(const DepthRasterTriangle& s) {
+    return s.x_lo > s.x_hi ? 0u : 7u & ~s.shared_edges;
+}
+
+// The vertex indices of stored edge k of triangle t: from stored corner k+1 to k+2.
+OCC_HD inline void storedEdge(const uint32_t* triangles, const DepthRasterTriangle& s, uint32_t t, uint32_t k,
+                              uint32_t& a, uint32_t& b) {
+    const bool reversed = (s.shared_edges & kReversedBit) != 0;
+    uint32_t c[3] = {triangles[3 * t], triangles[3 * t + 1], triangles[3 * t + 2]};
+    if (reversed) {
+        const uint32_t x = c[1];
+        c[1] = c[2];
+        c[2] = x;
+    }
+    a = c[(k + 1) % 3];
+    b = c[(k + 2) % 3];
+}
+
+OCC_HD inline uint32_t floatBits(float f) {
+    uint32_t u;
+    memcpy(&u, &f, 4);
+    return u;
+}
+
+// Whether point p comes before q in a fixed order of bit patterns (any total order will do).
+OCC_HD inline bool pointBefore(const glm::vec3& p, const glm::vec3& q) {
+    const uint32_t a[3] = {floatBits(p.x), floatBits(p.y), floatBits(p.z)};
+    const uint32_t b[3] = {floatBits(q.x), floatBits(q.y), floatBits(q.z)};
+    for (int i = 0; i < 3; ++i)
+        if (a[i] != b[i]) return a[i] < b[i];
+    return false;
+}
+
+OCC_HD inline bool samePoint(const glm::vec3& p, const glm::vec3& q) {
+    return floatBits(p.x) == floatBits(q.x) && floatBits(p.y) == floatBits(q.y) && floatBits(p.z) == floatBits(q.z);
+}
+
+OCC_HD inline uint64_t mixBits(uint64_t h, uint32_t v) {
+    h ^= v;
+    h *= 0x100000001b3ull;  // FNV-1a's prime, then a splitmix64 finaliser below
+    return h;
+}
+
+OCC_HD inline uint64_t edgeKey(const glm::vec3& p, const glm::vec3& q) {
+    const glm::vec3& lo = pointBefore(p, q) ? p : q;
+    const glm::vec3& hi = pointBefore(p, q) ? q : p;
+    uint64_t h = 0xcbf29ce484222325ull;
+    h = mixBits(h, floatBits(lo.x)), h = mixBits(h, floatBits(lo.y)), h = mixBits(h, floatBits(lo.z));
+    h = mixBits(h, floatBits(hi.x)), h = mixBits(h, floatBits(hi.y)), h = mixBits(h, floatBits(hi.z));
+    h ^= h >> 30, h *= 0xbf58476d1ce4e5b9ull, h ^= h >> 27, h *= 0x94d049bb133111ebull, h ^= h >> 31;
+    return h;
+}
+
+struct CountBoundaryEdges {
+    const DepthRasterTriangle* setup;
+    uint32_t* counts;
+    OCC_HD void operator()(uint32_t t) const {
+        const uint32_t bits = boundaryEdges(setup[t]);
+        counts[t] = (bits & 1u) + (bits >> 1 & 1u) + (bits >> 2 & 1u);
+    }
+};
+
+struct EmitBoundaryEdges {
+    const DepthRasterTriangle* setup;
+    const uint32_t* triangles;
+    const glm::vec3* positions;
+    const uint32_t* first;
+    uint32_t* ids;
+    uint64_t* keys;
+    OCC_HD void operator()(uint32_t t) const {
+        const uint32_t bits = boundaryEdges(setup[t]);
+        uint32_t at = first[t];
+        for (uint32_t k = 0; k < 3; ++k) {
+            if (!(bits >> k & 1u)) continue;
+            uint32_t a, b;
+            storedEdge(triangles, setup[t], t, k, a, b);
+            ids[at] = 3 * t + k;
+            keys[at] = edgeKey(positions[a], positions[b]);
+            ++at;
+        }
+    }
+};
+
+// One thread per boundary edge, in key order: marks its edge when another edge of the same key
+// has the same two endpoints the other way round (the triangle across). Neighbours of equal
+// key are next to it; a run of equal keys is a handful of edges.
+struct MatchSeams {
+    const DepthRasterTriangle* setup;
+    const uint32_t* triangles;
+    const glm::vec3* positions;
+    const uint32_t* ids;
+    const uint64_t* keys;
+    uint32_t count;
+    uint8_t* seam_edges;  // written by the thread of the edge's only boundary entry: no races
+    OCC_HD bool across(uint32_t i, const glm::vec3& a, const glm::vec3& b) const {
+        const uint32_t t = ids[i] / 3, k = ids[i] % 3;
+        uint32_t c, d;
+        storedEdge(triangles, setup[t], t, k, c, d);
+        return samePoint(positions[c], b) && samePoint(positions[d], a);
+    }
+    OCC_HD void operator()(uint32_t i) const {
+        const uint32_t t = ids[i] / 3, k = ids[i] % 3;
+        uint32_t ia, ib;
+        storedEdge(triangles, setup[t], t, k, ia, ib);
+        const glm::vec3 a = positions[ia], b = positions[ib];
+        if (samePoint(a, b)) return;
+        bool found = false;
+        for (uint32_t j = i; j-- > 0 && keys[j] == keys[i] && !found;) found = across(j, a, b);
+        for (uint32_t j = i + 1; j < count && keys[j] == keys[i] && !found; ++j) found = across(j, a, b);
+        // One byte per (triangle, edge), each written by this edge's thread alone; a second
+        // pass packs them per triangle.
+        if (found) seam_edges[3 * t + k] = 1;
+    }
+};
+
+// Per triangle, its three per-edge marks into the bits SetupTriangles takes.
+struct GatherSeamBits {
+    const uint8_t* marks;  // 3 per triangle
+    uint8_t* bits;
+    OCC_HD void operator()(uint32_t t) const {
+        bits[t] = uint8_t(marks[3 * t] | marks[3 * t + 1] << 1 | marks[3 * t + 2] << 2);
+    }
+};
+
+struct HasSeam {
+    const uint8_t* bits;
+    OCC_HD bool operator()(uint32_t t) const { return bits[t] != 0; }
 };
 
 // Binning is a counting sort by tile, without atomics: the triangles are cut into chunks, each
@@ -477,9 +620,52 @@ void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* fla
         }
 }
 
+namespace {
+
+// Finds the seams (see depthRaster) among the set-up triangles and sets them up again with the
+// tie rule on those edges.
+void seams(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count, SetupTriangles setup,
+           DepthRasterScratch& scratch) {
+    const thrust::counting_iterator<uint32_t> first(0);
+    DepthRasterTriangle* const triangle_setup = raw(scratch.setup.ptr());
+    scratch.edge_first.resize(uint64_t(tri_count) + 1);
+    uint32_t* const edge_first = raw(scratch.edge_first.ptr());
+    thrust::for_each_n(thrust::device, first, tri_count, CountBoundaryEdges{triangle_setup, edge_first});
+    thrust::fill(thrust::device, edge_first + tri_count, edge_first + tri_count + 1, 0u);
+    thrust::exclusive_scan(thrust::device, edge_first, edge_first + tri_count + 1, edge_first);
+    const uint32_t count = readBack(DevicePtr<const uint32_t>(scratch.edge_first.ptr() + tri_count));
+    if (count < 2) return;
+    scratch.edge_ids.resize(count);
+    scratch.edge_keys.resize(count);
+    uint32_t* const ids = raw(scratch.edge_ids.ptr());
+    uint64_t* const keys = raw(scratch.edge_keys.ptr());
+    thrust::for_each_n(thrust::device, first, tri_count,
+                       EmitBoundaryEdges{triangle_setup, triangles, positions, edge_first, ids, keys});
+    thrust::sort_by_key(thrust::device, keys, keys + count, ids);
+    scratch.seam_edges.resize(3 * uint64_t(tri_count));
+    uint8_t* const marks = raw(scratch.seam_edges.ptr());
+    thrust::fill(thrust::device, marks, marks + 3 * uint64_t(tri_count), uint8_t(0));
+    thrust::for_each_n(thrust::device, first, count,
+                       MatchSeams{triangle_setup, triangles, positions, ids, keys, count, marks});
+    scratch.seam_triangles.resize(std::max<uint32_t>(1, tri_count));
+    uint32_t* const affected = raw(scratch.seam_triangles.ptr());
+    DeviceArray<uint8_t>& bits_array = scratch.seam_bits;
+    bits_array.resize(std::max<uint32_t>(1, tri_count));
+    uint8_t* const bits = raw(bits_array.ptr());
+    thrust::for_each_n(thrust::device, first, tri_count, GatherSeamBits{marks, bits});
+    const uint32_t n = uint32_t(thrust::copy_if(thrust::device, first, first + tri_count, affected, HasSeam{bits}) - affected);
+    countReadback(sizeof n);
+    if (n == 0) return;
+    setup.seam_edges = bits;
+    setup.only = affected;
+    thrust::for_each_n(thrust::device, first, n, setup);
+}
+
+}  // namespace
+
 void depthRaster(DevicePtr<const glm::vec3> position_memory, DevicePtr<const uint32_t> triangle_memory,
                  uint32_t tri_count, DevicePtr<const uint8_t> flag_memory, DevicePtr<const uint32_t> neighbour_memory,
-                 const Camera& camera, DevicePtr<float> depth_memory, DepthRasterScratch& scratch) {
+                 const Camera& camera, DevicePtr<float> depth_memory, DepthRasterScratch& scratch, bool with_seams) {
     const glm::vec3* const positions = raw(position_memory);
     const uint32_t* const triangles = raw(triangle_memory);
     const uint8_t* const edge_flags = raw(flag_memory);
@@ -513,9 +699,10 @@ void depthRaster(DevicePtr<const glm::vec3> position_memory, DevicePtr<const uin
         ProjectVertices project{positions, raw(scratch.vertices.ptr()), {}, float(width), float(height)};
         for (int i = 0; i < 16; ++i) project.m[i] = camera.view_proj[i / 4][i % 4];
         thrust::for_each_n(thrust::device, first, vertex_count, project);
-        thrust::for_each_n(thrust::device, first, tri_count,
-                           SetupTriangles{raw(scratch.vertices.ptr()), triangles, edge_flags, edge_neighbours, tri_count,
-                                          raw(scratch.setup.ptr()), int64_t(width) - 1, int64_t(height) - 1});
+        const SetupTriangles setup{raw(scratch.vertices.ptr()), triangles, edge_flags, edge_neighbours, tri_count,
+                                   raw(scratch.setup.ptr()), int64_t(width) - 1, int64_t(height) - 1};
+        thrust::for_each_n(thrust::device, first, tri_count, setup);
+        if (with_seams) seams(positions, triangles, tri_count, setup, scratch);
         thrust::for_each_n(thrust::device, first, chunk_count, CountPerChunk{raw(scratch.setup.ptr()), cells, grid});
         // One more cell than there are, counting 0, so that the scan leaves the total there.
         thrust::exclusive_scan(thrust::device, cells, cells + cell_count + 1, cells);

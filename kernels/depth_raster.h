@@ -59,6 +59,14 @@ struct DepthRasterScratch {
     DeviceArray<DepthRasterTriangle> setup;   // tri_count
     DeviceArray<uint64_t> cells;              // (tiles x binning chunks) + 1 counts, then offsets
     DeviceArray<uint32_t> pair_triangle;      // one per (tile, triangle) pair, grouped by tile
+    // Seams between occluders (see depthRaster): the boundary edges of drawn triangles, their
+    // keys, and per triangle the edges found shared across.
+    DeviceArray<uint32_t> edge_first;         // tri_count + 1: exclusive scan of boundary edges
+    DeviceArray<uint32_t> edge_ids;           // 3 * triangle + stored edge, one per boundary edge
+    DeviceArray<uint64_t> edge_keys;          // hash of the edge's world endpoints, unordered
+    DeviceArray<uint8_t> seam_edges;          // 3 * tri_count: 1 where a stored edge is shared across
+    DeviceArray<uint8_t> seam_bits;           // tri_count: the same as bits per triangle
+    DeviceArray<uint32_t> seam_triangles;     // the triangles with such bits
 };
 
 // Marks the edges that a triangle list shares within itself, once per mesh: flags[t] gets bit e
@@ -92,16 +100,26 @@ void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* fla
 // depth: W*H floats, row-major (index y*W+x); this function CLEARS it to 1.0 (far) and then,
 // for every pixel whose centre a triangle covers (see the rules above), writes the minimum over
 // those triangles of their pushed depth at the centre (values above 1 leave 1).
+// Seams (seams = true, as the pipeline calls it): an edge of a drawn triangle that would keep the margin (not shared within its mesh,
+// or a fold) takes the tie rule instead when another drawn triangle of the list, of any mesh,
+// has an edge with bit-identical world-space endpoints running the other way round on screen,
+// so that the two lie on either side of it: the union of two occluders that abut exactly (two
+// wall panels, a wall on a slab) is then rastered without the 1/32-pixel crack the two margins
+// left, which a pixel centre sometimes fell into and through which whole halls stayed visible.
+// Identical endpoints project and snap identically on any rasteriser, so the GPU's image of the
+// two has no crack there either; matching is exact (no tolerance), so occluders that merely
+// nearly touch keep their margins.
 // Skipped, which only loses occlusion: triangles with a corner behind the near plane
 // (clip.w <= 0 or clip.z < -clip.w), a corner outside the guard band or deeper than
 // kDepthRasterMaxDepth, a NaN, or zero snapped area. Both windings are drawn. Without flags
 // the margin holds on every edge, shared ones too: a centre within 1/64 pixel of the edge
 // between two triangles of one mesh then belongs to neither and stays far. Deterministic: the
 // result depends neither on the thread count nor on the back end.
-// Memory: scratch grows to 16 bytes per vertex, 64 per triangle, 4 per (32x32 tile, triangle)
-// pair of overlapping screen boxes, and 8 per (tile, 4096 triangles), at most 32 MB.
+// Memory: scratch grows to 16 bytes per vertex, 76 per triangle, 4 per (32x32 tile, triangle)
+// pair of overlapping screen boxes, 8 per (tile, 4096 triangles), at most 32 MB, and 12 per
+// boundary edge of a drawn triangle.
 void depthRaster(DevicePtr<const glm::vec3> positions, DevicePtr<const uint32_t> triangles, uint32_t tri_count,
                  DevicePtr<const uint8_t> edge_flags, DevicePtr<const uint32_t> edge_neighbours, const Camera& camera,
-                 DevicePtr<float> depth, DepthRasterScratch& scratch);
+                 DevicePtr<float> depth, DepthRasterScratch& scratch, bool seams = false);
 
 }  // namespace occ::k

@@ -198,7 +198,7 @@ private:
         step(name);
         const fs::path stats = out_ / "raw" / (name + ".csv");
         std::vector<std::string> argv = command({"render", oss.string(), "--path", cam.string(), "--size", "512x512",
-                                                 "--budget", "10%", "--stats", stats.string()});
+                                                 "--budget", o_.budget, "--stats", stats.string()});
         argv.insert(argv.end(), extra.begin(), extra.end());
         const RunResult r = runner_.run(name, argv);
         done(r);
@@ -215,13 +215,13 @@ private:
         std::ostringstream md;
         md << "# occswitch bench massive\n\n"
            << "Written by `occswitch bench massive --objects " << o_.objects << " --frames " << o_.frames
-           << "` on " << date << " in " << fmt(total, 0) << " s (scene: " << (made_ ? "made by this run" : "reused; its cost from when it was made") << ").\n\n"
+           << " --budget " << o_.budget << "` on " << date << " in " << fmt(total, 0) << " s (scene: " << (made_ ? "made by this run" : "reused; its cost from when it was made") << ").\n\n"
            << "- scene: `gen plant --objects " << o_.objects << " --seed 1`: " << objects_ << " objects, " << triangles_
            << " triangles; glTF + buffer " << fmt(double(input_bytes_) / 1e9, 2) << " GB, .oss "
            << fmt(double(oss_bytes_) / 1e9, 2) << " GB\n"
            << "- gen: " << cost(gen_) << "; prep: " << cost(prep_) << " (a quarter of the input: "
            << fmt(double(input_bytes_) / 4e6, 0) << " MB)\n"
-           << "- runs: 512x512, budget 10 % of the scene's vertices, `--no-display` (every stage but drawing) for the "
+           << "- runs: 512x512, `--budget " << o_.budget << "`, `--no-display` (every stage but drawing) for the "
            << o_.frames << "-camera walk and orbit; the exact visible set (`--headless --exact`, all frustum objects drawn "
            << "at full detail) over the walk's first " << o_.exact_frames << " frames\n"
            << "- frame 0 and 1 apart; median, p99, max and 'frames > 2x median' over frames 2 on; streamed share, "

@@ -13,6 +13,7 @@ struct BenchMassiveOptions {
     uint32_t frames = 300;            // cameras of the walk and of the orbit
     uint32_t exact_frames = 30;       // the walk's prefix run with the exact visible set
     double run_timeout_s = 7200;      // a run that takes longer is stopped and reported
+    std::string budget = "auto";      // render --budget: what a frame draws (auto: one vertex per pixel)
 };
 
 // `occswitch bench massive --out DIR`: a plant of the papers' Boeing class, generated (gen

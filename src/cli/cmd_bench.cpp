@@ -606,6 +606,8 @@ Command addBenchCommand(CLI::App& app) {
     massive->add_option("--frames", mo->frames, "cameras of the walk and of the orbit")->check(CLI::Range(12u, 100000u))->capture_default_str();
     massive->add_option("--exact-frames", mo->exact_frames, "frames of the walk's prefix run against the exact visible set")
         ->capture_default_str();
+    massive->add_option("--budget", mo->budget, "the renders' vertex budget, as render --budget takes it")
+        ->capture_default_str();
     massive->add_option("--run-timeout", mo->run_timeout_s, "seconds after which a run is stopped and reported")
         ->capture_default_str();
     return {bench, [o, prep, po, size, pvs, ao, all, mo, massive] {

@@ -161,7 +161,7 @@ void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
     k::appendNearClipped(occluder_geometry_, camera);
     const k::OccluderGeometry& g = occluder_geometry_;
     k::depthRaster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(),
-                   g.edge_neighbours.ptr(), camera, hzm_.ptr(), raster_scratch_);
+                   g.edge_neighbours.ptr(), camera, hzm_.ptr(), raster_scratch_, /*seams=*/true);
     stats.aos_size = occluder_count_;
     stats.occluder_triangles = g.triangle_total;
 }

@@ -81,7 +81,8 @@ std::vector<uint8_t> sharedFlags(const Mesh& mesh) { return sharedFlags(mesh.tri
 
 // flags: one per triangle, or empty for none (null); neighbours: 3 per triangle, or empty.
 std::vector<float> rasterize(const Mesh& mesh, const Camera& camera, DepthRasterScratch& scratch,
-                             const std::vector<uint8_t>& flags = {}, const std::vector<uint32_t>& neighbours = {}) {
+                             const std::vector<uint8_t>& flags = {}, const std::vector<uint32_t>& neighbours = {},
+                             bool seams = false) {
     const DeviceArray<glm::vec3> positions = toDevice(mesh.positions);
     const DeviceArray<uint32_t> triangles = toDevice(mesh.triangles);
     const DeviceArray<uint8_t> edge_flags = toDevice(flags);
@@ -90,7 +91,7 @@ std::vector<float> rasterize(const Mesh& mesh, const Camera& camera, DepthRaster
     DeviceArray<float> depth = filledDevice(pixels, -3.0f);  // the raster must clear it
     depthRaster(positions.ptr(), triangles.ptr(), mesh.triangleCount(),
                 flags.empty() ? DevicePtr<const uint8_t>() : edge_flags.ptr(),
-                neighbours.empty() ? DevicePtr<const uint32_t>() : across.ptr(), camera, depth.ptr(), scratch);
+                neighbours.empty() ? DevicePtr<const uint32_t>() : across.ptr(), camera, depth.ptr(), scratch, seams);
     return toHost(depth, pixels);
 }
 
@@ -962,6 +963,62 @@ TEST_F(DepthRaster, RandomScenesMatchScalarReferenceBitForBit) {
         const Mesh coplanar = coplanarScene(rng, c, 300);
         EXPECT_EQ(rasterize(coplanar, c, scratch), referenceRaster(coplanar, c)) << w;
     }
+}
+
+
+// Seams between occluders: every triangle of a tessellated wall on vertices of its own (as the
+// wall's quads would be if each were another object), rastered with seams, is the welded wall
+// rastered with its shared edges, bit for bit; without seams the copies leave cracks.
+TEST_F(DepthRaster, SeamsBetweenAbuttingOccludersRasterAsOneMesh) {
+    const Camera c = perspectiveCamera(160, 128);
+    const glm::mat4 place = glm::rotate(glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(0, 0, -10)), 0.13f,
+                                                    glm::vec3(0, 0, 1)),
+                                        0.2f, glm::vec3(0, 1, 0));
+    for (bool alternate : {false, true}) {
+        const Mesh welded = wall(20, 22.0f, place, alternate);
+        std::vector<uint8_t> flags(welded.triangleCount());
+        std::vector<uint32_t> across(3 * flags.size());
+        sharedEdgeFlags(welded.triangles.data(), welded.triangleCount(), flags.data(), across.data());
+        DepthRasterScratch scratch;
+        const std::vector<float> one = rasterize(welded, c, scratch, flags, across);
+        Mesh apart;  // every triangle its own three corners, the same positions bit for bit
+        for (uint32_t corner : welded.triangles) {
+            apart.triangles.push_back(uint32_t(apart.positions.size()));
+            apart.positions.push_back(welded.positions[corner]);
+        }
+        const std::vector<float> seams = rasterize(apart, c, scratch, {}, {}, true);
+        EXPECT_EQ(seams, one) << alternate;
+        const std::vector<float> cracked = rasterize(apart, c, scratch);
+        EXPECT_GT(std::count(cracked.begin(), cracked.end(), 1.0f), std::count(one.begin(), one.end(), 1.0f)) << alternate;
+    }
+}
+
+// Two quads of different objects abutting along a column of pixel centres: with seams those
+// centres are covered, each by one of the two; an endpoint one float step off, or the two on
+// the same side (a fold), keeps the margins and leaves them far.
+TEST_F(DepthRaster, ASeamNeedsIdenticalEndpointsOnEitherSide) {
+    const Camera c = identityCamera(16, 12);
+    const auto quads = [&](float nudge, bool folded, bool seams = true) {
+        Mesh m;
+        const glm::vec3 top = atWindow(c, 7.5f, 10.0f, 0.5f), bottom = atWindow(c, 7.5f, 1.0f, 0.5f);
+        glm::vec3 top_b = top;
+        top_b.x = nudge == 0 ? top.x : std::nextafter(top.x, top.x + nudge);
+        const float far_x = folded ? 3.0f : 13.0f;
+        m.positions = {atWindow(c, 2, 1.0f, 0.5f), bottom, top, atWindow(c, 2, 10.0f, 0.5f),  // A, left
+                       bottom, atWindow(c, far_x, 1.0f, 0.5f), atWindow(c, far_x, 10.0f, 0.5f), top_b};  // B
+        m.triangles = {0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7};
+        DepthRasterScratch scratch;
+        return rasterize(m, c, scratch, {}, {}, seams);
+    };
+    const auto coveredOnSeam = [&](const std::vector<float>& d) {
+        int n = 0;
+        for (uint32_t y = 2; y < 9; ++y) n += d[y * 16 + 7] < 1.0f;
+        return n;
+    };
+    EXPECT_EQ(coveredOnSeam(quads(0, false)), 7);
+    EXPECT_EQ(coveredOnSeam(quads(1, false)), 0);
+    EXPECT_EQ(coveredOnSeam(quads(0, true)), 0);
+    EXPECT_EQ(coveredOnSeam(quads(0, false, false)), 0);  // without seams the exact abutment is cracked too
 }
 
 }  // namespace
