@@ -283,4 +283,12 @@ bool GlBufferView::usesInterop() { return false; }
 
 #endif
 
+bool deviceReadsHostMemory() {
+#if defined(__CUDACC__)
+    return false;
+#else
+    return true;
+#endif
+}
+
 }  // namespace occ::k

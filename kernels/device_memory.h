@@ -30,6 +30,8 @@ class DevicePtr;
 // The pointer static_cast: typed views of untyped device memory (a BufferProvider's slots).
 template <class T, class U>
 DevicePtr<T> devicePtrCast(DevicePtr<U> p);
+template <class T>
+DevicePtr<const T> hostView(const T* p);
 
 // A typed pointer into device memory. Null by default.
 template <class T>
@@ -54,11 +56,22 @@ private:
     friend struct DeviceAccess;
     template <class A, class B>
     friend DevicePtr<A> devicePtrCast(DevicePtr<B> p);
+    template <class A>
+    friend DevicePtr<const A> hostView(const A* p);
 };
 
 template <class T, class U>
 DevicePtr<T> devicePtrCast(DevicePtr<U> p) {
     return DevicePtr<T>(static_cast<T*>(p.p_));
+}
+
+// Whether the device reads host memory in place (the CPU build: its device memory is host
+// memory). Then hostView(p) is a device pointer to host data p, read without a copy (the mapped
+// .oss, say); in a CUDA build it is null and the data must be copied up.
+bool deviceReadsHostMemory();
+template <class T>
+DevicePtr<const T> hostView(const T* p) {
+    return deviceReadsHostMemory() ? DevicePtr<const T>(p) : DevicePtr<const T>();
 }
 
 // Raw allocation of device memory (bytes may be 0). Never returns null: throws std::bad_alloc

@@ -26,8 +26,7 @@ void copyUp(k::DeviceArray<T>& dst, const std::vector<T>& src) {
 }  // namespace
 
 k::MeshGeometry DeviceScene::meshes() const {
-    return {positions.ptr(), triangles.ptr(), edge_flags.ptr(), edge_neighbours.ptr(), vertex_first.ptr(),
-            triangle_first.ptr()};
+    return {positions, triangles, edge_flags.ptr(), edge_neighbours.ptr(), vertex_first.ptr(), triangle_first.ptr()};
 }
 
 uint32_t DeviceScene::lodTriangles(uint32_t mesh, uint32_t vertices) const {
@@ -71,22 +70,31 @@ DeviceScene DeviceScene::upload(const OssFile& file) {
     }
 
     // Once, at start-up: everything the frames read on the device. A GPU too small for it says so.
+    const bool in_place = k::deviceReadsHostMemory();
     const uint64_t needed = uint64_t(d.object_count) * (sizeof(k::ObjectInfo) + sizeof(glm::mat4)) +
-                            uint64_t(d.mesh_count) * 3 * sizeof(uint64_t) + file.allEcol().size_bytes() +
-                            file.allMaps().size_bytes() + file.cos().size_bytes() + file.allPositions().size_bytes() +
-                            triangles.size_bytes() + triangles.size() / 3 + triangles.size_bytes();
+                            uint64_t(d.mesh_count) * 3 * sizeof(uint64_t) + file.cos().size_bytes() +
+                            (in_place ? 0
+                                      : file.allEcol().size_bytes() + file.allMaps().size_bytes() +
+                                            file.allPositions().size_bytes() + triangles.size_bytes()) +
+                            triangles.size() / 3 + triangles.size_bytes();
     k::requireDeviceMemory(needed, "the scene " + file.path());
     copyUp(d.objects, d.host_objects);
     copyUp(d.world, d.host_world);
     copyUp(d.vertex_first, d.host_vertex_first);
     copyUp(d.triangle_first, d.host_triangle_first);
     copyUp(d.map_first, d.host_map_first);
-    copyUp(d.ecol, file.allEcol());
-    copyUp(d.maps, file.allMaps());
+    // Read in place where the device can (views into the mapping), else copied up.
+    const auto place = [in_place](auto& copy, auto section) {
+        if (in_place && !section.empty()) return k::hostView(section.data());
+        copyUp(copy, section);
+        return decltype(k::hostView(section.data()))(copy.ptr());
+    };
+    d.ecol = place(d.ecol_copy, file.allEcol());
+    d.maps = place(d.maps_copy, file.allMaps());
     copyUp(d.cos, file.cos());
     d.cos_count = uint32_t(file.cos().size());
-    copyUp(d.positions, file.allPositions());
-    copyUp(d.triangles, triangles);
+    d.positions = place(d.positions_copy, file.allPositions());
+    d.triangles = place(d.triangles_copy, triangles);
 
     // The shared edges of every mesh, computed in batches of meshes through a host buffer of at
     // most about kEdgeBatchTriangles triangles (13 bytes each), not for the whole scene at once:

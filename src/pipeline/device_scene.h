@@ -33,10 +33,17 @@ struct DeviceScene {
     k::DeviceArray<uint64_t> vertex_first;  // per mesh, into ecol and positions
     k::DeviceArray<uint64_t> triangle_first;  // per mesh, in triangles, into triangles
     k::DeviceArray<uint64_t> map_first;     // per mesh, into maps
-    k::DeviceArray<int32_t> ecol;           // all meshes back to back
-    k::DeviceArray<uint32_t> maps;          // all meshes back to back, vertex_count + 1 each
-    k::DeviceArray<glm::vec3> positions;    // all meshes at full detail, object space
-    k::DeviceArray<uint32_t> triangles;     // all meshes at full detail, 3 mesh-local corners each
+    // The file's ECOL, MAP, POSITIONS and TRIANGLES sections: read in place from the mapping
+    // where the device reads host memory (the CPU build: no second copy of the scene's largest
+    // arrays), else copied into the *_copy arrays.
+    k::DevicePtr<const int32_t> ecol;       // all meshes back to back
+    k::DevicePtr<const uint32_t> maps;      // all meshes back to back, vertex_count + 1 each
+    k::DevicePtr<const glm::vec3> positions;  // all meshes at full detail, object space
+    k::DevicePtr<const uint32_t> triangles;   // all meshes at full detail, 3 mesh-local corners each
+    k::DeviceArray<int32_t> ecol_copy;
+    k::DeviceArray<uint32_t> maps_copy;
+    k::DeviceArray<glm::vec3> positions_copy;
+    k::DeviceArray<uint32_t> triangles_copy;
     // Per triangle, the edges it shares within its mesh (k::sharedEdgeFlags), all meshes back to
     // back like the file's triangles: mesh m's triangle t is at triangle_first[m] + t.
     k::DeviceArray<uint8_t> edge_flags;

@@ -300,7 +300,7 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
         k::copyToDevice(pvs_tc_device_.ptr(), pvs_tc_.data(), count);
     } else {
         const k::LodParams params{float(budget_), options_.alpha, options_.pet};
-        k::lodSelect(scene_.objects.ptr(), pvs, count, camera, params, scene_.map_first.ptr(), scene_.maps.ptr(),
+        k::lodSelect(scene_.objects.ptr(), pvs, count, camera, params, scene_.map_first.ptr(), scene_.maps,
                      pvs_vc_device_.ptr(), pvs_tc_device_.ptr(), lod_shares_);
         if (options_.lod_hysteresis > 0 && !previous_lod.empty()) {
             // The last frame's visible set goes up (the switch's comes from the other rank).
@@ -310,7 +310,7 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
             upload(previous_lod_device_, previous_lod_, previous_lod.size());
             k::keepSimilarLods(pvs, count, previous_lod_device_.ptr(), uint32_t(previous_lod.size()),
                                options_.lod_hysteresis, budget_, scene_.objects.ptr(), scene_.map_first.ptr(),
-                               scene_.maps.ptr(), pvs_vc_device_.ptr(), pvs_tc_device_.ptr(), hysteresis_scratch_);
+                               scene_.maps, pvs_vc_device_.ptr(), pvs_tc_device_.ptr(), hysteresis_scratch_);
         }
         k::copyToHost(pvs_vc_.data(), pvs_vc_device_.ptr(), count);
     }
@@ -365,7 +365,7 @@ void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
     k::LayoutTotals totals;
     try {
         totals = k::placeLayout(visible, layouts_[last].ptr(), layout_counts_[last], layouts_[cur_index_].ptr(),
-                                places_.ptr(), {scene_.objects.ptr(), scene_.map_first.ptr(), scene_.maps.ptr()},
+                                places_.ptr(), {scene_.objects.ptr(), scene_.map_first.ptr(), scene_.maps},
                                 layout, heap_, lists_, layout_scratch_);
     } catch (const std::length_error& e) {
         throw SystemError(e.what());
@@ -417,7 +417,7 @@ void Pipeline::streamPass(uint64_t frame, FrameStats& stats) {
 
     stats.reformed_triangles =
         k::reformBlocks(lists_.reforms.ptr(), lists_.reform_count, scene_.objects.ptr(), scene_.vertex_first.ptr(),
-                        scene_.ecol.ptr(), triangles.data(), indices_.ptr(), reform_scratch_);
+                        scene_.ecol, triangles.data(), indices_.ptr(), reform_scratch_);
     if (lender_) lender_->endDeviceWrites();
     clock.lap(Stage::Reform);
     cur_index_ ^= 1;
