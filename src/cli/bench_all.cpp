@@ -897,19 +897,7 @@ int runBenchAll(const BenchAllOptions& options) {
 #endif
     if (findInPath("gnuplot").empty())
         throw SystemError("bench all: gnuplot not found (launch/setup installs gnuplot-nox); the plots need it");
-    struct sigaction action {};
-    action.sa_handler = [](int) { g_interrupted = 1; };
-    sigemptyset(&action.sa_mask);
-    struct sigaction old_int {}, old_term {};
-    ::sigaction(SIGINT, &action, &old_int);
-    ::sigaction(SIGTERM, &action, &old_term);
-    struct Restore {
-        struct sigaction *i, *t;
-        ~Restore() {
-            ::sigaction(SIGINT, i, nullptr);
-            ::sigaction(SIGTERM, t, nullptr);
-        }
-    } restore{&old_int, &old_term};
+    const InterruptHandlers interrupts;  // Ctrl-C and SIGTERM stop the running child, then the benchmark
     Bench bench(options, *size);
     return bench.run();
 }

@@ -287,19 +287,7 @@ int runBenchMassive(const BenchMassiveOptions& options) {
     if (options.frames < 12) throw UsageError("bench massive: --frames " + std::to_string(options.frames) + ": at least 12");
     if (options.exact_frames < 2 || options.exact_frames > options.frames)
         throw UsageError("bench massive: --exact-frames " + std::to_string(options.exact_frames) + ": 2 to --frames");
-    struct sigaction action {};
-    action.sa_handler = [](int) { g_interrupted = 1; };
-    sigemptyset(&action.sa_mask);
-    struct sigaction old_int {}, old_term {};
-    ::sigaction(SIGINT, &action, &old_int);
-    ::sigaction(SIGTERM, &action, &old_term);
-    struct Restore {
-        struct sigaction *i, *t;
-        ~Restore() {
-            ::sigaction(SIGINT, i, nullptr);
-            ::sigaction(SIGTERM, t, nullptr);
-        }
-    } restore{&old_int, &old_term};
+    const InterruptHandlers interrupts;  // Ctrl-C and SIGTERM stop the running child, then the benchmark
     return Massive(options).run();
 }
 

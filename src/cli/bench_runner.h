@@ -38,6 +38,28 @@ using Clock = std::chrono::steady_clock;
 // Set by the benchmarks' SIGINT/SIGTERM handler; the runner stops its child when it sees it.
 inline volatile std::sig_atomic_t g_interrupted = 0;
 
+// While alive, SIGINT and SIGTERM set g_interrupted instead of ending the process (the runner
+// then stops its child's whole process group and reports it); the old handlers come back after.
+class InterruptHandlers {
+public:
+    InterruptHandlers() {
+        struct sigaction action {};
+        action.sa_handler = [](int) { g_interrupted = 1; };
+        sigemptyset(&action.sa_mask);
+        ::sigaction(SIGINT, &action, &old_int_);
+        ::sigaction(SIGTERM, &action, &old_term_);
+    }
+    ~InterruptHandlers() {
+        ::sigaction(SIGINT, &old_int_, nullptr);
+        ::sigaction(SIGTERM, &old_term_, nullptr);
+    }
+    InterruptHandlers(const InterruptHandlers&) = delete;
+    InterruptHandlers& operator=(const InterruptHandlers&) = delete;
+
+private:
+    struct sigaction old_int_ {}, old_term_ {};
+};
+
 inline std::string secondsText(double v) {
     char b[32];
     std::snprintf(b, sizeof b, "%.0f", v);

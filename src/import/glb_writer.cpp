@@ -22,7 +22,6 @@ bool isIdentity(const glm::mat4& m) { return m == glm::mat4(1.0f); }
 class JsonOut {
 public:
     explicit JsonOut(AtomicFile& file) : file_(file) { buffer_.reserve(kFlush + 4096); }
-    ~JsonOut() = default;
     JsonOut& operator<<(std::string_view s) {
         buffer_.append(s);
         if (buffer_.size() >= kFlush) flush();

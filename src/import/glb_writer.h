@@ -39,7 +39,6 @@ public:
     uint32_t addMesh(const Mesh& mesh);
     uint32_t addNode(const GltfNode& node);
     void finish(const std::vector<uint32_t>& roots);
-    uint64_t bufferBytes() const { return bin_->size(); }
 
 private:
     struct MeshEntry {

@@ -3,7 +3,12 @@
 
 #include "scene/errors.h"
 
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 namespace occ::gltf {
@@ -86,6 +91,25 @@ void triangulatePrimitive(const std::string& path, int mode, const std::vector<u
     } else {
         throw InputError(path, "unsupported primitive mode " + std::to_string(mode));
     }
+}
+
+glm::mat4 nodeMatrix(const std::string& path, size_t node, const double* matrix, const double* translation,
+                     const double* rotation, const double* scale) {
+    glm::mat4 m(1.0f);
+    if (matrix) {
+        m = glm::mat4(glm::make_mat4(matrix));
+    } else {
+        const glm::dvec3 t = translation ? glm::make_vec3(translation) : glm::dvec3(0.0);
+        const glm::dvec3 s = scale ? glm::make_vec3(scale) : glm::dvec3(1.0);
+        const glm::dquat r = rotation ? glm::dquat(rotation[3], rotation[0], rotation[1], rotation[2])
+                                      : glm::dquat(1.0, 0.0, 0.0, 0.0);
+        m = glm::mat4(glm::translate(glm::dmat4(1.0), t) * glm::mat4_cast(r) * glm::scale(glm::dmat4(1.0), s));
+    }
+    for (int c = 0; c < 4; ++c)
+        for (int k = 0; k < 4; ++k)
+            if (!std::isfinite(m[c][k]))
+                throw InputError(path, "/nodes/" + std::to_string(node) + ": non-finite (nan or inf) transform");
+    return m;
 }
 
 }  // namespace occ::gltf

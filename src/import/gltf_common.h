@@ -4,6 +4,8 @@
 // What both glTF readers share: the whole-file importer (tinygltf, gltf_import.cpp) and the
 // streaming one prep uses for large files (gltf_stream.cpp). Constants are the spec's.
 
+#include <glm/glm.hpp>
+
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -34,5 +36,11 @@ float componentValue(const unsigned char* p, int type, bool normalized);
 // InputError naming `path` for a list that is not a multiple of 3 or another mode.
 void triangulatePrimitive(const std::string& path, int mode, const std::vector<uint32_t>& raw,
                           std::vector<uint32_t>& out);
+
+// A node's local transform as glTF defines it: its matrix (16 column-major values) when it has
+// one, else translation * rotation (x, y, z, w) * scale, composed in double; null arguments
+// take their defaults. InputError naming `path` and /nodes/`node` for a non-finite result.
+glm::mat4 nodeMatrix(const std::string& path, size_t node, const double* matrix, const double* translation,
+                     const double* rotation, const double* scale);
 
 }  // namespace occ::gltf

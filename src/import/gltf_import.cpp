@@ -154,24 +154,9 @@ private:
 
     glm::mat4 localMatrix(int node_index) const {
         const tinygltf::Node& node = model_.nodes[size_t(node_index)];
-        glm::mat4 m(1.0f);
-        if (node.matrix.size() == 16) {
-            m = glm::mat4(glm::make_mat4(node.matrix.data()));
-        } else {
-            glm::dvec3 t(0.0), s(1.0);
-            glm::dquat r(1.0, 0.0, 0.0, 0.0);
-            if (node.translation.size() == 3) t = glm::make_vec3(node.translation.data());
-            if (node.scale.size() == 3) s = glm::make_vec3(node.scale.data());
-            if (node.rotation.size() == 4)
-                r = glm::dquat(node.rotation[3], node.rotation[0], node.rotation[1], node.rotation[2]);
-            const glm::dmat4 trs = glm::translate(glm::dmat4(1.0), t) * glm::mat4_cast(r) * glm::scale(glm::dmat4(1.0), s);
-            m = glm::mat4(trs);
-        }
-        for (int c = 0; c < 4; ++c)
-            for (int r = 0; r < 4; ++r)
-                if (!std::isfinite(m[c][r]))
-                    throw InputError(path_, "/nodes/" + std::to_string(node_index) + ": non-finite (nan or inf) transform");
-        return m;
+        const auto given = [](const std::vector<double>& v, size_t n) { return v.size() == n ? v.data() : nullptr; };
+        return gltf::nodeMatrix(path_, size_t(node_index), given(node.matrix, 16), given(node.translation, 3),
+                                given(node.rotation, 4), given(node.scale, 3));
     }
 
     // Iterative depth-first walk: a malicious or broken file can have node chains far deeper

@@ -10,16 +10,11 @@
 
 #include <nlohmann/json.hpp>
 
-#include <glm/gtc/matrix_transform.hpp>
-#include <glm/gtc/quaternion.hpp>
-
 #include <array>
-#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <map>
 #include <streambuf>
 
 #include <fcntl.h>
@@ -283,22 +278,10 @@ private:
 
     // The node's local matrix, as the whole-file importer composes it.
     void finishNode() {
-        NodeDef& n = doc_.nodes.back();
-        glm::mat4 m(1.0f);
-        if (node_.has_matrix) {
-            for (int c = 0; c < 4; ++c)
-                for (int r = 0; r < 4; ++r) m[c][r] = float(node_.matrix[size_t(4 * c + r)]);
-        } else if (node_.has_trs) {
-            const glm::dvec3 t(node_.t[0], node_.t[1], node_.t[2]), s(node_.s[0], node_.s[1], node_.s[2]);
-            const glm::dquat r(node_.r[3], node_.r[0], node_.r[1], node_.r[2]);
-            m = glm::mat4(glm::translate(glm::dmat4(1.0), t) * glm::mat4_cast(r) * glm::scale(glm::dmat4(1.0), s));
-        }
-        for (int c = 0; c < 4; ++c)
-            for (int r = 0; r < 4; ++r)
-                if (!std::isfinite(m[c][r]))
-                    throw InputError(path_, "/nodes/" + std::to_string(doc_.nodes.size() - 1) +
-                                                ": non-finite (nan or inf) transform");
-        n.local = m;
+        doc_.nodes.back().local =
+            gltf::nodeMatrix(path_, doc_.nodes.size() - 1, node_.has_matrix ? node_.matrix.data() : nullptr,
+                             node_.has_trs ? node_.t.data() : nullptr, node_.has_trs ? node_.r.data() : nullptr,
+                             node_.has_trs ? node_.s.data() : nullptr);
     }
 
     const std::string& path_;

@@ -10,9 +10,11 @@ namespace occ {
 
 namespace {
 
+// A scene in memory as a source: its own (owned_ holds it) or another's.
 class InMemorySource final : public SceneSource {
 public:
-    explicit InMemorySource(Scene scene) : scene_(std::move(scene)) {}
+    explicit InMemorySource(std::unique_ptr<Scene> owned) : owned_(std::move(owned)), scene_(*owned_) {}
+    explicit InMemorySource(const Scene& scene) : scene_(scene) {}
     const std::vector<Object>& objects() const override { return scene_.objects; }
     uint32_t meshCount() const override { return uint32_t(scene_.meshes.size()); }
     uint64_t meshTriangles(uint32_t m) const override { return scene_.meshes[m].triangleCount(); }
@@ -21,12 +23,16 @@ public:
     const char* how() const override { return "imported whole"; }
 
 private:
-    Scene scene_;
+    std::unique_ptr<Scene> owned_;
+    const Scene& scene_;
 };
 
 }  // namespace
 
-std::unique_ptr<SceneSource> sceneSource(Scene scene) { return std::make_unique<InMemorySource>(std::move(scene)); }
+std::unique_ptr<SceneSource> sceneSource(Scene scene) {
+    return std::make_unique<InMemorySource>(std::make_unique<Scene>(std::move(scene)));
+}
+std::unique_ptr<SceneSource> sceneView(const Scene& scene) { return std::make_unique<InMemorySource>(scene); }
 
 std::unique_ptr<SceneSource> openSceneSource(const std::string& path, const ImportOptions& options, ReadMode mode,
                                              ReadProgress* progress) {

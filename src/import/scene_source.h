@@ -36,8 +36,10 @@ struct ReadProgress {
     std::atomic<uint64_t> done{0}, total{0};
 };
 
-// A scene already in memory as a source.
+// A scene already in memory as a source: taken over, or (sceneView) read where it is, which
+// must outlive the source.
 std::unique_ptr<SceneSource> sceneSource(Scene scene);
+std::unique_ptr<SceneSource> sceneView(const Scene& scene);
 
 enum class ReadMode {
     Auto,    // stream glTF files above kStreamAboveBytes that only use streamable features

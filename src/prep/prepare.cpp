@@ -177,24 +177,11 @@ PrepSummary prepareFromSource(const SceneSource& source, const PrepOptions& opti
 }
 
 PreparedScene prepareScene(const Scene& scene, const PrepOptions& options, PrepProgress* progress) {
-    // The scene is not copied: a source over it that hands out its meshes.
-    class View final : public SceneSource {
-    public:
-        explicit View(const Scene& s) : s_(s) {}
-        const std::vector<Object>& objects() const override { return s_.objects; }
-        uint32_t meshCount() const override { return uint32_t(s_.meshes.size()); }
-        uint64_t meshTriangles(uint32_t m) const override { return s_.meshes[m].triangleCount(); }
-        Mesh mesh(uint32_t m) const override { return s_.meshes[m]; }
-        SkippedPrimitives skipped() const override { return s_.skipped; }
-        const char* how() const override { return "in memory"; }
-
-    private:
-        const Scene& s_;
-    } view(scene);
+    const std::unique_ptr<SceneSource> view = sceneView(scene);  // the scene is not copied
     PreparedScene out;
     out.ct = options.ct;
     prepareFromSource(
-        view, options, progress,
+        *view, options, progress,
         [&out](ProgressiveMesh&& m) {
             out.meshes.push_back(std::move(m));
             return uint32_t(out.meshes.size() - 1);
