@@ -98,13 +98,24 @@ public:
 
     // OR of frame f: its camera from the display, then the occluders (Eq. 3's AOS plus the
     // largest objects of the last PVS this rank computed) rastered into this rank's HZM.
-    void occluders(uint64_t f) {
+    // Returns false, rastering nothing, when the display stopped a live run before frame f.
+    bool occluders(uint64_t f) {
         const CameraPacket packet =
             decodeCameraPacket(t_.receive(0, MessageKind::Camera, waitLimit()), {0, f, objects_});
+        if (packet.stop) {
+            if (!run_.live) throw RankError(0, "camera of frame " + std::to_string(f) + ": a stop in a recorded run");
+            stop_frames_ = packet.frame;
+            // The other switch rank sent its last frame's delta to this one too.
+            const int other = layout_.size() == 3 ? 3 - t_.rank() : -1;
+            if (other > 0 && packet.frame == f && f > 0)
+                decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, waitLimit()), {other, f - 1, objects_});
+            return false;
+        }
         pose_ = packet.pose;
         pose_frame_ = f;
         or_stats_ = FrameStats{};
         pipeline_.occluderPass(pose_, f, or_stats_);
+        return true;
     }
 
     // HC of frame f (after occluders(f)): returns the frame's OR + HC stats; the delta is sent.
@@ -130,7 +141,7 @@ public:
         const size_t full = fullVisibleSetEncodedSize(current.size());
         t_.send(0, MessageKind::Delta, bytes);
         net.full_pvs_bytes += full;
-        if (other > 0 && f + 1 < run_.cameras.size()) {
+        if (other > 0 && (run_.live || f + 1 < run_.cameras.size())) {
             t_.send(other, MessageKind::Delta, bytes);
             net.full_pvs_bytes += full;
         }
@@ -146,7 +157,7 @@ public:
 
     // The display's end-of-frame messages still due, at the end of the run.
     void drainEndOfFrames() {
-        while (eof_seen_ < run_.cameras.size()) receiveEndOfFrame();
+        while (eof_seen_ < frames()) receiveEndOfFrame();
     }
 
 private:
@@ -154,10 +165,14 @@ private:
         const EndOfFrame e =
             decodeEndOfFrame(t_.receive(0, MessageKind::EndOfFrame, waitLimit()), {0, eof_seen_, objects_});
         slowest_display_ns_ = std::max(slowest_display_ns_, e.compute_ns);
-        if (e.last != (eof_seen_ + 1 == run_.cameras.size()))
+        if (run_.live ? e.last && eof_seen_ + 1 != frames() && frames() != UINT64_MAX
+                      : e.last != (eof_seen_ + 1 == frames()))
             throw RankError(0, "end-of-frame of frame " + std::to_string(eof_seen_) + ": wrong 'last' flag");
         ++eof_seen_;
     }
+
+    // The run's frames: the path's, or in a live run UINT64_MAX until the display stopped it.
+    uint64_t frames() const { return run_.live ? stop_frames_ : run_.cameras.size(); }
 
     // How long to wait for the display (or the other switch rank, which waits for it): the
     // start-up allowance until the display has finished two frames, then --rank-timeout or 3x
@@ -179,6 +194,7 @@ private:
     FrameStats or_stats_;
     VisibleSet known_;       // V of the last frame this rank knows
     uint64_t eof_seen_ = 0;  // end-of-frames received: frames 0 .. eof_seen_ - 1
+    uint64_t stop_frames_ = UINT64_MAX;  // a live run: the frame count of the display's stop
 };
 
 // RVG on rank 0: sends cameras, receives each frame's delta, rebuilds V_f, streams, reforms
@@ -187,32 +203,54 @@ class Display {
 public:
     Display(Transport& t, Pipeline& pipeline, const OssFile& file, const PipelineOptions& options,
             const RankLayout& layout, const RunOptions& run)
-        : t_(t), pipeline_(pipeline), objects_(file.objectCount()), options_(options), layout_(layout), run_(run),
-          sent_ns_(run.cameras.size(), 0), sent_step_(run.cameras.size(), 0) {}
+        : t_(t), pipeline_(pipeline), objects_(file.objectCount()), options_(options), layout_(layout), run_(run) {}
 
-    void sendCamera(uint64_t f, uint64_t step) {
+    // Sends frame f's camera (f = every earlier frame's + 1).
+    void sendCamera(uint64_t f, uint64_t step, const CameraPose& pose) {
         CameraPacket p;
         p.frame = f;
-        p.pose = run_.cameras[f];
+        p.pose = pose;
         p.view = viewMatrix(p.pose);
         p.projection = projectionMatrix(p.pose, options_.width, options_.height);
         p.width = options_.width;
         p.height = options_.height;
         p.sent_ns = nowNs();
-        sent_ns_[f] = p.sent_ns;
-        sent_step_[f] = step;
+        poses_.push_back(pose);
+        sent_ns_.push_back(p.sent_ns);
+        sent_step_.push_back(step);
         t_.send(layout_.culler(f), MessageKind::Camera, encodeCameraPacket(p, t_.rank()));
+    }
+
+    // Ends a live run of `frames` frames: every culling rank is told, at the frame it waits for.
+    void sendStop(uint64_t frames) {
+        CameraPacket p;
+        p.stop = true;
+        p.frame = frames;
+        p.pose = poses_.empty() ? CameraPose{} : poses_.back();
+        p.width = options_.width;
+        p.height = options_.height;
+        p.sent_ns = nowNs();
+        for (int r = 1; r < layout_.size(); ++r) t_.send(r, MessageKind::Camera, encodeCameraPacket(p, t_.rank()));
     }
 
     // Displays frame f at display step `step`, adding to `stats` (which holds the culling's
     // stages on one rank). Returns the draw callback's columns.
-    std::string display(uint64_t f, uint64_t step, FrameStats& stats, NetColumns& net) {
+    // `last`: no frame follows (the culling ranks are told with the end-of-frame).
+    std::string display(uint64_t f, uint64_t step, FrameStats& stats, NetColumns& net, bool last) {
         const int64_t start_ns = nowNs();
         const int from = layout_.culler(f);
-        const VisibleSetDelta d =
-            decodeVisibleSetDelta(t_.receive(from, MessageKind::Delta, f < 2 ? std::max(run_.timeout, kStartupAllowance)
-                                                                              : run_.timeout),
-                                  {from, f, objects_});
+        const std::chrono::milliseconds limit = f < 2 ? std::max(run_.timeout, kStartupAllowance) : run_.timeout;
+        if (run_.idle) {
+            // A live display keeps its window answering while the culling rank works.
+            const auto deadline = Clock::now() + limit;
+            while (!t_.poll(from, MessageKind::Delta)) {
+                if (Clock::now() >= deadline)
+                    throw RankError(from, "no delta message for " + formatDuration(limit) +
+                                              ": the rank died or stopped answering");
+                run_.idle();
+            }
+        }
+        const VisibleSetDelta d = decodeVisibleSetDelta(t_.receive(from, MessageKind::Delta, limit), {from, f, objects_});
         shown_.apply(d, from);
         net.added = d.added.size();
         net.removed = d.removed.size();
@@ -224,7 +262,7 @@ public:
         } catch (const std::invalid_argument& e) {
             throw RankError(from, "delta of frame " + std::to_string(f) + ": " + e.what());
         }
-        const CameraPose& pose = run_.cameras[f];
+        const CameraPose pose = poses_.at(f);
         if (!pipeline_.frustumIsFor(pose)) pipeline_.frustumPass(pose, stats);
         stats.objects_in_frustum = pipeline_.frustumCount();
         stats.objects_occluded = stats.objects_in_frustum - std::min<uint64_t>(stats.objects_in_frustum, ids.size());
@@ -236,7 +274,7 @@ public:
         EndOfFrame e;
         e.frame = f;
         e.visible_count = uint32_t(shown_.size());
-        e.last = f + 1 == run_.cameras.size();
+        e.last = last;
         e.compute_ns = nowNs() - start_ns;
         const std::vector<uint8_t> bytes = encodeEndOfFrame(e, t_.rank());
         for (int r = layout_.size() == 1 ? 0 : 1; r < layout_.size(); ++r) t_.send(r, MessageKind::EndOfFrame, bytes);
@@ -251,6 +289,7 @@ private:
     const RankLayout& layout_;
     const RunOptions& run_;
     VisibleSet shown_;
+    std::vector<CameraPose> poses_;  // the camera sent for each frame
     std::vector<int64_t> sent_ns_;
     std::vector<uint64_t> sent_step_;
 };
@@ -343,8 +382,10 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
     try {
         const RankLayout layout(transport.size());
         const int rank = transport.rank();
-        const uint64_t frames = run.cameras.size();
+        uint64_t frames = run.live ? UINT64_MAX : run.cameras.size();  // a live run: known at its end
         if (frames == 0) throw UsageError("render: the camera path has no frames");
+        if (run.live && layout.size() == 1) throw UsageError("render: a live run needs 2 or 3 ranks");
+        if (run.live && rank == 0 && !run.next_camera) throw std::logic_error("runRanks: a live run without cameras");
         PipelineOptions o = options;
         if (o.pvs_occluder_lag == 0) o.pvs_occluder_lag = layout.occluderLag();
         if (o.pvs_occluder_lag < layout.occluderLag())
@@ -364,12 +405,12 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             Display display(transport, pipeline, file, o, layout, run);
             for (uint64_t f = 0; f < frames; ++f) {
                 const auto start = Clock::now();
-                display.sendCamera(f, f);
+                display.sendCamera(f, f, run.cameras[f]);
                 culler.occluders(f);
                 NetColumns net;
                 FrameStats s = culler.cull(f, net);
                 NetColumns shown;
-                const std::string drawn = display.display(f, f, s, shown);
+                const std::string drawn = display.display(f, f, s, shown, f + 1 == frames);
                 net.latency_ms = shown.latency_ms;
                 net.latency_frames = shown.latency_frames;
                 const NetColumns counted = window.take();
@@ -384,13 +425,27 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             culler.drainEndOfFrames();
         } else if (rank == 0) {
             Display display(transport, pipeline, file, o, layout, run);
-            display.sendCamera(0, 0);
+            // The camera of frame f + 1 leaves before frame f is displayed: the switch works on it
+            // meanwhile. A live run asks the user's newest pose each time.
+            const auto camera = [&](uint64_t f, CameraPose& pose) {
+                if (!run.live) {
+                    if (f >= frames) return false;
+                    pose = run.cameras[f];
+                    return true;
+                }
+                return run.next_camera(f, pose);
+            };
+            CameraPose pose;
+            if (!camera(0, pose)) frames = 0;
+            else display.sendCamera(0, 0, pose);
             for (uint64_t f = 0; f < frames; ++f) {
                 const auto start = Clock::now();
-                if (f + 1 < frames) display.sendCamera(f + 1, f);
+                const bool more = camera(f + 1, pose);
+                if (more) display.sendCamera(f + 1, f, pose);
+                else frames = f + 1;
                 FrameStats s;
                 NetColumns shown;
-                const std::string drawn = display.display(f, f, s, shown);
+                const std::string drawn = display.display(f, f, s, shown, !more);
                 NetColumns net = window.take();
                 net.latency_ms = shown.latency_ms;
                 net.latency_frames = shown.latency_frames;
@@ -401,12 +456,13 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 addToSummary(summary, s, net, std::chrono::duration<double, std::milli>(Clock::now() - start).count());
                 if (run.on_frame) run.on_frame(f + 1);
             }
+            if (run.live) display.sendStop(frames);
         } else {
             Culler culler(transport, pipeline, file, layout, run);
             const uint64_t first = layout.size() == 3 ? uint64_t(rank - 1) : 0;
             const uint64_t step = layout.size() == 3 ? 2 : 1;
-            if (first < frames) culler.occluders(first);
-            for (uint64_t f = first; f < frames; f += step) {
+            bool more = first < frames && culler.occluders(first);
+            for (uint64_t f = first; more; f += step) {
                 NetColumns sent;
                 FrameStats s = culler.cull(f, sent);
                 bus.take(s);
@@ -415,7 +471,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 net.visible_hash = sent.visible_hash;
                 net.added = sent.added, net.removed = sent.removed, net.changed = sent.changed;
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, no_draw));
-                if (f + step < frames) culler.occluders(f + step);
+                more = f + step < frames && culler.occluders(f + step);
             }
             culler.drainEndOfFrames();
             // The display may still be drawing its last frame when this rank is done.

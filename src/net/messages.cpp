@@ -17,6 +17,7 @@ namespace {
 
 constexpr uint8_t kFlagDeltaFull = 1;
 constexpr uint8_t kFlagEndOfFrameLast = 1;
+constexpr uint8_t kFlagCameraStop = 1;
 constexpr size_t kChecksumOffset = 24;
 
 // Little-endian writer into a buffer sized up front: every field is written byte by byte, so
@@ -168,7 +169,11 @@ std::pair<uint8_t, std::span<const uint8_t>> checkHeader(std::span<const uint8_t
     if (r.u64(kChecksumOffset) != messageChecksum(bytes))
         fail(ctx, what + " of " + std::to_string(bytes.size()) + " bytes: checksum mismatch (corrupted)");
     const uint64_t frame = r.u64(16);
-    if (frame != ctx.expected_frame)
+    // A stop packet carries the run's frame count, which is the receiver's next frame or the
+    // one before it (the other switch rank culls that one).
+    const bool stop_frame = kind == MessageKind::Camera && (r.u8(7) & kFlagCameraStop) && ctx.expected_frame > 0 &&
+                            frame + 1 == ctx.expected_frame;
+    if (frame != ctx.expected_frame && !stop_frame)
         fail(ctx, frameWhat(kind, frame) + ": expected frame " + std::to_string(ctx.expected_frame) +
                       " (out of order)");
     return {r.u8(7), bytes.subspan(kMessageHeaderSize)};
@@ -342,7 +347,8 @@ size_t fullVisibleSetEncodedSize(size_t visible_count) {
 }
 
 std::vector<uint8_t> encodeCameraPacket(const CameraPacket& packet, int sender) {
-    ByteWriter w = startMessage(MessageKind::Camera, 0, sender, packet.frame, kCameraPayloadSize);
+    ByteWriter w =
+        startMessage(MessageKind::Camera, packet.stop ? kFlagCameraStop : 0, sender, packet.frame, kCameraPayloadSize);
     w.vec3(packet.pose.eye);
     w.vec3(packet.pose.target);
     w.vec3(packet.pose.up);
@@ -413,13 +419,14 @@ std::string decodeReport(std::span<const uint8_t> bytes, const DecodeContext& ct
 CameraPacket decodeCameraPacket(std::span<const uint8_t> bytes, const DecodeContext& ctx) {
     const auto [flags, payload] = checkHeader(bytes, MessageKind::Camera, ctx);
     const std::string what = frameWhat(MessageKind::Camera, ctx.expected_frame);
-    checkFlags(ctx, MessageKind::Camera, ctx.expected_frame, flags, 0);
+    checkFlags(ctx, MessageKind::Camera, ctx.expected_frame, flags, kFlagCameraStop);
     if (payload.size() != kCameraPayloadSize)
         fail(ctx, what + ": " + std::to_string(payload.size()) + " payload bytes, a camera packet has " +
                       std::to_string(kCameraPayloadSize));
     const ByteReader r(payload);
     CameraPacket p;
-    p.frame = ctx.expected_frame;
+    p.stop = (flags & kFlagCameraStop) != 0;
+    p.frame = ByteReader(bytes).u64(16);
     p.pose.eye = r.vec3(0);
     p.pose.target = r.vec3(12);
     p.pose.up = r.vec3(24);

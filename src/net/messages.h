@@ -43,8 +43,12 @@ inline constexpr size_t kMaxReportBytes = size_t(256) << 20;  // a report's text
 
 // What the display rank (RVG) sends every frame. sent_ns is the sender's steady clock at send
 // time; only the sender compares it (round-trip latency), other ranks carry it back unchanged.
+// A stop packet (a live run the user ended) says no frame `frame` or later will come: `frame`
+// is the number of frames of the run, the receiver's next frame or the one before it; its pose
+// is the last one sent.
 struct CameraPacket {
     uint64_t frame = 0;
+    bool stop = false;
     CameraPose pose;
     glm::mat4 view{1.0f};
     glm::mat4 projection{1.0f};

@@ -389,6 +389,16 @@ std::vector<uint8_t> MpiTransport::receive(int source, MessageKind kind, std::ch
     }
 }
 
+bool MpiTransport::poll(int source, MessageKind kind) {
+    Impl& m = *impl_;
+    m.checkUsable("poll");
+    m.checkPeer(source, "poll");
+    m.serviceControl();
+    int flag = 0;
+    OCC_MPI_CHECK(m, MPI_Iprobe(source, int(kind), m.comm, &flag, MPI_STATUS_IGNORE), source);
+    return flag != 0;
+}
+
 void MpiTransport::finish(std::chrono::milliseconds timeout) {
     Impl& m = *impl_;
     m.checkUsable("finish");

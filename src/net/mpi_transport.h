@@ -42,6 +42,7 @@ public:
     int size() const override;
     void send(int dest, MessageKind kind, std::vector<uint8_t> bytes) override;
     std::vector<uint8_t> receive(int source, MessageKind kind, std::chrono::milliseconds timeout) override;
+    bool poll(int source, MessageKind kind) override;
     void finish(std::chrono::milliseconds timeout) override;
     void fail(int culprit, const std::string& detail) noexcept override;
 

@@ -137,6 +137,14 @@ public:
         return bytes;
     }
 
+    bool poll(int source, MessageKind kind) override {
+        checkPeer(source, "poll");
+        std::lock_guard lock(state_->mutex);
+        if (state_->fault) state_->throwFault(rank_);
+        const auto it = state_->queues.find({rank_, source, kind});
+        return it != state_->queues.end() && !it->second.empty();
+    }
+
     void finish(std::chrono::milliseconds timeout) override {
         const auto deadline = std::chrono::steady_clock::now() + timeout;
         std::unique_lock lock(state_->mutex);

@@ -69,6 +69,10 @@ public:
     // the job is being torn down; std::invalid_argument for a bad source.
     virtual std::vector<uint8_t> receive(int source, MessageKind kind, std::chrono::milliseconds timeout) = 0;
 
+    // Whether receive(source, kind) would return at once, without waiting or taking the message.
+    // Throws RankError when another rank reported a fault, as receive() does.
+    virtual bool poll(int source, MessageKind kind) = 0;
+
     // The orderly end of a run, called by every rank after its last send and receive: waits
     // until this rank's sends are delivered and every other rank has called finish(), at most
     // `timeout` in all; throws RankError naming a rank that did not get there. After it returns
