@@ -165,8 +165,9 @@ private:
         const EndOfFrame e =
             decodeEndOfFrame(t_.receive(0, MessageKind::EndOfFrame, waitLimit()), {0, eof_seen_, objects_});
         slowest_display_ns_ = std::max(slowest_display_ns_, e.compute_ns);
-        if (run_.live ? e.last && eof_seen_ + 1 != frames() && frames() != UINT64_MAX
-                      : e.last != (eof_seen_ + 1 == frames()))
+        // A live run's last frame is known once the stop came.
+        const bool known = !run_.live || frames() != UINT64_MAX;
+        if (known && e.last != (eof_seen_ + 1 == frames()))
             throw RankError(0, "end-of-frame of frame " + std::to_string(eof_seen_) + ": wrong 'last' flag");
         ++eof_seen_;
     }
@@ -207,14 +208,7 @@ public:
 
     // Sends frame f's camera (f = every earlier frame's + 1).
     void sendCamera(uint64_t f, uint64_t step, const CameraPose& pose) {
-        CameraPacket p;
-        p.frame = f;
-        p.pose = pose;
-        p.view = viewMatrix(p.pose);
-        p.projection = projectionMatrix(p.pose, options_.width, options_.height);
-        p.width = options_.width;
-        p.height = options_.height;
-        p.sent_ns = nowNs();
+        const CameraPacket p = packet(f, pose, false);
         poses_.push_back(pose);
         sent_ns_.push_back(p.sent_ns);
         sent_step_.push_back(step);
@@ -223,13 +217,7 @@ public:
 
     // Ends a live run of `frames` frames: every culling rank is told, at the frame it waits for.
     void sendStop(uint64_t frames) {
-        CameraPacket p;
-        p.stop = true;
-        p.frame = frames;
-        p.pose = poses_.empty() ? CameraPose{} : poses_.back();
-        p.width = options_.width;
-        p.height = options_.height;
-        p.sent_ns = nowNs();
+        const CameraPacket p = packet(frames, poses_.empty() ? CameraPose{} : poses_.back(), true);
         for (int r = 1; r < layout_.size(); ++r) t_.send(r, MessageKind::Camera, encodeCameraPacket(p, t_.rank()));
     }
 
@@ -282,6 +270,19 @@ public:
     }
 
 private:
+    CameraPacket packet(uint64_t f, const CameraPose& pose, bool stop) const {
+        CameraPacket p;
+        p.frame = f;
+        p.stop = stop;
+        p.pose = pose;
+        p.view = viewMatrix(pose);
+        p.projection = projectionMatrix(pose, options_.width, options_.height);
+        p.width = options_.width;
+        p.height = options_.height;
+        p.sent_ns = nowNs();
+        return p;
+    }
+
     Transport& t_;
     Pipeline& pipeline_;
     uint32_t objects_;
