@@ -77,6 +77,58 @@ private:
     std::unique_ptr<AtomicFile> file_;
 };
 
+#ifdef OCC_HAVE_GL
+// `render` in a window: with one rank the single-process pipeline; under mpirun with 2 or 3
+// ranks rank 0 opens the one window and displays, the others cull (no window, no GL).
+int runInWindow(RenderOptions& o, const OssFile& file, Transport& transport) {
+    const roles::RankLayout layout(transport.size());
+    // In a window the frame rate is what matters: the occluders follow the raster's speed.
+    if (o.occluder_ms < 0) o.pipeline.occluder_ms = kWindowOccluderMs;
+    render::WindowOptions w;
+    w.width = o.pipeline.width;
+    w.height = o.pipeline.height;
+    w.path = o.path;
+    w.out = o.out.empty() ? "." : o.out;
+    if (o.exact || o.reference || !o.debug_views.empty())
+        throw UsageError("render: --exact, --reference and --debug-views measure recorded runs: add --headless "
+                         "and --path P.cam");
+    if (layout.size() == 1 && !o.stats.empty())
+        throw UsageError("render: --stats in a window needs 2 or 3 ranks (mpirun); on one rank record a path (R) "
+                         "and render it with --headless --stats");
+    const bool rank0 = transport.rank() == 0;
+    if (rank0 && !o.out.empty()) makeOutputFolder(o.out);
+    roles::RunOptions run;
+    run.deltas = !o.no_deltas;
+    run.timeout = std::chrono::milliseconds(int64_t(o.rank_timeout * 1000));
+    run.live = true;
+    try {
+        if (layout.size() == 1) {
+            if (o.pipeline.pvs_occluder_lag == 0) o.pipeline.pvs_occluder_lag = 1;
+            return render::runWindow(file, o.pipeline, w);
+        }
+        if (!rank0) {
+            roles::RunSummary ignored;
+            roles::runRanks(transport, file, o.pipeline, run, ignored);
+            return 0;
+        }
+        StatsFile stats(o.stats, roles::rankStatsHeader(run));
+        roles::RunSummary sum;
+        std::string rows;
+        try {
+            rows = render::runWindowRanks(transport, file, o.pipeline, w, run, sum);
+        } catch (const render::WindowUnavailable& e) {
+            transport.fail(0, e.what());  // the culling ranks stop at once instead of timing out
+            throw;
+        }
+        stats.write(rows);
+        stats.commit();
+        return 0;
+    } catch (const render::WindowUnavailable& e) {
+        throw SystemError(std::string(e.what()) + "; --headless renders without a window");
+    }
+}
+#endif
+
 int runRender(RenderOptions o) {
     parseViewportSize("--size", o.size, o.pipeline.width, o.pipeline.height);
     o.pipeline.pvs_occluder_triangles = parseOccluderTriangles(o.pvs_occluders);
@@ -103,25 +155,8 @@ int runRender(RenderOptions o) {
     // Before anything touches the device: each rank on a node its own GPU.
     const k::DeviceInfo device = k::selectDevice(o.device);
     const OssFile file = OssFile::open(preparedScene(o.scene));
-#ifdef OCC_HAVE_GL
-    if (draws && !o.headless) {
-        if (o.pipeline.pvs_occluder_lag == 0) o.pipeline.pvs_occluder_lag = 1;
-        // In a window the frame rate is what matters: the occluders follow the raster's speed.
-        if (o.occluder_ms < 0) o.pipeline.occluder_ms = kWindowOccluderMs;
-        render::WindowOptions w;
-        w.width = o.pipeline.width;
-        w.height = o.pipeline.height;
-        w.path = o.path;
-        w.out = o.out.empty() ? "." : o.out;
-        if (!o.out.empty()) makeOutputFolder(o.out);
-        try {
-            return render::runWindow(file, o.pipeline, w);
-        } catch (const render::WindowUnavailable& e) {
-            throw SystemError(std::string(e.what()) + "; --headless renders without a window");
-        }
-    }
-#endif
-    const std::vector<CameraPose> cameras = readCameraPath(o.path);
+    if (!(o.rank_timeout > 0 && o.rank_timeout <= 3600))
+        throw UsageError("render: --rank-timeout must be in (0, 3600] seconds");
     // Under mpirun every rank runs this command; rank 0 displays, writes and prints.
     std::unique_ptr<InProcessHub> hub;
     std::unique_ptr<Transport> transport;
@@ -133,6 +168,10 @@ int runRender(RenderOptions o) {
         hub = std::make_unique<InProcessHub>(1);
         transport = hub->connect(0);
     }
+#ifdef OCC_HAVE_GL
+    if (draws && !o.headless) return runInWindow(o, file, *transport);
+#endif
+    const std::vector<CameraPose> cameras = readCameraPath(o.path);
     const bool rank0 = transport->rank() == 0;
     const roles::RankLayout layout(transport->size());
     if (layout.size() > 1 && !o.debug_views.empty())
@@ -152,8 +191,6 @@ int runRender(RenderOptions o) {
     roles::RunOptions run;
     run.cameras = cameras;
     run.deltas = !o.no_deltas;
-    if (!(o.rank_timeout > 0 && o.rank_timeout <= 3600))
-        throw UsageError("render: --rank-timeout must be in (0, 3600] seconds");
     run.timeout = std::chrono::milliseconds(int64_t(o.rank_timeout * 1000));
     double false_culls = 0, accuracy = 0, exact_occluded = 0, psnr = 0, min_psnr = 1e9, changed = 0, draw_ms = 0;
     double exact_churn = 0;  // frames after the first
@@ -302,6 +339,7 @@ Command addRenderCommand(CLI::App& app) {
                   "  occswitch render S.oss --path P.cam --no-display --stats s.csv every stage but drawing\n"
                   "  mpirun -np 3 occswitch render S.oss --path P.cam --headless    the occlusion switch:\n"
                   "      rank 0 displays, ranks 1 and 2 swap occluder raster and culling every frame\n"
+                  "  mpirun -np 3 occswitch render S.oss       one window on rank 0, flown through the switch\n"
                   "      (launch/mpi-render adds the flags mpirun needs)");
     sub->add_option("scene", o->scene,
                     "preprocessed scene (.oss), or a model file (glTF, OBJ, PLY, OFF, STL), prepared once into\n"

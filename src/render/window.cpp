@@ -15,17 +15,24 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <thread>
+#include <utility>
 
 namespace occ::render {
 
 namespace {
 
+using Clock = std::chrono::steady_clock;
+
 const char* modeName(CullMode m) { return m == CullMode::Full ? "full" : m == CullMode::Lod ? "lod" : "oc+lod"; }
 
-// Input gathered by GLFW's callbacks between two frames.
+// Input gathered by GLFW's callbacks between two pumps.
 struct Input {
     double scroll = 0;
-    std::vector<int> pressed;  // keys pressed (not held) since the last frame
+    std::vector<int> pressed;  // keys pressed (not held) since the last pump
 };
 
 void onKey(GLFWwindow* w, int key, int, int action, int) {
@@ -67,125 +74,103 @@ struct FlyCamera {
     }
 };
 
-}  // namespace
-
-int runWindow(const OssFile& file, const PipelineOptions& options, const WindowOptions& wo) {
-    if (!glfwInit()) {
-        const char* why = nullptr;
-        glfwGetError(&why);
-        throw WindowUnavailable(std::string("window: GLFW cannot start (") + (why ? why : "no reason given") +
-                          "); without an X display render headless (EGL) or under xvfb-run");
-    }
-    // Destroyed after the display below: its destructor still needs the window's context.
-    struct Glfw {
-        GLFWwindow* window = nullptr;
-        ~Glfw() {
-            if (window) glfwDestroyWindow(window);
-            glfwTerminate();
+// The window and what the user does in it, for either driver below: the one-rank loop and the
+// display rank of the switch. Keys F, R, P and Esc are handled here; the mode keys are given to
+// the driver (takeMode).
+class Session {
+public:
+    Session(const OssFile& file, const WindowOptions& wo) : wo_(wo) {
+        if (!glfwInit()) {
+            const char* why = nullptr;
+            glfwGetError(&why);
+            throw WindowUnavailable(std::string("window: GLFW cannot start (") + (why ? why : "no reason given") +
+                                    "); without an X display render headless (EGL) or under xvfb-run");
         }
-    } glfw;
-    glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 4);
-    glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 5);
-    glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
-    glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
-    GLFWwindow* window = glfw.window = glfwCreateWindow(int(wo.width), int(wo.height), "occswitch", nullptr, nullptr);
-    if (!window) {
-        const char* why = nullptr;
-        glfwGetError(&why);
-        throw WindowUnavailable(std::string("window: no OpenGL 4.5 core window (") + (why ? why : "no reason given") +
-                          "); the X server needs GLX and a 24-bit screen, or render headless (EGL)");
+        glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 4);
+        glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 5);
+        glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+        glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+        window_ = glfwCreateWindow(int(wo.width), int(wo.height), "occswitch", nullptr, nullptr);
+        if (!window_) {
+            const char* why = nullptr;
+            glfwGetError(&why);
+            glfwTerminate();
+            throw WindowUnavailable(std::string("window: no OpenGL 4.5 core window (") +
+                                    (why ? why : "no reason given") +
+                                    "); the X server needs GLX and a 24-bit screen, or render headless (EGL)");
+        }
+        glfwMakeContextCurrent(window_);
+        glfwSwapInterval(0);
+        glfwSetWindowUserPointer(window_, &input_);
+        glfwSetKeyCallback(window_, onKey);
+        glfwSetScrollCallback(window_, onScroll);
+
+        if (!wo.path.empty()) path_ = readCameraPath(wo.path);
+        // Without a path, start where an orbit of the scene starts: outside, looking at its middle.
+        const PathScene scene = pathSceneOf(file);
+        const std::vector<CameraPose> start = path_.empty() ? orbitPath(scene, 1) : path_;
+        fly_.lookAlong(start.front());
+        k::Aabb bounds{glm::vec3(1e30f), glm::vec3(-1e30f)};
+        for (const k::Aabb& b : scene.objects)
+            bounds.min = glm::min(bounds.min, b.min), bounds.max = glm::max(bounds.max, b.max);
+        fly_.speed = scene.objects.empty() ? 1.0f : 0.1f * glm::length(bounds.max - bounds.min);
+        glfwGetCursorPos(window_, &last_x_, &last_y_);
+        last_ = title_time_ = Clock::now();
     }
-    glfwMakeContextCurrent(window);
-    glfwSwapInterval(0);
-    Input input;
-    glfwSetWindowUserPointer(window, &input);
-    glfwSetKeyCallback(window, onKey);
-    glfwSetScrollCallback(window, onScroll);
+    Session(const Session&) = delete;
+    Session& operator=(const Session&) = delete;
+    // The drivers destroy their displays first: those still need the window's context.
+    ~Session() {
+        glfwDestroyWindow(window_);
+        glfwTerminate();
+    }
 
-    Pipeline pipeline(file, options);
-    FrameDisplay display(pipeline, wo.width, wo.height, DisplayOptions{});
-    std::printf("window: %ux%u, %s; keys: drag = look, WASD/QE = move, scroll = speed, 1/2/3 = mode, F = freeze, "
-                "R = record, P = screenshot, Esc = quit\n",
-                wo.width, wo.height, reinterpret_cast<const char*>(glGetString(GL_RENDERER)));
+    void printStart(const std::string& extra) const {
+        std::printf("window: %ux%u, %s%s; keys: drag = look, WASD/QE = move, scroll = speed, 1/2/3 = mode, "
+                    "F = freeze, R = record, P = screenshot, Esc = quit\n",
+                    wo_.width, wo_.height, reinterpret_cast<const char*>(glGetString(GL_RENDERER)), extra.c_str());
+        std::fflush(stdout);
+    }
 
-    std::vector<CameraPose> path;
-    if (!wo.path.empty()) path = readCameraPath(wo.path);
-    // Without a path, start where an orbit of the scene starts: outside, looking at its middle.
-    const PathScene scene = pathSceneOf(file);
-    const std::vector<CameraPose> start = path.empty() ? orbitPath(scene, 1) : path;
-    FlyCamera fly;
-    fly.lookAlong(start.front());
-    k::Aabb bounds{glm::vec3(1e30f), glm::vec3(-1e30f)};
-    for (const k::Aabb& b : scene.objects) bounds.min = glm::min(bounds.min, b.min), bounds.max = glm::max(bounds.max, b.max);
-    fly.speed = scene.objects.empty() ? 1.0f : 0.1f * glm::length(bounds.max - bounds.min);
-
-    bool frozen = false, recording = false;
-    std::vector<CameraPose> recorded;
-    size_t path_frame = 0;
-    uint64_t frame = 0;
-    double last_x = 0, last_y = 0;
-    glfwGetCursorPos(window, &last_x, &last_y);
-    auto last = std::chrono::steady_clock::now();
-    auto title_time = last;
-    uint64_t title_frames = 0;
-    FrameStats stats;
-    while (!glfwWindowShouldClose(window)) {
+    // Takes the events since the last call: keys, mouse look and the motion of held keys.
+    // Returns false once the user has quit (Esc or the window closed).
+    bool pump() {
         glfwPollEvents();
-        const auto now = std::chrono::steady_clock::now();
-        const float dt = std::min(0.25f, std::chrono::duration<float>(now - last).count());
-        last = now;
-
-        for (int key : input.pressed) {
+        const auto now = Clock::now();
+        const float dt = std::min(0.25f, std::chrono::duration<float>(now - last_).count());
+        last_ = now;
+        for (int key : input_.pressed) {
             switch (key) {
-            case GLFW_KEY_ESCAPE: glfwSetWindowShouldClose(window, GLFW_TRUE); break;
-            case GLFW_KEY_1:
-            case GLFW_KEY_2:
-            case GLFW_KEY_3: {
-                const CullMode m = key == GLFW_KEY_1 ? CullMode::Full : key == GLFW_KEY_2 ? CullMode::Lod : CullMode::OcLod;
-                pipeline.setMode(m);
-                std::printf("window: mode %s\n", modeName(m));
-                break;
-            }
+            case GLFW_KEY_ESCAPE: glfwSetWindowShouldClose(window_, GLFW_TRUE); break;
+            case GLFW_KEY_1: mode_ = CullMode::Full; break;
+            case GLFW_KEY_2: mode_ = CullMode::Lod; break;
+            case GLFW_KEY_3: mode_ = CullMode::OcLod; break;
             case GLFW_KEY_F:
-                frozen = !frozen;
-                std::printf("window: culling %s\n", frozen ? "frozen" : "live");
+                frozen_ = !frozen_;
+                std::printf("window: culling %s\n", frozen_ ? "frozen" : "live");
                 break;
             case GLFW_KEY_R:
-                if (recording) {
-                    const std::string name = nextFreeName(wo.out, "recorded", ".cam");
-                    writeCameraPath(name, recorded);
-                    std::printf("window: recorded %zu poses to %s\n", recorded.size(), name.c_str());
-                    recorded.clear();
-                }
-                recording = !recording;
-                if (recording) std::printf("window: recording\n");
+                if (recording_) writeRecording();
+                recording_ = !recording_;
+                if (recording_) std::printf("window: recording\n");
                 break;
-            case GLFW_KEY_P: {
-                // The target holds the last frame drawn, live or frozen; display.picture() would keep
-                // the first frozen one.
-                const std::string name = nextFreeName(wo.out, "screenshot", ".png");
-                std::vector<uint8_t> rgb;
-                display.target().readColour(rgb);
-                writePng(name, wo.width, wo.height, 3, rgb.data());
-                std::printf("window: screenshot %s\n", name.c_str());
-                break;
-            }
+            case GLFW_KEY_P: screenshot_ = true; break;
             default: break;
             }
         }
-        input.pressed.clear();
-        if (input.scroll != 0) fly.speed *= std::pow(1.25f, float(input.scroll)), input.scroll = 0;
+        input_.pressed.clear();
+        if (input_.scroll != 0) fly_.speed *= std::pow(1.25f, float(input_.scroll)), input_.scroll = 0;
 
         // Mouse look while the left button is held; keys move along the view.
         double x = 0, y = 0;
-        glfwGetCursorPos(window, &x, &y);
-        if (glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
-            fly.yaw += 0.2f * float(x - last_x);
-            fly.pitch = glm::clamp(fly.pitch - 0.2f * float(y - last_y), -89.0f, 89.0f);
+        glfwGetCursorPos(window_, &x, &y);
+        if (glfwGetMouseButton(window_, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
+            fly_.yaw += 0.2f * float(x - last_x_);
+            fly_.pitch = glm::clamp(fly_.pitch - 0.2f * float(y - last_y_), -89.0f, 89.0f);
         }
-        last_x = x, last_y = y;
-        const glm::vec3 f = fly.forward(), right = glm::normalize(glm::cross(f, glm::vec3(0, 1, 0)));
-        const auto held = [&](int k) { return glfwGetKey(window, k) == GLFW_PRESS; };
+        last_x_ = x, last_y_ = y;
+        const glm::vec3 f = fly_.forward(), right = glm::normalize(glm::cross(f, glm::vec3(0, 1, 0)));
+        const auto held = [&](int k) { return glfwGetKey(window_, k) == GLFW_PRESS; };
         glm::vec3 move(0.0f);
         if (held(GLFW_KEY_W)) move += f;
         if (held(GLFW_KEY_S)) move -= f;
@@ -193,54 +178,204 @@ int runWindow(const OssFile& file, const PipelineOptions& options, const WindowO
         if (held(GLFW_KEY_A)) move -= right;
         if (held(GLFW_KEY_E)) move.y += 1;
         if (held(GLFW_KEY_Q)) move.y -= 1;
-        const bool flying = move != glm::vec3(0.0f);
-        if (flying) fly.eye += move * fly.speed * dt;
+        flying_ = move != glm::vec3(0.0f);
+        if (flying_) fly_.eye += move * fly_.speed * dt;
+        std::fflush(stdout);
+        return !glfwWindowShouldClose(window_);
+    }
 
-        // The path plays one pose per frame until a key moves the camera or it ends.
-        CameraPose pose = fly.pose();
-        if (path_frame < path.size() && !flying) {
-            pose = path[path_frame++];
-            fly.lookAlong(pose);
+    // The camera of the next frame: the path's next pose until a key moves the camera or the
+    // path ends, then the fly camera's. Recorded while recording.
+    CameraPose nextPose() {
+        CameraPose pose = fly_.pose();
+        if (path_frame_ < path_.size() && !flying_) {
+            pose = path_[path_frame_++];
+            fly_.lookAlong(pose);
         } else {
-            path_frame = path.size();
+            path_frame_ = path_.size();
         }
-        if (recording) recorded.push_back(pose);
+        if (recording_) recorded_.push_back(pose);
+        return pose;
+    }
 
-        const k::Camera camera = toKernelCamera(pose, wo.width, wo.height);
-        if (!frozen) {
+    bool frozen() const { return frozen_; }
+    // Where the user looks now (between frames: no path step, nothing recorded).
+    CameraPose flyPose() const { return fly_.pose(); }
+    k::Camera camera(const CameraPose& pose) const { return toKernelCamera(pose, wo_.width, wo_.height); }
+
+    // A mode key pressed since the last call, if any.
+    std::optional<CullMode> takeMode() { return std::exchange(mode_, std::nullopt); }
+
+    // Shows the picture in `target` (a screenshot first when P was pressed).
+    void present(FrameTarget& target) {
+        if (screenshot_) {
+            screenshot_ = false;
+            const std::string name = nextFreeName(wo_.out, "screenshot", ".png");
+            std::vector<uint8_t> rgb;
+            target.readColour(rgb);
+            writePng(name, wo_.width, wo_.height, 3, rgb.data());
+            std::printf("window: screenshot %s\n", name.c_str());
+            std::fflush(stdout);
+        }
+        int fw = 0, fh = 0;
+        glfwGetFramebufferSize(window_, &fw, &fh);
+        glBlitNamedFramebuffer(target.framebuffer(), 0, 0, 0, GLint(wo_.width), GLint(wo_.height), 0, 0, fw, fh,
+                               GL_COLOR_BUFFER_BIT, GL_LINEAR);
+        checkGlError("presenting the frame", __FILE__, __LINE__);
+        glfwSwapBuffers(window_);
+    }
+
+    // Counts a new frame and, every half second, sets the title: fps, then `what`, then the
+    // frozen and recording marks.
+    void frameShown(const std::function<std::string()>& what) {
+        ++title_frames_;
+        const auto now = Clock::now();
+        const double since = std::chrono::duration<double>(now - title_time_).count();
+        if (since < 0.5) return;
+        const std::string title = "occswitch  " + fixed(double(title_frames_) / since, 1) + " fps  " + what() +
+                                  (frozen_ ? "  [frozen]" : "") + (recording_ ? "  [recording]" : "");
+        glfwSetWindowTitle(window_, title.c_str());
+        title_time_ = now;
+        title_frames_ = 0;
+    }
+
+    // At the end: a recording still running is written.
+    void finish() {
+        if (recording_ && !recorded_.empty()) writeRecording();
+        recording_ = false;
+    }
+
+    static std::string fixed(double v, int digits) {
+        char b[64];
+        std::snprintf(b, sizeof b, "%.*f", digits, v);
+        return b;
+    }
+
+private:
+    void writeRecording() {
+        const std::string name = nextFreeName(wo_.out, "recorded", ".cam");
+        writeCameraPath(name, recorded_);
+        std::printf("window: recorded %zu poses to %s\n", recorded_.size(), name.c_str());
+        recorded_.clear();
+    }
+
+    WindowOptions wo_;
+    GLFWwindow* window_ = nullptr;
+    Input input_;
+    FlyCamera fly_;
+    std::vector<CameraPose> path_, recorded_;
+    size_t path_frame_ = 0;
+    bool frozen_ = false, recording_ = false, flying_ = false, screenshot_ = false;
+    std::optional<CullMode> mode_;
+    double last_x_ = 0, last_y_ = 0;
+    Clock::time_point last_, title_time_;
+    uint64_t title_frames_ = 0;
+};
+
+}  // namespace
+
+int runWindow(const OssFile& file, const PipelineOptions& options, const WindowOptions& wo) {
+    Session session(file, wo);
+    Pipeline pipeline(file, options);
+    FrameDisplay display(pipeline, wo.width, wo.height, DisplayOptions{});
+    session.printStart("");
+    uint64_t frame = 0;
+    FrameStats stats;
+    while (session.pump()) {
+        if (const std::optional<CullMode> m = session.takeMode()) {
+            pipeline.setMode(*m);
+            std::printf("window: mode %s\n", modeName(*m));
+        }
+        const CameraPose pose = session.nextPose();
+        if (!session.frozen()) {
             stats = pipeline.runFrame(pose, frame++);
             display.display(pipeline, pose);
         } else {
             // The frozen frame from where the camera is now, with what it culled.
-            display.drawCullingView(pipeline, camera);
+            display.drawCullingView(pipeline, session.camera(pose));
         }
-        int fw = 0, fh = 0;
-        glfwGetFramebufferSize(window, &fw, &fh);
-        glBlitNamedFramebuffer(display.target().framebuffer(), 0, 0, 0, GLint(wo.width), GLint(wo.height), 0, 0, fw,
-                               fh, GL_COLOR_BUFFER_BIT, GL_LINEAR);
-        checkGlError("presenting the frame", __FILE__, __LINE__);
-        glfwSwapBuffers(window);
-
-        ++title_frames;
-        const double since = std::chrono::duration<double>(now - title_time).count();
-        if (since >= 0.5) {
-            char title[256];
-            std::snprintf(title, sizeof title, "occswitch  %.1f fps  %llu visible objects  %llu triangles  %s%s%s",
-                          double(title_frames) / since, static_cast<unsigned long long>(stats.objects_visible),
-                          static_cast<unsigned long long>(stats.active_triangles), modeName(pipeline.mode()),
-                          frozen ? "  [frozen]" : "", recording ? "  [recording]" : "");
-            glfwSetWindowTitle(window, title);
-            title_time = now;
-            title_frames = 0;
-        }
+        session.present(display.target());
+        session.frameShown([&] {
+            return std::to_string(stats.objects_visible) + " visible objects  " +
+                   std::to_string(stats.active_triangles) + " triangles  " + modeName(pipeline.mode());
+        });
         std::fflush(stdout);
     }
-    if (recording && !recorded.empty()) {
-        const std::string name = nextFreeName(wo.out, "recorded", ".cam");
-        writeCameraPath(name, recorded);
-        std::printf("window: recorded %zu poses to %s\n", recorded.size(), name.c_str());
-    }
+    session.finish();
     return 0;
+}
+
+std::string runWindowRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
+                           const WindowOptions& wo, roles::RunOptions run, roles::RunSummary& summary) {
+    Session session(file, wo);
+    std::unique_ptr<FrameDisplay> display;  // made with the pipeline of the first frame
+    const Pipeline* shown = nullptr;        // the pipeline whose frame the display holds
+    const int ranks = transport.size();
+    // Each frame's camera and when it was taken from the user (the latency's start).
+    std::vector<int64_t> taken_ns;
+    CameraPose sent, view;  // the newest camera sent; where the user looks (the view of a frozen frame)
+    double latency_ms = 0;
+    uint64_t latency_frames = 0, latency_count = 0, visible = 0;
+    const auto now_ns = [] {
+        return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
+    };
+    Clock::time_point presented = Clock::now();
+
+    run.live = true;
+    run.next_camera = [&](uint64_t f, CameraPose& pose) {
+        if (!session.pump()) return false;
+        if (session.takeMode())
+            std::printf("window: the mode keys need one rank; with %d ranks the mode is --mode (%s)\n", ranks,
+                        modeName(options.mode));
+        view = session.nextPose();
+        // A frozen frame stays what it was: the switch goes on culling the camera it had.
+        if (!session.frozen() || f == 0) sent = view;
+        pose = sent;
+        if (taken_ns.size() != f) throw std::logic_error("runWindowRanks: cameras out of order");
+        taken_ns.push_back(now_ns());
+        return true;
+    };
+    run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t f) {
+        if (!display) display = std::make_unique<FrameDisplay>(pipeline, wo.width, wo.height, DisplayOptions{});
+        shown = &pipeline;
+        if (session.frozen()) display->drawCullingView(pipeline, session.camera(view));
+        else display->display(pipeline, pose);
+        session.present(display->target());
+        presented = Clock::now();
+        // The camera of frame f + 1 (or later) was taken before frame f is drawn.
+        const double ms = double(now_ns() - taken_ns.at(f)) / 1e6;
+        const uint64_t frames = taken_ns.size() - 1 - f;
+        if (f > 0) latency_ms += ms, latency_frames += frames, ++latency_count;
+        visible = pipeline.visibleObjects().size();
+        session.frameShown([&] {
+            return std::to_string(ranks) + " ranks  latency " + std::to_string(frames) + " frame" +
+                   (frames == 1 ? "" : "s") + " " + Session::fixed(ms, 1) + " ms  " + std::to_string(visible) +
+                   " visible objects  " + modeName(options.mode);
+        });
+        return std::string();
+    };
+    // While a culling rank works: the window answers, and shows the newest complete frame
+    // (about 60 times a second, sleeping in between so that the culling ranks get the CPU).
+    run.idle = [&] {
+        session.pump();
+        if (display && Clock::now() - presented >= std::chrono::milliseconds(16)) {
+            if (session.frozen() && shown) display->drawCullingView(*shown, session.camera(session.flyPose()));
+            session.present(display->target());
+            presented = Clock::now();
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    };
+    session.printStart(", " + std::to_string(ranks) + " ranks (rank 0 displays)");
+    const std::string rows = roles::runRanks(transport, file, options, run, summary);
+    session.finish();
+    std::printf("window: %llu frames on %d ranks, latency %.2f frames and %.2f ms (mean of the frames after the "
+                "first)\n",
+                static_cast<unsigned long long>(summary.frames), ranks,
+                latency_count ? double(latency_frames) / double(latency_count) : 0.0,
+                latency_count ? latency_ms / double(latency_count) : 0.0);
+    std::fflush(stdout);
+    display.reset();
+    return rows;
 }
 
 }  // namespace occ::render

@@ -1,0 +1,103 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# One window, many ranks: `mpirun -np 3 occswitch render S.oss` under xvfb-run opens exactly one
+# window (rank 0, the display; ranks 1 and 2 are the occlusion switch), whose title shows the
+# ranks and the latency; real key presses (xdotool) move the camera, so that two screenshots
+# differ, freeze it, and Escape ends all three ranks with exit status 0 within 10 s. Every rank's
+# rows reach --stats. Without an X display rank 0 fails and the culling ranks stop at once.
+set -u
+export TESTS_DIR; TESTS_DIR=$(cd "$(dirname "$0")" && pwd)
+exe=$1
+dir=$(mktemp -d)
+trap 'rm -rf "$dir"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+for tool in xvfb-run xdotool mpirun python3; do
+  command -v $tool >/dev/null || fail "$tool is missing (launch/setup installs it)"
+done
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+"$exe" gen plant --objects 300 -o "$dir/p.glb" 2>/dev/null || fail "gen"
+"$exe" prep "$dir/p.glb" -o "$dir/p.oss" 2>/dev/null || fail "prep"
+
+# No X display: rank 0 cannot open its window; it says so and every rank is gone within 20 s.
+start=$SECONDS
+timeout 60 env -u DISPLAY -u WAYLAND_DISPLAY mpirun --oversubscribe -np 3 "$exe" render "$dir/p.oss" --size 160x120 \
+  >"$dir/stdout" 2>"$dir/stderr"
+status=$?
+[ $status -ne 0 ] && [ $status -ne 124 ] || fail "no display, 3 ranks: exit $status"
+[ $((SECONDS - start)) -le 20 ] || fail "no display, 3 ranks: $((SECONDS - start)) s to exit"
+grep -q "^error: window: .*--headless" "$dir/stderr" || fail "no display, 3 ranks: stderr: $(cat "$dir/stderr")"
+
+drive() {
+  local exe=$1 dir=$2 pid win wins status i title
+  mpirun --oversubscribe -np 3 "$exe" render "$dir/p.oss" --out "$dir/out" --size 320x240 --stats "$dir/s.csv" \
+    >"$dir/stdout" 2>"$dir/stderr" &
+  pid=$!
+  trap 'kill -9 $pid 2>/dev/null' EXIT
+  await() {
+    for ((i = 0; i < $2 * 20; ++i)); do
+      grep -q -- "$1" "$dir/stdout" && return 0
+      kill -0 $pid 2>/dev/null || break
+      sleep 0.05
+    done
+    grep -q -- "$1" "$dir/stdout" && return 0
+    echo "no stdout line '$1' after $2 s"
+    return 1
+  }
+  await "^window: 320x240, .*3 ranks" 60 || return 1
+  win=$(timeout 20 xdotool search --sync --name '^occswitch' | head -n 1)
+  [ -n "$win" ] || { echo "no occswitch window after 20 s"; return 1; }
+  # A culling rank that opened a window would have done so by now.
+  sleep 2
+  wins=$(xdotool search --name '^occswitch' | wc -l)
+  [ "$wins" -eq 1 ] || { echo "$wins occswitch windows, not 1"; return 1; }
+  xdotool windowfocus --sync "$win" || { echo "xdotool windowfocus $win failed"; return 1; }
+  xdotool key p && await "screenshot_0.png$" 10 || return 1
+  xdotool keydown w && sleep 1 && xdotool keyup w
+  sleep 0.5
+  xdotool key p && await "screenshot_1.png$" 10 || return 1
+  title=$(xdotool getwindowname "$win")
+  echo "title: $title"
+  xdotool key 2 && await "^window: the mode keys need one rank" 10 || return 1
+  xdotool key f && await "^window: culling frozen$" 10 || return 1
+  xdotool keydown d && sleep 0.5 && xdotool keyup d
+  sleep 0.3
+  xdotool key p && await "screenshot_2.png$" 10 || return 1
+  xdotool key Escape
+  for ((i = 0; i < 200; ++i)); do
+    kill -0 $pid 2>/dev/null || break
+    sleep 0.05
+  done
+  kill -0 $pid 2>/dev/null && { echo "still running 10 s after Escape"; return 1; }
+  wait $pid
+  status=$?
+  echo "exit $status"
+}
+timeout 150 xvfb-run -a -s "-screen 0 1024x768x24" bash -c "$(declare -f drive); drive \"\$@\"" drive "$exe" "$dir" \
+  >"$dir/drive" 2>&1
+status=$?
+[ $status -eq 0 ] && [ "$(tail -n 1 "$dir/drive")" = "exit 0" ] ||
+  fail "window on 3 ranks (xvfb-run status $status): $(cat "$dir/drive")
+stdout: $(cat "$dir/stdout")
+stderr: $(cat "$dir/stderr")"
+out=$(cat "$dir/stdout")
+title=$(grep "^title: " "$dir/drive")
+[[ $title =~ occswitch\ \ [0-9.]+\ fps\ \ 3\ ranks\ \ latency\ [0-9]+\ frames?\ [0-9.]+\ ms\ \ [0-9]+\ visible\ objects ]] ||
+  fail "window title: $title"
+line=$(grep "^window: [0-9]* frames on 3 ranks, latency " <<<"$out") || fail "no end line: $out"
+frames=$(sed 's/^window: \([0-9]*\) frames.*/\1/' <<<"$line")
+[ "$frames" -ge 3 ] || fail "$frames frames: $line"
+# Every rank's rows: the display's frames, and each culling rank's share of them.
+python3 - "$dir/s.csv" "$frames" <<'PY' || fail "stats of the window run"
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+frames = int(sys.argv[2])
+per = {r: [int(x["frame"]) for x in rows if x["rank"] == r] for r in ("0", "1", "2")}
+assert per["0"] == list(range(frames)), ("display frames", per["0"][:5], frames)
+assert sorted(per["1"] + per["2"]) == list(range(frames)), "culling ranks' frames"
+assert all(f % 2 == 0 for f in per["1"]) and all(f % 2 == 1 for f in per["2"]), "the switch alternates"
+assert all(x["role"] == "or+hc" for x in rows if x["rank"] != "0")
+PY
+for n in 0 1 2; do [ -s "$dir/out/screenshot_$n.png" ] || fail "screenshot_$n.png missing"; done
+cmp -s "$dir/out/screenshot_0.png" "$dir/out/screenshot_1.png" && fail "W did not move the picture"
+cmp -s "$dir/out/screenshot_1.png" "$dir/out/screenshot_2.png" && fail "D over the frozen frame did not move the picture"
+echo "ok: $line"
