@@ -155,6 +155,14 @@ public:
 
     std::chrono::milliseconds finishLimit() const { return waitLimit(); }
 
+    // One rank's live run: the display, on this rank, ended it after `frames` frames. It asks
+    // for the next camera after drawing (so that waiting for it is no part of the frame), so its
+    // end-of-frames cannot say which was the last.
+    void endLive(uint64_t frames) {
+        stop_frames_ = frames;
+        last_unknown_ = true;
+    }
+
     // The display's end-of-frame messages still due, at the end of the run.
     void drainEndOfFrames() {
         while (eof_seen_ < frames()) receiveEndOfFrame();
@@ -166,7 +174,7 @@ private:
             decodeEndOfFrame(t_.receive(0, MessageKind::EndOfFrame, waitLimit()), {0, eof_seen_, objects_});
         slowest_display_ns_ = std::max(slowest_display_ns_, e.compute_ns);
         // A live run's last frame is known once the stop came.
-        const bool known = !run_.live || frames() != UINT64_MAX;
+        const bool known = !run_.live || (frames() != UINT64_MAX && !last_unknown_);
         if (known && e.last != (eof_seen_ + 1 == frames()))
             throw RankError(0, "end-of-frame of frame " + std::to_string(eof_seen_) + ": wrong 'last' flag");
         ++eof_seen_;
@@ -196,6 +204,7 @@ private:
     VisibleSet known_;       // V of the last frame this rank knows
     uint64_t eof_seen_ = 0;  // end-of-frames received: frames 0 .. eof_seen_ - 1
     uint64_t stop_frames_ = UINT64_MAX;  // a live run: the frame count of the display's stop
+    bool last_unknown_ = false;
 };
 
 // RVG on rank 0: sends cameras, receives each frame's delta, rebuilds V_f, streams, reforms
@@ -385,7 +394,6 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
         const int rank = transport.rank();
         uint64_t frames = run.live ? UINT64_MAX : run.cameras.size();  // a live run: known at its end
         if (frames == 0) throw UsageError("render: the camera path has no frames");
-        if (run.live && layout.size() == 1) throw UsageError("render: a live run needs 2 or 3 ranks");
         if (run.live && rank == 0 && !run.next_camera) throw std::logic_error("runRanks: a live run without cameras");
         PipelineOptions o = options;
         if (o.pvs_occluder_lag == 0) o.pvs_occluder_lag = layout.occluderLag();
@@ -401,17 +409,28 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
         summary = RunSummary{};
         std::chrono::milliseconds finish_limit = run.timeout;
 
+        // The camera of frame f: the path's, or in a live run the newest one when it is asked.
+        const auto camera = [&](uint64_t f, CameraPose& pose) {
+            if (!run.live) {
+                if (f >= frames) return false;
+                pose = run.cameras[f];
+                return true;
+            }
+            return run.next_camera(f, pose);
+        };
         if (layout.size() == 1) {
             Culler culler(transport, pipeline, file, layout, run);
             Display display(transport, pipeline, file, o, layout, run);
-            for (uint64_t f = 0; f < frames; ++f) {
+            CameraPose pose;
+            bool more = camera(0, pose);
+            for (uint64_t f = 0; more; ++f) {
                 const auto start = Clock::now();
-                display.sendCamera(f, f, run.cameras[f]);
+                display.sendCamera(f, f, pose);
                 culler.occluders(f);
                 NetColumns net;
                 FrameStats s = culler.cull(f, net);
                 NetColumns shown;
-                const std::string drawn = display.display(f, f, s, shown, f + 1 == frames);
+                const std::string drawn = display.display(f, f, s, shown, !run.live && f + 1 == frames);
                 net.latency_ms = shown.latency_ms;
                 net.latency_frames = shown.latency_frames;
                 const NetColumns counted = window.take();
@@ -422,20 +441,16 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
                 addToSummary(summary, s, net, std::chrono::duration<double, std::milli>(Clock::now() - start).count());
                 if (run.on_frame) run.on_frame(f + 1);
+                more = camera(f + 1, pose);
+                if (!more) frames = f + 1;
             }
+            if (frames == UINT64_MAX) frames = 0;
+            if (run.live) culler.endLive(frames);
             culler.drainEndOfFrames();
         } else if (rank == 0) {
             Display display(transport, pipeline, file, o, layout, run);
             // The camera of frame f + 1 leaves before frame f is displayed: the switch works on it
             // meanwhile. A live run asks the user's newest pose each time.
-            const auto camera = [&](uint64_t f, CameraPose& pose) {
-                if (!run.live) {
-                    if (f >= frames) return false;
-                    pose = run.cameras[f];
-                    return true;
-                }
-                return run.next_camera(f, pose);
-            };
             CameraPose pose;
             if (!camera(0, pose)) frames = 0;
             else display.sendCamera(0, 0, pose);

@@ -52,12 +52,13 @@ struct RunOptions {
     std::string draw_header;
     // Called on rank 0 after every displayed frame (progress).
     std::function<void(uint64_t frames_done)> on_frame;
-    // A live run (a window under mpirun, 2 or 3 ranks; every rank sets it): the cameras come as
-    // the user moves instead of from `cameras`, and the run ends when the user quits. Rank 0's
-    // next_camera(frame, pose) gives that frame's camera, the user's newest pose: poses made
-    // while the switch was busy are skipped, never queued (the paper's camera buffer of one);
-    // false ends the run before `frame`. idle() is called while the display waits for a culling
-    // rank (the window keeps answering and shows the newest complete frame).
+    // A live run (a window under mpirun, or a path replayed in real time with --pace recorded;
+    // every rank sets it): the cameras come one by one instead of from `cameras`, and the run
+    // ends when rank 0 says so. Rank 0's next_camera(frame, pose) gives that frame's camera, the
+    // newest pose when it is asked: poses made while the switch was busy are skipped, never
+    // queued (the paper's camera buffer of one); false ends the run before `frame`. idle() is
+    // called while the display waits for a culling rank (a window keeps answering and shows the
+    // newest complete frame).
     bool live = false;
     std::function<bool(uint64_t frame, CameraPose& pose)> next_camera;
     std::function<void()> idle;

@@ -3,7 +3,8 @@
 # The occlusion switch over real MPI ranks (mpirun -np 1, 2, 3): the 3-rank run displays, frame
 # by frame, the visible sets and LOD counts the 1-rank run computes with the same occluders
 # (--pvs-occluder-lag 2); 2 ranks equal 1 rank; --no-deltas changes the bytes, not the answer;
-# latency is exactly one frame with 2 and 3 ranks; 4 ranks are refused; a rank killed mid-run
+# latency is exactly one frame with 2 and 3 ranks; --pace recorded skips poses a slow run cannot
+# show; 4 ranks are refused; a rank killed mid-run
 # makes the others exit non-zero within 10 s naming it.
 set -u
 exe=$1
@@ -89,6 +90,38 @@ rankPid() {
   done
   return 1
 }
+
+# --pace recorded: the path in real time. Far faster than the frames (4000 poses/s), frames skip
+# poses, on 3 ranks as on 1, and the frames shown plus the poses skipped are the path; slower than
+# the frames (40 poses/s), every pose is shown and the run lasts the path's time.
+check_pace() {  # name, output file, poses; prints the frames shown
+  local line
+  line=$(grep "^pace: recorded" "$2") || fail "$1: no pace line: $(cat "$2")"
+  [[ $line =~ ([0-9]+)\ frames\ shown,\ ([0-9]+)\ poses\ skipped ]] || fail "$1: $line"
+  [ $((BASH_REMATCH[1] + BASH_REMATCH[2])) -eq "$3" ] || fail "$1: shown + skipped != $3: $line"
+  grep -q "^render: .* ${BASH_REMATCH[1]} frames at " "$2" || fail "$1: render line: $(grep ^render "$2")"
+  echo "${BASH_REMATCH[2]}"
+}
+timeout 120 "${mpirun[@]}" -np 3 "$exe" "${render[@]}" --pace recorded --path-fps 4000 --stats "$dir/p3.csv" \
+  >"$dir/pace3" 2>"$dir/err" || fail "mpirun -np 3 --pace recorded: $(tail -5 "$dir/err")"
+skipped=$(check_pace "3 ranks, 4000 poses/s" "$dir/pace3" 60) || { echo "$skipped"; exit 1; }
+[ "$skipped" -gt 0 ] || fail "3 ranks at 4000 poses/s skipped no pose: $(cat "$dir/pace3")"
+python3 - "$dir/p3.csv" <<'PY' || fail "paced 3-rank stats"
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+shown = sorted(int(r["frame"]) for r in rows if r["rank"] == "0")
+culled = sorted(int(r["frame"]) for r in rows if r["rank"] != "0")
+assert shown == culled == list(range(len(shown))), (shown, culled)
+PY
+"$exe" "${render[@]}" --pace recorded --path-fps 4000 >"$dir/pace1" 2>"$dir/err" || fail "1 rank --pace recorded"
+skipped=$(check_pace "1 rank, 4000 poses/s" "$dir/pace1" 60) || { echo "$skipped"; exit 1; }
+[ "$skipped" -gt 0 ] || fail "1 rank at 4000 poses/s skipped no pose: $(cat "$dir/pace1")"
+start=$(date +%s.%N)
+"$exe" "${render[@]}" --pace recorded --path-fps 40 >"$dir/pace1" 2>"$dir/err" || fail "1 rank --pace recorded 40"
+took=$(awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN { print b - a }')
+skipped=$(check_pace "1 rank, 40 poses/s" "$dir/pace1" 60) || { echo "$skipped"; exit 1; }
+[ "$skipped" -eq 0 ] || fail "1 rank at 40 poses/s skipped $skipped poses: $(cat "$dir/pace1")"
+awk -v t="$took" 'BEGIN { exit !(t >= 1.45) }' || fail "60 poses at 40 per second took $took s, not >= 1.475"
 
 # A rank killed mid-run: the others name it and everything ends within 10 s.
 "$exe" path walk "$dir/p.oss" --frames 20000 -o "$dir/long.cam" 2>/dev/null || fail "long path"

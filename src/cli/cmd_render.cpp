@@ -30,6 +30,7 @@
 #include <iostream>
 #include <memory>
 #include <set>
+#include <thread>
 
 namespace occ::cli {
 
@@ -40,6 +41,8 @@ constexpr double kWindowOccluderMs = 10.0;
 
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto", budget = "auto";
+    std::string pace = "fast";
+    double path_fps = 60;
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
     double occluder_ms = -1;  // -1: the default of the mode (on in a window)
     double rank_timeout = 5.0;
@@ -92,6 +95,9 @@ int runInWindow(RenderOptions& o, const OssFile& file, Transport& transport) {
     if (o.exact || o.reference || !o.debug_views.empty())
         throw UsageError("render: --exact, --reference and --debug-views measure recorded runs: add --headless "
                          "and --path P.cam");
+    if (o.pace != "fast")
+        throw UsageError("render: --pace recorded replays --path headless (--headless or --no-display); a window "
+                         "plays the path one pose per frame, then you fly");
     if (layout.size() == 1 && !o.stats.empty())
         throw UsageError("render: --stats in a window needs 2 or 3 ranks (mpirun); on one rank record a path (R) "
                          "and render it with --headless --stats");
@@ -148,6 +154,15 @@ int runRender(RenderOptions o) {
         throw UsageError("render: this occswitch was built without the OpenGL display (OCC_GL=OFF); "
                          "run with --no-display");
 #endif
+    if (o.pace != "fast" && o.pace != "recorded")
+        throw UsageError("--pace " + o.pace + ": expected fast (every pose, as fast as the frames go) or recorded "
+                         "(the path in real time at --path-fps)");
+    if (!(o.path_fps > 0 && o.path_fps <= 100000))
+    {
+        char v[64];
+        std::snprintf(v, sizeof v, "%g", o.path_fps);
+        throw UsageError(std::string("--path-fps ") + v + ": expected poses per second in (0, 100000]");
+    }
     if (o.path.empty() && (o.no_display || o.headless))
         throw UsageError(std::string("render: --path P.cam is required with ") +
                          (o.headless ? "--headless" : "--no-display"));
@@ -192,6 +207,31 @@ int runRender(RenderOptions o) {
     run.cameras = cameras;
     run.deltas = !o.no_deltas;
     run.timeout = std::chrono::milliseconds(int64_t(o.rank_timeout * 1000));
+    // --pace recorded: pose i of the path is due i / path_fps seconds after the first; each frame
+    // takes the newest pose due when it starts (a slow frame skips poses, as a user's would), and a
+    // frame quicker than the path waits for the next pose.
+    const bool paced = o.pace == "recorded";
+    std::vector<uint64_t> pose_of;  // rank 0, paced: the pose each frame showed
+    std::chrono::steady_clock::time_point pace_start;
+    if (paced) {
+        run.live = true;
+        run.next_camera = [&](uint64_t f, CameraPose& pose) {
+            using namespace std::chrono;
+            const auto now = steady_clock::now();
+            if (f == 0) pace_start = now;
+            uint64_t i = uint64_t(duration<double>(now - pace_start).count() * o.path_fps);
+            if (f > 0 && i <= pose_of.back()) {
+                i = pose_of.back() + 1;
+                if (i < cameras.size())
+                    std::this_thread::sleep_until(pace_start + duration_cast<steady_clock::duration>(
+                                                                   duration<double>(double(i) / o.path_fps)));
+            }
+            if (i >= cameras.size()) return false;
+            pose = cameras[i];
+            pose_of.push_back(i);
+            return true;
+        };
+    }
     double false_culls = 0, accuracy = 0, exact_occluded = 0, psnr = 0, min_psnr = 1e9, changed = 0, draw_ms = 0;
     double exact_churn = 0;  // frames after the first
 #ifdef OCC_HAVE_GL
@@ -229,7 +269,8 @@ int runRender(RenderOptions o) {
 #endif
     StatsFile stats(rank0 ? o.stats : std::string(), roles::rankStatsHeader(run));
     std::atomic<uint64_t> frames_done{0};
-    run.on_frame = [&](uint64_t done) { frames_done = done; };
+    // Progress counts the path's poses (paced: the newest one shown).
+    run.on_frame = [&](uint64_t done) { frames_done = paced ? pose_of.at(done - 1) + 1 : done; };
     std::unique_ptr<ProgressBar> progress;
     if (rank0)
         progress = std::make_unique<ProgressBar>("render", "frames", "frames", [&] {
@@ -242,11 +283,11 @@ int runRender(RenderOptions o) {
     if (!rank0) return 0;
     stats.write(rows);
     stats.commit();
-    const double frames = double(cameras.size());
+    const double frames = double(std::max<uint64_t>(1, sum.frames));
     std::printf("render: %s, %zu frames at %ux%u, mode %s, stream %s, backend %s, %d rank%s: mean %.2f ms/frame "
                 "(%.1f fps); %.1f of %u objects in the frustum, %.1f%% of those occluded, %.1f visible; "
                 "%.0f active triangles, %.4f%% of them streamed per frame\n",
-                o.scene.c_str(), cameras.size(), o.pipeline.width, o.pipeline.height, o.mode.c_str(),
+                o.scene.c_str(), size_t(sum.frames), o.pipeline.width, o.pipeline.height, o.mode.c_str(),
                 o.stream.c_str(), k::deviceBackend(), layout.size(), layout.size() > 1 ? "s" : "", sum.ms_frame / frames,
                 1000.0 * frames / sum.ms_frame, sum.objects_in_frustum / frames, file.objectCount(),
                 sum.objects_in_frustum > 0 ? 100.0 * (sum.objects_in_frustum - sum.objects_visible) / sum.objects_in_frustum
@@ -262,6 +303,17 @@ int runRender(RenderOptions o) {
                 double(sum.bytes_camera) / frames, double(sum.bytes_eof) / frames, sum.latency_frames,
                 sum.latency_frames == 1 ? "" : "s", frames > 1 ? sum.latency_ms / (frames - 1) : 0.0,
                 sum.ms_wait / frames);
+    if (paced) {
+        // The longest run of poses no frame showed.
+        uint64_t longest = pose_of.empty() ? 0 : pose_of.front();
+        for (size_t j = 1; j < pose_of.size(); ++j) longest = std::max(longest, pose_of[j] - pose_of[j - 1] - 1);
+        const uint64_t shown = pose_of.size(), skipped = cameras.size() - shown;
+        std::printf("pace: recorded, the path's %zu poses at %g per second (%.2f s): %llu frames shown, %llu poses "
+                    "skipped (%.1f%%), at most %llu in a row\n",
+                    cameras.size(), o.path_fps, double(cameras.size()) / o.path_fps,
+                    static_cast<unsigned long long>(shown), static_cast<unsigned long long>(skipped),
+                    100.0 * double(skipped) / double(cameras.size()), static_cast<unsigned long long>(longest));
+    }
     const double later = std::max(1.0, frames - 1);
     std::printf("device: %s%s%s; host <-> device bus on rank 0: %.0f bytes/frame to the device, %.0f back "
                 "(frames after the first), of which streamed geometry %.0f\n",
@@ -345,6 +397,13 @@ Command addRenderCommand(CLI::App& app) {
                     "preprocessed scene (.oss), or a model file (glTF, OBJ, PLY, OFF, STL), prepared once into\n"
                     "MODEL.oss beside it and reused while the model is unchanged")->required();
     sub->add_option("--path", o->path, "camera path file (see `occswitch path`); in a window, played then flown");
+    sub->add_option("--pace", o->pace,
+                    "fast: every pose of --path, each frame as soon as the last is done; recorded: the path in\n"
+                    "real time at --path-fps, each frame taking the newest pose due (slow frames skip poses, as a\n"
+                    "user's camera would)")
+        ->capture_default_str();
+    sub->add_option("--path-fps", o->path_fps, "poses per second of --path for --pace recorded (paths are made at 60)")
+        ->capture_default_str();
     sub->add_flag("--headless", o->headless, "draw offscreen with EGL (no window, no X server)");
     sub->add_flag("--no-display", o->no_display, "run every stage except drawing");
     sub->add_option("--out", o->out, "write each frame as DIR/frame_NNNNNN.png (window: where P saves screenshots)");
