@@ -37,6 +37,9 @@ struct NetColumns {
     double ms_wait = 0;
     uint64_t visible_hash = 0;
     uint64_t added = 0, removed = 0, changed = 0;  // entries of the frame's visible-set message
+    int partition = -1;                            // display rows: the partition drawn
+    uint64_t composite_bytes = 0;
+    double ms_composite = 0;
 };
 
 // Per-row differences of the transport's cumulative counters.
@@ -53,6 +56,8 @@ public:
             c.messages[i] = d[kFrameKinds[i]].messages_sent;
         }
         for (const KindCounters& k : d.kinds) c.ms_wait += double(k.receive_wait_ns) / 1e6;
+        c.composite_bytes = d.composite_bytes_sent;
+        c.ms_composite = double(d.composite_ns) / 1e6;
         return c;
     }
 
@@ -68,8 +73,8 @@ std::string fixed3(double v) {
 }
 
 std::string netRow(const NetColumns& c) {
-    char b[512];
-    std::snprintf(b, sizeof b, ",%llu,%llu,%llu,%llu,%llu,%llu,%llu,%llu,%llu,%llu,%s,%s,%.3f,%016llx",
+    char b[640];
+    std::snprintf(b, sizeof b, ",%llu,%llu,%llu,%llu,%llu,%llu,%llu,%llu,%llu,%llu,%s,%s,%.3f,%016llx,%s,%llu,%.3f",
                   static_cast<unsigned long long>(c.bytes[0]), static_cast<unsigned long long>(c.bytes[1]),
                   static_cast<unsigned long long>(c.bytes[2]), static_cast<unsigned long long>(c.messages[0]),
                   static_cast<unsigned long long>(c.messages[1]), static_cast<unsigned long long>(c.messages[2]),
@@ -77,7 +82,9 @@ std::string netRow(const NetColumns& c) {
                   static_cast<unsigned long long>(c.removed), static_cast<unsigned long long>(c.changed),
                   c.latency_ms < 0 ? "" : fixed3(c.latency_ms).c_str(),
                   c.latency_frames < 0 ? "" : std::to_string(c.latency_frames).c_str(), c.ms_wait,
-                  static_cast<unsigned long long>(c.visible_hash));
+                  static_cast<unsigned long long>(c.visible_hash),
+                  c.partition < 0 ? "" : std::to_string(c.partition).c_str(),
+                  static_cast<unsigned long long>(c.composite_bytes), c.ms_composite);
     return b;
 }
 
@@ -93,8 +100,10 @@ VisibleSet visibleSetOf(const Pipeline& p) {
 // sends the visible-set delta to the display (and to the other switch rank).
 class Culler {
 public:
-    Culler(Transport& t, Pipeline& pipeline, const OssFile& file, const RankLayout& layout, const RunOptions& run)
-        : t_(t), pipeline_(pipeline), objects_(file.objectCount()), layout_(layout), run_(run) {}
+    // `partition`: each object's display partition (2 + P ranks), empty with one display.
+    Culler(Transport& t, Pipeline& pipeline, const OssFile& file, const RankLayout& layout, const RunOptions& run,
+           const std::vector<uint16_t>& partition)
+        : t_(t), pipeline_(pipeline), objects_(file.objectCount()), layout_(layout), run_(run), partition_(partition) {}
 
     // OR of frame f: its camera from the display, then the occluders (Eq. 3's AOS plus the
     // largest objects of the last PVS this rank computed) rastered into this rank's HZM.
@@ -106,7 +115,7 @@ public:
             if (!run_.live) throw RankError(0, "camera of frame " + std::to_string(f) + ": a stop in a recorded run");
             stop_frames_ = packet.frame;
             // The other switch rank sent its last frame's delta to this one too.
-            const int other = layout_.size() == 3 ? 3 - t_.rank() : -1;
+            const int other = layout_.size() >= 3 ? 3 - t_.rank() : -1;
             if (other > 0 && packet.frame == f && f > 0)
                 decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, waitLimit()), {other, f - 1, objects_});
             return false;
@@ -125,7 +134,7 @@ public:
         while (f >= 2 && eof_seen_ + 2 < f + 1) receiveEndOfFrame();
         // V_{f-1}: this rank's own, or in the switch the other rank's, from its delta. The LOD
         // hysteresis starts from it, and the delta of f is taken against it.
-        const int other = layout_.size() == 3 ? 3 - t_.rank() : -1;
+        const int other = layout_.size() >= 3 ? 3 - t_.rank() : -1;
         if (other > 0 && f > 0) {
             const VisibleSetDelta d = decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, waitLimit()),
                                                             {other, f - 1, objects_});
@@ -138,12 +147,30 @@ public:
         const VisibleSetDelta delta =
             run_.deltas && f > 0 ? makeDelta(known_, current, f) : makeFullDelta(current, f);
         const std::vector<uint8_t> bytes = encodeVisibleSetDelta(delta, objects_, t_.rank());
-        const size_t full = fullVisibleSetEncodedSize(current.size());
-        t_.send(0, MessageKind::Delta, bytes);
-        net.full_pvs_bytes += full;
+        if (layout_.displays() == 1) {
+            t_.send(0, MessageKind::Delta, bytes);
+            net.full_pvs_bytes += fullVisibleSetEncodedSize(current.size());
+        } else {
+            // Each display rank gets its partition's part of the delta (and of the budget's
+            // vertex counts): one Eq. 1 solve for the whole scene, split by partition.
+            std::vector<VisibleSetDelta> parts(size_t(layout_.displays()));
+            std::vector<std::vector<VisibleSet::Entry>> sets(parts.size());
+            for (size_t p = 0; p < parts.size(); ++p) parts[p].frame = delta.frame, parts[p].full = delta.full;
+            for (const auto& e : delta.added) parts[partition_[e.first]].added.push_back(e);
+            for (uint32_t id : delta.removed) parts[partition_[id]].removed.push_back(id);
+            for (const auto& e : delta.changed) parts[partition_[e.first]].changed.push_back(e);
+            for (const auto& e : current.entries()) sets[partition_[e.first]].push_back(e);
+            for (size_t p = 0; p < parts.size(); ++p) {
+                const VisibleSet part(std::move(sets[p]));
+                parts[p].hash = part.hash();
+                t_.send(layout_.displayRank(int(p)), MessageKind::Delta,
+                        encodeVisibleSetDelta(parts[p], objects_, t_.rank()));
+                net.full_pvs_bytes += fullVisibleSetEncodedSize(part.size());
+            }
+        }
         if (other > 0 && (run_.live || f + 1 < run_.cameras.size())) {
             t_.send(other, MessageKind::Delta, bytes);
-            net.full_pvs_bytes += full;
+            net.full_pvs_bytes += fullVisibleSetEncodedSize(current.size());
         }
         net.visible_hash = current.hash();
         net.added = delta.added.size();
@@ -169,14 +196,18 @@ public:
     }
 
 private:
+    // The end-of-frame of frame eof_seen_ from every display rank.
     void receiveEndOfFrame() {
-        const EndOfFrame e =
-            decodeEndOfFrame(t_.receive(0, MessageKind::EndOfFrame, waitLimit()), {0, eof_seen_, objects_});
-        slowest_display_ns_ = std::max(slowest_display_ns_, e.compute_ns);
-        // A live run's last frame is known once the stop came.
-        const bool known = !run_.live || (frames() != UINT64_MAX && !last_unknown_);
-        if (known && e.last != (eof_seen_ + 1 == frames()))
-            throw RankError(0, "end-of-frame of frame " + std::to_string(eof_seen_) + ": wrong 'last' flag");
+        for (int r : layout_.displayRanks()) {
+            const EndOfFrame e =
+                decodeEndOfFrame(t_.receive(r, MessageKind::EndOfFrame, waitLimit()), {r, eof_seen_, objects_});
+            slowest_display_ns_ = std::max(slowest_display_ns_, e.compute_ns);
+            // A live run's last frame is known once the stop came; the display ranks other than
+            // rank 0 learn it only from the stop, after their last frame.
+            const bool known = (!run_.live || (frames() != UINT64_MAX && !last_unknown_)) && r == 0;
+            if (known && e.last != (eof_seen_ + 1 == frames()))
+                throw RankError(r, "end-of-frame of frame " + std::to_string(eof_seen_) + ": wrong 'last' flag");
+        }
         ++eof_seen_;
     }
 
@@ -197,6 +228,7 @@ private:
     uint32_t objects_;
     const RankLayout& layout_;
     const RunOptions& run_;
+    const std::vector<uint16_t>& partition_;
     int64_t slowest_display_ns_ = 0;
     CameraPose pose_;
     uint64_t pose_frame_ = UINT64_MAX;
@@ -221,7 +253,25 @@ public:
         poses_.push_back(pose);
         sent_ns_.push_back(p.sent_ns);
         sent_step_.push_back(step);
-        t_.send(layout_.culler(f), MessageKind::Camera, encodeCameraPacket(p, t_.rank()));
+        const std::vector<uint8_t> bytes = encodeCameraPacket(p, t_.rank());
+        t_.send(layout_.culler(f), MessageKind::Camera, bytes);
+        // The other display ranks draw the same camera.
+        for (int q = 1; q < layout_.displays(); ++q) t_.send(layout_.displayRank(q), MessageKind::Camera, bytes);
+    }
+
+    // A display rank other than rank 0: frame f's camera from rank 0. False when rank 0 stopped
+    // a live run before frame f.
+    bool receiveCamera(uint64_t f) {
+        const std::chrono::milliseconds limit = f < 2 ? std::max(run_.timeout, kStartupAllowance) : run_.timeout;
+        const CameraPacket p = decodeCameraPacket(t_.receive(0, MessageKind::Camera, limit), {0, f, objects_});
+        if (p.stop) {
+            if (!run_.live) throw RankError(0, "camera of frame " + std::to_string(f) + ": a stop in a recorded run");
+            return false;
+        }
+        poses_.push_back(p.pose);
+        sent_ns_.push_back(p.sent_ns);
+        sent_step_.push_back(f == 0 ? 0 : f - 1);  // rank 0 sends frame f's camera at step f - 1
+        return true;
     }
 
     // Ends a live run of `frames` frames: every culling rank is told, at the frame it waits for.
@@ -274,7 +324,8 @@ public:
         e.last = last;
         e.compute_ns = nowNs() - start_ns;
         const std::vector<uint8_t> bytes = encodeEndOfFrame(e, t_.rank());
-        for (int r = layout_.size() == 1 ? 0 : 1; r < layout_.size(); ++r) t_.send(r, MessageKind::EndOfFrame, bytes);
+        for (int r : layout_.cullingRanks()) t_.send(r, MessageKind::EndOfFrame, bytes);
+        net.partition = layout_.partitionOf(t_.rank());
         return drawn;
     }
 
@@ -353,37 +404,118 @@ void addTraffic(RunSummary& sum, const std::string& rows, const std::string& hea
         return size_t(std::find(names.begin(), names.end(), name) - names.begin());
     };
     const size_t camera = column("bytes_camera"), delta = column("bytes_delta"), eof = column("bytes_eof"),
-                 full = column("full_pvs_bytes");
+                 full = column("full_pvs_bytes"), part = column("partition"), composite = column("bytes_composite"),
+                 ms_composite = column("ms_composite"), triangles = column("active_triangles"), rank = column("rank"),
+                 visible = column("objects_visible"), streamed = column("streamed_triangles");
+    // Sort-last: rank 0's pipeline holds its partition only; the frame's figures are the sums
+    // over the display ranks' rows.
+    if (sum.displays > 1) sum.objects_visible = sum.active_triangles = sum.streamed_triangles = 0;
+    std::vector<double> frames_of(size_t(sum.displays), 0.0);
+    sum.partition_triangles.assign(size_t(sum.displays), 0.0);
     std::istringstream lines(rows);
     for (std::string line; std::getline(lines, line);) {
         const std::vector<std::string> f = split(line);
-        if (f.size() <= full) continue;
+        if (f.size() <= ms_composite) continue;
         sum.bytes_camera += std::stoull(f[camera]);
         sum.bytes_delta += std::stoull(f[delta]);
         sum.bytes_eof += std::stoull(f[eof]);
         sum.full_pvs_bytes += std::stoull(f[full]);
+        sum.bytes_composite += std::stoull(f[composite]);
+        if (f[rank] == "0") sum.ms_composite += std::stod(f[ms_composite]);
+        if (!f[part].empty()) {
+            const size_t p = std::stoul(f[part]);
+            if (p < frames_of.size()) sum.partition_triangles[p] += std::stod(f[triangles]), frames_of[p] += 1;
+            if (sum.displays > 1) {
+                sum.objects_visible += std::stod(f[visible]);
+                sum.active_triangles += std::stod(f[triangles]);
+                sum.streamed_triangles += std::stod(f[streamed]);
+            }
+        }
     }
+    for (size_t p = 0; p < frames_of.size(); ++p)
+        if (frames_of[p] > 0) sum.partition_triangles[p] /= frames_of[p];
 }
 
 }  // namespace
 
 RankLayout::RankLayout(int size) : size_(size) {
-    if (size < 1 || size > 3)
-        throw UsageError("render: " + std::to_string(size) +
-                         " ranks: occswitch runs 1 (all roles), 2 (display + culling) or 3 (display + occlusion "
-                         "switch) ranks; layouts for more ranks are not designed yet");
+    if (size < 1 || size > kMaxRanks)
+        throw UsageError("render: " + std::to_string(size) + " ranks: occswitch runs 1 (all roles), 2 (display + "
+                         "culling), 3 (display + occlusion switch) or 2 + P up to " + std::to_string(kMaxRanks) +
+                         " (the switch and P sort-last display ranks)");
+}
+
+std::vector<int> RankLayout::displayRanks() const {
+    std::vector<int> r;
+    for (int p = 0; p < displays(); ++p) r.push_back(displayRank(p));
+    return r;
+}
+
+std::vector<int> RankLayout::cullingRanks() const {
+    if (size_ == 1) return {0};
+    if (size_ == 2) return {1};
+    return {1, 2};
 }
 
 const char* RankLayout::roleOf(int rank) const {
     if (size_ == 1) return "or+hc+rvg";
-    return rank == 0 ? "rvg" : "or+hc";
+    return partitionOf(rank) >= 0 ? "rvg" : "or+hc";
+}
+
+std::vector<uint16_t> partitionObjects(const OssFile& file, int parts) {
+    if (parts < 1 || parts > 65535) throw std::invalid_argument("partitionObjects: parts outside [1, 65535]");
+    const auto objects = file.objects();
+    const auto meshes = file.meshRecords();
+    std::vector<uint16_t> partition(objects.size(), 0);
+    if (parts == 1) return partition;
+    struct Item {
+        glm::vec3 centre;
+        double triangles;
+        uint32_t id;
+    };
+    std::vector<Item> items(objects.size());
+    for (uint32_t i = 0; i < objects.size(); ++i) {
+        const auto& o = objects[i];
+        const glm::vec3 lo(o.aabb_min[0], o.aabb_min[1], o.aabb_min[2]), hi(o.aabb_max[0], o.aabb_max[1], o.aabb_max[2]);
+        // Every object weighs at least one triangle, so that empty ones spread too.
+        items[i] = {0.5f * (lo + hi), std::max(1.0, double(meshes[o.mesh].triangle_count)), i};
+    }
+    // Splits items [begin, end) into parts [first, first + k).
+    const auto split = [&](auto&& self, size_t begin, size_t end, int first, int k) -> void {
+        if (k == 1 || end - begin <= 1) {
+            for (size_t j = begin; j < end; ++j) partition[items[j].id] = uint16_t(first);
+            return;
+        }
+        glm::vec3 lo(INFINITY), hi(-INFINITY);
+        for (size_t j = begin; j < end; ++j) lo = glm::min(lo, items[j].centre), hi = glm::max(hi, items[j].centre);
+        const glm::vec3 extent = hi - lo;
+        const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : extent.y >= extent.z ? 1 : 2;
+        // Sorted along the axis, ties by id: the same order on every rank.
+        std::sort(items.begin() + std::ptrdiff_t(begin), items.begin() + std::ptrdiff_t(end),
+                  [axis](const Item& a, const Item& b) {
+                      return a.centre[axis] < b.centre[axis] || (a.centre[axis] == b.centre[axis] && a.id < b.id);
+                  });
+        double total = 0;
+        for (size_t j = begin; j < end; ++j) total += items[j].triangles;
+        const int left = k / 2;
+        const double target = total * double(left) / double(k);
+        size_t cut = begin;
+        double before = 0;
+        while (cut < end && before + 0.5 * items[cut].triangles < target) before += items[cut++].triangles;
+        // Both sides keep at least one object while they can.
+        cut = std::clamp(cut, begin + 1, end - 1);
+        self(self, begin, cut, first, left);
+        self(self, cut, end, first + left, k - left);
+    };
+    split(split, 0, items.size(), 0, parts);
+    return partition;
 }
 
 std::string rankStatsHeader(const RunOptions& run) {
     return "rank,role," + frameStatsHeader() +
            ",bytes_camera,bytes_delta,bytes_eof,msgs_camera,msgs_delta,msgs_eof,full_pvs_bytes,delta_added,"
            "delta_removed,delta_changed,latency_ms,"
-           "latency_frames,ms_wait,visible_hash" +
+           "latency_frames,ms_wait,visible_hash,partition,bytes_composite,ms_composite" +
            run.draw_header;
 }
 
@@ -401,6 +533,8 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             throw OptionError("pvs_occluder_lag", std::to_string(o.pvs_occluder_lag) + " with " +
                              std::to_string(layout.size()) + " ranks: the switch's occluder rank has the PVS of " +
                              std::to_string(layout.occluderLag()) + " frames back at the newest");
+        const std::vector<uint16_t> partition =
+            layout.displays() > 1 ? partitionObjects(file, layout.displays()) : std::vector<uint16_t>();
         Pipeline pipeline(file, o);
         CounterWindow window(transport);
         BusWindow bus;  // after the pipeline's start-up copies
@@ -419,7 +553,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             return run.next_camera(f, pose);
         };
         if (layout.size() == 1) {
-            Culler culler(transport, pipeline, file, layout, run);
+            Culler culler(transport, pipeline, file, layout, run, partition);
             Display display(transport, pipeline, file, o, layout, run);
             CameraPose pose;
             bool more = camera(0, pose);
@@ -433,6 +567,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 const std::string drawn = display.display(f, f, s, shown, !run.live && f + 1 == frames);
                 net.latency_ms = shown.latency_ms;
                 net.latency_frames = shown.latency_frames;
+                net.partition = shown.partition;
                 const NetColumns counted = window.take();
                 std::copy(std::begin(counted.bytes), std::end(counted.bytes), net.bytes);
                 std::copy(std::begin(counted.messages), std::end(counted.messages), net.messages);
@@ -467,16 +602,37 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 net.latency_frames = shown.latency_frames;
                 net.visible_hash = shown.visible_hash;
                 net.added = shown.added, net.removed = shown.removed, net.changed = shown.changed;
+                net.partition = shown.partition;
                 bus.take(s);
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
                 addToSummary(summary, s, net, std::chrono::duration<double, std::milli>(Clock::now() - start).count());
                 if (run.on_frame) run.on_frame(f + 1);
             }
             if (run.live) display.sendStop(frames);
+        } else if (layout.partitionOf(rank) > 0) {
+            // A sort-last display rank: rank 0's cameras, its partition's deltas from the switch.
+            Display display(transport, pipeline, file, o, layout, run);
+            for (uint64_t f = 0; run.live || f < frames; ++f) {
+                if (!display.receiveCamera(f)) {
+                    frames = f;
+                    break;
+                }
+                FrameStats s;
+                NetColumns shown;
+                const std::string drawn = display.display(f, f, s, shown, !run.live && f + 1 == frames);
+                NetColumns net = window.take();
+                net.latency_ms = shown.latency_ms;
+                net.latency_frames = shown.latency_frames;
+                net.visible_hash = shown.visible_hash;
+                net.added = shown.added, net.removed = shown.removed, net.changed = shown.changed;
+                net.partition = shown.partition;
+                bus.take(s);
+                rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
+            }
         } else {
-            Culler culler(transport, pipeline, file, layout, run);
-            const uint64_t first = layout.size() == 3 ? uint64_t(rank - 1) : 0;
-            const uint64_t step = layout.size() == 3 ? 2 : 1;
+            Culler culler(transport, pipeline, file, layout, run, partition);
+            const uint64_t first = layout.size() >= 3 ? uint64_t(rank - 1) : 0;
+            const uint64_t step = layout.size() >= 3 ? 2 : 1;
             bool more = first < frames && culler.occluders(first);
             for (uint64_t f = first; more; f += step) {
                 NetColumns sent;
@@ -503,7 +659,8 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             std::vector<std::pair<uint64_t, std::string>> merged;
             for (const std::string& r : rows) merged.emplace_back(frameOfRow(r), r);
             for (int r = 1; r < layout.size(); ++r) {
-                const uint64_t expected = layout.size() == 3 ? (frames + (r == 1 ? 1 : 0)) / 2 : frames;
+                const uint64_t expected =
+                    layout.size() >= 3 && layout.partitionOf(r) < 0 ? (frames + (r == 1 ? 1 : 0)) / 2 : frames;
                 const std::string report =
                     decodeReport(transport.receive(r, MessageKind::Report, run.timeout), {r, expected, file.objectCount()});
                 std::istringstream lines(report);
@@ -520,7 +677,10 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             text.clear();
             for (const auto& entry : merged) text += entry.second;
         }
-        if (rank == 0) addTraffic(summary, text, rankStatsHeader(run));
+        if (rank == 0) {
+            summary.displays = layout.displays();
+            addTraffic(summary, text, rankStatsHeader(run));
+        }
         transport.finish(finish_limit);
         return text;
     } catch (const RankError& e) {

@@ -12,15 +12,20 @@
 
 namespace occ::roles {
 
-// Who does what, from the number of ranks (DESIGN.md, "Roles and ranks"):
+// Who does what, from the number of ranks (DESIGN.md, "Roles and ranks"; docs/scaling.md):
 //   1 rank:  rank 0 does OR, HC and RVG of every frame, in that order;
 //   2 ranks: rank 0 is RVG; rank 1 does OR then HC of every frame;
 //   3 ranks: rank 0 is RVG; ranks 1 and 2 form the occlusion switch (Govindaraju et al. 2003):
 //            rank 1 + f % 2 culls frame f (HC) with the HZM it built in the step before, while
-//            the other rank rasters the occluders of frame f + 1 (OR): they swap every frame.
+//            the other rank rasters the occluders of frame f + 1 (OR): they swap every frame;
+//   2 + P ranks (P >= 2): the same switch culls every object, and P display ranks (sort-last:
+//            rank 0 and ranks 3 .. P + 1) each stream, reform and draw the visible objects of
+//            its own spatial partition (partitionObjects); their pictures are depth-composited
+//            into rank 0's.
 class RankLayout {
 public:
-    // Throws UsageError for a size other than 1, 2 or 3.
+    static constexpr int kMaxRanks = 64;
+    // Throws UsageError for a size outside [1, kMaxRanks].
     explicit RankLayout(int size);
     int size() const { return size_; }
     // The rank that rasters frame f's occluders and then culls frame f.
@@ -28,17 +33,35 @@ public:
     // How many frames back the PVS lies whose largest objects the OR rasters as extra
     // occluders: the switch's OR works on frame f + 1 while frame f is being culled, so its
     // newest PVS is frame f - 1's.
-    uint32_t occluderLag() const { return size_ == 3 ? 2 : 1; }
+    uint32_t occluderLag() const { return size_ >= 3 ? 2 : 1; }
     // Frames between the display sending a camera and drawing it: 0 with one rank; with more,
     // the display sends frame f + 1's camera before it draws frame f, so that the other ranks
     // work on f + 1 meanwhile.
     uint32_t cameraLead() const { return size_ == 1 ? 0 : 1; }
+    // Display ranks, one per partition: 1 up to 3 ranks, size - 2 beyond.
+    int displays() const { return size_ <= 3 ? 1 : size_ - 2; }
+    // The rank that displays partition p (0 <= p < displays()).
+    int displayRank(int partition) const { return partition == 0 ? 0 : partition + 2; }
+    // The partition `rank` displays, -1 for a culling rank.
+    int partitionOf(int rank) const {
+        if (rank == 0) return 0;
+        return size_ > 3 && rank >= 3 ? rank - 2 : -1;
+    }
+    std::vector<int> displayRanks() const;
+    std::vector<int> cullingRanks() const;  // {0}, {1} or {1, 2}
     // "or+hc+rvg", "rvg" or "or+hc": what `rank` does.
     const char* roleOf(int rank) const;
 
 private:
     int size_;
 };
+
+// The sort-last partitions of the 2 + P layout: partition[i] of every object, `parts` spatially
+// coherent groups balanced by full-detail triangles. A k-d split of the objects' box centres:
+// a group of k parts is cut across its widest axis where the triangles before the cut are
+// floor(k / 2) / k of the group's, recursively. Deterministic (the same on every rank).
+// Throws std::invalid_argument for parts outside [1, 65535].
+std::vector<uint16_t> partitionObjects(const OssFile& file, int parts);
 
 struct RunOptions {
     std::vector<CameraPose> cameras;
@@ -70,6 +93,12 @@ struct RunSummary {
     double ms_frame = 0;                  // rank 0: mean wall time per displayed frame
     double objects_in_frustum = 0, objects_visible = 0, active_triangles = 0, streamed_triangles = 0;  // sums
     uint64_t bytes_delta = 0, full_pvs_bytes = 0, bytes_camera = 0, bytes_eof = 0;  // all ranks
+    uint64_t bytes_composite = 0;         // all ranks: pixels sent for compositing
+    double ms_composite = 0;              // rank 0: sum over frames
+    int displays = 1;                     // partitions (display ranks)
+    // Rank 0, from the reports: the most active triangles one display rank held (mean over
+    // frames), per partition; with one display its own.
+    std::vector<double> partition_triangles;
     double latency_ms = 0;                // mean camera send -> frame drawn, frames after the first
     uint32_t latency_frames = 0;          // for frames after the first
     double ms_wait = 0;                   // rank 0: mean per frame
@@ -79,7 +108,7 @@ struct RunSummary {
 };
 
 // The --stats header of a multi-role run: "rank,role," + frameStatsHeader() + the message
-// columns + draw_header.
+// columns (partition, composite bytes and ms among them) + draw_header.
 std::string rankStatsHeader(const RunOptions& run);
 
 // Runs the camera path as rank transport.rank() of transport.size() ranks (all ranks call it

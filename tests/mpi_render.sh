@@ -4,7 +4,8 @@
 # by frame, the visible sets and LOD counts the 1-rank run computes with the same occluders
 # (--pvs-occluder-lag 2); 2 ranks equal 1 rank; --no-deltas changes the bytes, not the answer;
 # latency is exactly one frame with 2 and 3 ranks; --pace recorded skips poses a slow run cannot
-# show; 4 ranks are refused; a rank killed mid-run
+# show; 4 and 5 ranks (the switch and 2 or 3 sort-last display ranks) cull exactly what 3 ranks
+# cull and split it into partitions that together are the 3-rank display's set; a rank killed mid-run
 # makes the others exit non-zero within 10 s naming it.
 set -u
 exe=$1
@@ -75,10 +76,34 @@ for c in ('bytes_camera', 'bytes_eof', 'msgs_camera', 'msgs_delta', 'msgs_eof', 
     assert c in all3[0], f'no column {c}'
 PY
 
-# More ranks than a layout exists for: a clear refusal, no hang.
-timeout 60 "${mpirun[@]}" -np 4 "$exe" "${render[@]}" >/dev/null 2>"$dir/err4"; status=$?
-[ $status -ne 0 ] && [ $status -ne 124 ] || fail "4 ranks: exit $status"
-grep -q "4 ranks" "$dir/err4" || fail "4 ranks: $(head -5 "$dir/err4")"
+# 2 + P ranks: the switch's rows equal the 3-rank run's; every frame has one row per partition,
+# whose visible objects and active triangles add up to the 3-rank display's.
+for n in 4 5; do
+  timeout 120 "${mpirun[@]}" -np $n "$exe" "${render[@]}" --stats "$dir/r$n.csv" >"$dir/out$n" 2>"$dir/err" ||
+    fail "mpirun -np $n: $(tail -5 "$dir/err")"
+  grep -q "^sort-last: $((n - 2)) display ranks" "$dir/out$n" || fail "-np $n: no sort-last line: $(cat "$dir/out$n")"
+done
+python3 - "$dir" <<'PY' || fail "2 + P ranks against 3 ranks"
+import csv, sys
+d = sys.argv[1]
+r3 = list(csv.DictReader(open(f'{d}/r3.csv')))
+for n in (4, 5):
+    rn = list(csv.DictReader(open(f'{d}/r{n}.csv')))
+    parts = n - 2
+    displays = ['0'] + [str(r) for r in range(3, n)]
+    for f in range(60):
+        a = [r for r in r3 if int(r['frame']) == f]
+        b = [r for r in rn if int(r['frame']) == f]
+        cull_a = [r for r in a if r['role'] == 'or+hc']
+        cull_b = [r for r in b if r['role'] == 'or+hc']
+        assert [r['visible_hash'] for r in cull_a] == [r['visible_hash'] for r in cull_b], f'-np {n} frame {f}: culling differs'
+        shown = [r for r in b if r['role'] == 'rvg']
+        assert [r['rank'] for r in shown] == displays, f'-np {n} frame {f}: display rows of ranks {[r["rank"] for r in shown]}'
+        assert [r['partition'] for r in shown] == [str(p) for p in range(parts)], f'-np {n} frame {f}: partitions'
+        whole = [r for r in a if r['role'] == 'rvg'][0]
+        for c in ('objects_visible', 'active_triangles', 'active_vertices'):
+            assert sum(int(r[c]) for r in shown) == int(whole[c]), f'-np {n} frame {f}: {c} of the partitions'
+PY
 
 # The pid of rank R of the run on p.oss, once it has started (10 s at most).
 rankPid() {

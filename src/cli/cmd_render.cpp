@@ -192,6 +192,11 @@ int runRender(RenderOptions o) {
     if (layout.size() > 1 && !o.debug_views.empty())
         throw UsageError("render: --debug-views draws the occluders' depth, which only the culling ranks have: "
                          "run it with one rank");
+    if (layout.displays() > 1 && (o.exact || o.reference))
+        throw UsageError("render: --exact and --reference draw the whole scene on one display; with " +
+                         std::to_string(layout.size()) + " ranks each display rank holds a part: run them with 3 ranks");
+    const int partition = layout.partitionOf(transport->rank());
+    const bool displays = partition >= 0;  // this rank draws (its partition)
     std::set<uint64_t> debug_frames(o.debug_frames.begin(), o.debug_frames.end());
     if (!o.debug_views.empty() && debug_frames.empty())
         debug_frames = {0, cameras.size() / 2, cameras.size() - 1};
@@ -240,7 +245,14 @@ int runRender(RenderOptions o) {
     render::DisplayOptions display_options;
     display_options.exact = o.exact;
     display_options.reference = o.reference;
-    if (draws && rank0) {
+    // Sort-last: every display rank draws its partition; the pictures are composited into rank 0's.
+    const std::vector<int> display_ranks = layout.displayRanks();
+    std::vector<DepthPixel> composite;
+    std::vector<uint8_t> rgb;
+    std::vector<float> depth;
+    std::vector<uint32_t> items;
+    display_options.items = display_ranks.size() > 1;
+    if (draws && displays) {
         context = std::make_unique<render::HeadlessContext>(device.ordinal);
         run.draw_header = render::displayStatsHeader(display_options);
         run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t f) {
@@ -248,6 +260,22 @@ int runRender(RenderOptions o) {
                 display = std::make_unique<render::FrameDisplay>(pipeline, o.pipeline.width, o.pipeline.height,
                                                                  display_options);
             const render::DisplayStats d = display->display(pipeline, pose);
+            const std::vector<uint8_t>* picture = &display->picture();
+            if (display_ranks.size() > 1) {
+                display->target().readDepth(depth);
+                display->target().readItems(items);
+                const std::vector<uint8_t>& own = display->picture();
+                composite.resize(depth.size());
+                for (size_t i = 0; i < depth.size(); ++i)
+                    composite[i] = {depth[i], items[i],
+                                    uint32_t(own[3 * i]) | uint32_t(own[3 * i + 1]) << 8 | uint32_t(own[3 * i + 2]) << 16};
+                transport->composite(display_ranks, composite, run.timeout);
+                if (!rank0) return render::displayStatsRow(d, display_options);
+                rgb.resize(3 * composite.size());
+                for (size_t i = 0; i < composite.size(); ++i)
+                    for (int c = 0; c < 3; ++c) rgb[3 * i + size_t(c)] = uint8_t(composite[i].rgb >> (8 * c));
+                picture = &rgb;
+            }
             draw_ms += d.ms_draw;
             false_culls += double(d.false_culls);
             exact_occluded += double(d.exact_occluded);
@@ -258,7 +286,7 @@ int runRender(RenderOptions o) {
             changed += d.changed_pixel_share;
             if (!o.out.empty())
                 render::writePng(o.out + "/" + frameName(f) + ".png", o.pipeline.width, o.pipeline.height, 3,
-                                 display->picture().data());
+                                 picture->data());
             if (debug_frames.count(f)) display->writeDebugViews(pipeline, pose, o.debug_views, frameName(f));
             return render::displayStatsRow(d, display_options);
         };
@@ -313,6 +341,14 @@ int runRender(RenderOptions o) {
                     cameras.size(), o.path_fps, double(cameras.size()) / o.path_fps,
                     static_cast<unsigned long long>(shown), static_cast<unsigned long long>(skipped),
                     100.0 * double(skipped) / double(cameras.size()), static_cast<unsigned long long>(longest));
+    }
+    if (sum.displays > 1) {
+        std::string parts;
+        for (size_t p = 0; p < sum.partition_triangles.size(); ++p)
+            parts += (p ? ", " : "") + std::to_string(int64_t(std::llround(sum.partition_triangles[p])));
+        std::printf("sort-last: %d display ranks (partitions balanced by triangles); active triangles per display "
+                    "rank %s (mean per frame); composite %.0f bytes/frame over all ranks, %.2f ms/frame on rank 0\n",
+                    sum.displays, parts.c_str(), double(sum.bytes_composite) / frames, sum.ms_composite / frames);
     }
     const double later = std::max(1.0, frames - 1);
     std::printf("device: %s%s%s; host <-> device bus on rank 0: %.0f bytes/frame to the device, %.0f back "

@@ -8,6 +8,7 @@
 #include <climits>
 #include <csignal>
 #include <list>
+#include <map>
 #include <optional>
 #include <stdexcept>
 #include <thread>
@@ -31,6 +32,15 @@ volatile std::sig_atomic_t g_sigterm = 0;
 std::atomic<bool> g_transport_exists{false};
 
 extern "C" void onSigterm(int) { g_sigterm = 1; }
+
+// The compositing MPI_Op: per pixel the nearer of two DepthPixels (DepthPixel's order, which is
+// commutative and associative, so MPI may combine the images in any order).
+extern "C" void compositeDepthPixels(void* in, void* inout, int* length, MPI_Datatype*) {
+    const auto* a = static_cast<const occ::DepthPixel*>(in);
+    auto* b = static_cast<occ::DepthPixel*>(inout);
+    for (int i = 0; i < *length; ++i)
+        if (occ::nearer(a[i], b[i])) b[i] = a[i];
+}
 
 std::string mpiErrorString(int code) {
     char text[MPI_MAX_ERROR_STRING];
@@ -93,6 +103,12 @@ struct MpiTransport::Impl {
     bool finished = false;
     uint32_t roll_call_number = 0;
     struct sigaction previous_sigterm {};
+    // composite(): a communicator per group (made on its first use), the pixel type and the op.
+    std::map<std::vector<int>, MPI_Comm> group_comms;
+    MPI_Datatype pixel_type = MPI_DATATYPE_NULL;
+    MPI_Op composite_op = MPI_OP_NULL;
+    // Images handed to a nonblocking collective that a fault interrupted: MPI may still use them.
+    std::list<std::vector<DepthPixel>> orphaned_images;
 
     Impl(MpiTransport& owner, MpiTransportOptions opts) : self(owner), options(opts) {}
 
@@ -317,6 +333,9 @@ MpiTransport::MpiTransport(int* argc, char*** argv, MpiTransportOptions options)
 MpiTransport::~MpiTransport() {
     Impl& m = *impl_;
     if (m.finished) {
+        for (auto& [group, comm] : m.group_comms) MPI_Comm_free(&comm);
+        if (m.composite_op != MPI_OP_NULL) MPI_Op_free(&m.composite_op);
+        if (m.pixel_type != MPI_DATATYPE_NULL) MPI_Type_free(&m.pixel_type);
         MPI_Comm_free(&m.comm);
         sigaction(SIGTERM, &m.previous_sigterm, nullptr);
         if (m.owns_mpi) MPI_Finalize();
@@ -397,6 +416,90 @@ bool MpiTransport::poll(int source, MessageKind kind) {
     int flag = 0;
     OCC_MPI_CHECK(m, MPI_Iprobe(source, int(kind), m.comm, &flag, MPI_STATUS_IGNORE), source);
     return flag != 0;
+}
+
+void MpiTransport::composite(const std::vector<int>& group, std::vector<DepthPixel>& pixels,
+                             std::chrono::milliseconds timeout) {
+    Impl& m = *impl_;
+    m.checkUsable("composite");
+    const auto start = Clock::now();
+    if (group.empty() || !std::is_sorted(group.begin(), group.end()) ||
+        std::adjacent_find(group.begin(), group.end()) != group.end() ||
+        !std::binary_search(group.begin(), group.end(), m.rank))
+        throw std::invalid_argument("composite: the group must be ascending ranks without repeats, this rank among them");
+    for (int r : group) m.checkPeer(r, "composite");
+    const int members = int(group.size());
+    const int me = int(std::lower_bound(group.begin(), group.end(), m.rank) - group.begin());
+    m.serviceControl();
+    if (members == 1) return;  // the image is the composite
+    if (m.pixel_type == MPI_DATATYPE_NULL) {
+        OCC_MPI_CHECK(m, MPI_Type_contiguous(int(sizeof(DepthPixel)), MPI_BYTE, &m.pixel_type), m.rank);
+        OCC_MPI_CHECK(m, MPI_Type_commit(&m.pixel_type), m.rank);
+        OCC_MPI_CHECK(m, MPI_Op_create(compositeDepthPixels, 1, &m.composite_op), m.rank);
+    }
+    auto found = m.group_comms.find(group);
+    if (found == m.group_comms.end()) {
+        MPI_Comm made = MPI_COMM_NULL;
+        // Collective over the group's members only (MPI-3): the other ranks take no part.
+        MPI_Group world = MPI_GROUP_NULL, members_group = MPI_GROUP_NULL;
+        OCC_MPI_CHECK(m, MPI_Comm_group(m.comm, &world), m.rank);
+        OCC_MPI_CHECK(m, MPI_Group_incl(world, members, group.data(), &members_group), m.rank);
+        OCC_MPI_CHECK(m, MPI_Comm_create_group(m.comm, members_group, 20, &made), group.front());
+        MPI_Group_free(&members_group);
+        MPI_Group_free(&world);
+        OCC_MPI_CHECK(m, MPI_Comm_set_errhandler(made, MPI_ERRORS_RETURN), m.rank);
+        found = m.group_comms.emplace(group, made).first;
+    }
+    MPI_Comm comm = found->second;
+    // Each member ends up with one block of the composite (reduce-scatter), then the first
+    // gathers the blocks. Nonblocking, so that a member that never comes is a timeout naming
+    // it (a roll call) rather than a hang, and faults reported meanwhile are seen.
+    const size_t block = (pixels.size() + size_t(members) - 1) / size_t(members);
+    if (block > size_t(INT_MAX)) throw std::invalid_argument("composite: an image too large for one MPI call");
+    std::vector<DepthPixel> whole(block * size_t(members));
+    std::copy(pixels.begin(), pixels.end(), whole.begin());
+    std::vector<DepthPixel> mine(block);
+    const auto wait = [&](MPI_Request& request, const char* what) {
+        Backoff backoff;
+        for (;;) {
+            int done = 0;
+            OCC_MPI_CHECK(m, MPI_Test(&request, &done, MPI_STATUS_IGNORE), group.front());
+            if (done) return;
+            m.serviceControl();
+            if (Clock::now() - start >= timeout) {
+                const std::vector<int> silent = m.rollCall();
+                int late = me == 0 ? group[1] : group.front();
+                for (int p : silent)
+                    if (std::binary_search(group.begin(), group.end(), p)) {
+                        late = p;
+                        break;
+                    }
+                m.raise(late, std::string("composite (") + what + ") not done within " + formatDuration(timeout) +
+                                  (silent.empty() ? ": a rank of the group did not come" : ": the rank died or stopped answering"));
+            }
+            backoff.pause();
+        }
+    };
+    try {
+        MPI_Request request = MPI_REQUEST_NULL;
+        OCC_MPI_CHECK(m, MPI_Ireduce_scatter_block(whole.data(), mine.data(), int(block), m.pixel_type, m.composite_op,
+                                                   comm, &request),
+                      group.front());
+        wait(request, "MPI_Ireduce_scatter_block");
+        OCC_MPI_CHECK(m, MPI_Igather(mine.data(), int(block), m.pixel_type, me == 0 ? whole.data() : nullptr, int(block),
+                                     m.pixel_type, 0, comm, &request),
+                      group.front());
+        wait(request, "MPI_Igather");
+    } catch (...) {
+        m.orphaned_images.push_back(std::move(whole));
+        m.orphaned_images.push_back(std::move(mine));
+        throw;
+    }
+    if (me == 0) std::copy(whole.begin(), whole.begin() + std::ptrdiff_t(pixels.size()), pixels.begin());
+    // What this rank hands on: the other members' blocks of its image, and its block of the
+    // composite unless it is the first.
+    const uint64_t sent = (uint64_t(members) - 1) * block * sizeof(DepthPixel) + (me == 0 ? 0 : block * sizeof(DepthPixel));
+    countComposite(size_t(sent), std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count());
 }
 
 void MpiTransport::finish(std::chrono::milliseconds timeout) {

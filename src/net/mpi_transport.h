@@ -43,6 +43,8 @@ public:
     void send(int dest, MessageKind kind, std::vector<uint8_t> bytes) override;
     std::vector<uint8_t> receive(int source, MessageKind kind, std::chrono::milliseconds timeout) override;
     bool poll(int source, MessageKind kind) override;
+    void composite(const std::vector<int>& group, std::vector<DepthPixel>& pixels,
+                   std::chrono::milliseconds timeout) override;
     void finish(std::chrono::milliseconds timeout) override;
     void fail(int culprit, const std::string& detail) noexcept override;
 

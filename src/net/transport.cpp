@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "net/transport.h"
 
+#include <algorithm>
 #include <condition_variable>
 #include <cstdio>
 #include <deque>
@@ -23,6 +24,8 @@ TransportCounters TransportCounters::operator-(const TransportCounters& earlier)
     }
     d.control_bytes_sent = control_bytes_sent - earlier.control_bytes_sent;
     d.control_messages_sent = control_messages_sent - earlier.control_messages_sent;
+    d.composite_bytes_sent = composite_bytes_sent - earlier.composite_bytes_sent;
+    d.composite_ns = composite_ns - earlier.composite_ns;
     return d;
 }
 
@@ -35,6 +38,11 @@ void Transport::countReceived(MessageKind kind, size_t bytes, int64_t wait_ns) {
     counters_[kind].bytes_received += bytes;
     counters_[kind].messages_received += 1;
     counters_[kind].receive_wait_ns += wait_ns;
+}
+
+void Transport::countComposite(size_t bytes, int64_t ns) {
+    counters_.composite_bytes_sent += bytes;
+    counters_.composite_ns += ns;
 }
 
 void Transport::countControlSent(size_t bytes) {
@@ -66,6 +74,8 @@ struct InProcessHub::State {
     std::mutex mutex;
     std::condition_variable changed;
     std::map<std::tuple<int, int, MessageKind>, std::deque<std::vector<uint8_t>>> queues;  // (dest, source, kind)
+    // composite(): images handed to a group's first rank, (dest, source) -> images in call order.
+    std::map<std::pair<int, int>, std::deque<std::vector<DepthPixel>>> images;
     std::vector<bool> connected;
     std::vector<bool> finished;
     std::optional<Fault> fault;  // the first fault reported wins
@@ -145,6 +155,45 @@ public:
         return it != state_->queues.end() && !it->second.empty();
     }
 
+    // The group's first rank gathers every member's image and composes them; the others hand
+    // theirs over (threads of one process: no bytes need to move twice).
+    void composite(const std::vector<int>& group, std::vector<DepthPixel>& pixels,
+                   std::chrono::milliseconds timeout) override {
+        const auto start = std::chrono::steady_clock::now();
+        checkGroup(group);
+        const int root = group.front();
+        if (rank_ != root) {
+            const size_t n = pixels.size() * sizeof(DepthPixel);
+            {
+                std::lock_guard lock(state_->mutex);
+                if (state_->fault) state_->throwFault(rank_);
+                state_->images[{root, rank_}].push_back(pixels);
+            }
+            state_->changed.notify_all();
+            countComposite(n, std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start).count());
+            return;
+        }
+        for (size_t m = 1; m < group.size(); ++m) {
+            std::unique_lock lock(state_->mutex);
+            auto& queue = state_->images[{rank_, group[m]}];
+            const bool arrived = state_->changed.wait_until(lock, start + timeout,
+                                                            [&] { return state_->fault || !queue.empty(); });
+            if (state_->fault) state_->throwFault(rank_);
+            if (!arrived)
+                state_->raise(rank_, group[m], "no image to composite for " + formatDuration(timeout) +
+                                                   ": the rank died or stopped answering");
+            std::vector<DepthPixel> image = std::move(queue.front());
+            queue.pop_front();
+            lock.unlock();
+            if (image.size() != pixels.size())
+                state_->raise(rank_, group[m], "image of " + std::to_string(image.size()) + " pixels to composite, not " +
+                                                   std::to_string(pixels.size()));
+            for (size_t i = 0; i < pixels.size(); ++i)
+                if (nearer(image[i], pixels[i])) pixels[i] = image[i];
+        }
+        countComposite(0, std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start).count());
+    }
+
     void finish(std::chrono::milliseconds timeout) override {
         const auto deadline = std::chrono::steady_clock::now() + timeout;
         std::unique_lock lock(state_->mutex);
@@ -174,6 +223,14 @@ public:
     }
 
 private:
+    void checkGroup(const std::vector<int>& group) const {
+        if (group.empty() || !std::is_sorted(group.begin(), group.end()) ||
+            std::adjacent_find(group.begin(), group.end()) != group.end() ||
+            !std::binary_search(group.begin(), group.end(), rank_))
+            throw std::invalid_argument("composite: the group must be ascending ranks without repeats, this rank among them");
+        for (int r : group) checkPeer(r, "composite");
+    }
+
     void checkPeer(int peer, const char* what) const {
         if (peer < 0 || peer >= state_->size)
             throw std::invalid_argument(std::string(what) + ": rank " + std::to_string(peer) + " outside [0, " +

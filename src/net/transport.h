@@ -26,6 +26,22 @@ struct KindCounters {
     int64_t receive_wait_ns = 0;  // time spent blocked in receive() for this kind
 };
 
+// One pixel of a sort-last (depth) composite: the depth buffer's value (0 near .. 1 far), the
+// object drawn there (id + 1, 0 = background) and its colour (R | G << 8 | B << 16).
+// Compositing keeps per pixel the nearer fragment, and of equal depths the lower object's: what
+// one display drawing every object in ascending id order with GL_LESS keeps. An order, so the
+// result is the same whatever order the images meet in.
+struct DepthPixel {
+    float depth = 1.0f;
+    uint32_t item = 0;
+    uint32_t rgb = 0;
+};
+static_assert(sizeof(DepthPixel) == 12);
+inline bool nearer(const DepthPixel& a, const DepthPixel& b) {
+    if (a.depth != b.depth) return a.depth < b.depth;
+    return a.item != b.item ? a.item < b.item : a.rgb < b.rgb;
+}
+
 // Counters of one rank: per message kind, plus the transport's own control traffic (fault
 // notices, roll calls, the end-of-run handshake), which no frame message pays for. A per-frame
 // figure is the difference of two snapshots.
@@ -33,6 +49,8 @@ struct TransportCounters {
     std::array<KindCounters, kMessageKindCount> kinds{};
     uint64_t control_bytes_sent = 0;
     uint64_t control_messages_sent = 0;
+    uint64_t composite_bytes_sent = 0;  // pixels this rank sent for composite()
+    int64_t composite_ns = 0;           // time spent in composite()
 
     KindCounters& operator[](MessageKind kind) { return kinds[size_t(kind) - 1]; }
     const KindCounters& operator[](MessageKind kind) const { return kinds[size_t(kind) - 1]; }
@@ -85,12 +103,24 @@ public:
     // Does nothing if this transport already sent or received a fault notice.
     virtual void fail(int culprit, const std::string& detail) noexcept = 0;
 
+    // Sort-last compositing among the ranks of `group` (ascending, this rank among them; every
+    // member calls it with the same group and the same number of pixels, in the same order as
+    // its other composite() calls): afterwards group[0]'s `pixels` hold the composite of every
+    // member's (DepthPixel's order); the others' are unspecified. A member that does not come
+    // within `timeout` is a RankError where the transport can tell (in-process); MPI's
+    // collectives cannot time out, and a dead member ends the job through mpirun instead.
+    // MPI: MPI_Reduce_scatter_block with a user-defined compositing MPI_Op, then MPI_Gather to
+    // group[0], both on a communicator of the group, through host memory.
+    virtual void composite(const std::vector<int>& group, std::vector<DepthPixel>& pixels,
+                           std::chrono::milliseconds timeout) = 0;
+
     TransportCounters counters() const { return counters_; }
 
 protected:
     void countSent(MessageKind kind, size_t bytes);
     void countReceived(MessageKind kind, size_t bytes, int64_t wait_ns);
     void countControlSent(size_t bytes);
+    void countComposite(size_t bytes, int64_t ns);
 
 private:
     TransportCounters counters_;

@@ -126,7 +126,7 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
     DisplayStats s;
     const k::Camera camera = toKernelCamera(pose, width_, height_);
     Clock::time_point start = Clock::now();
-    frame_.begin(false);
+    frame_.begin(options_.items);
     const DrawCounts counts = renderer_.drawFrame(pipeline, camera);
     glFinish();
     s.ms_draw = msSince(start);

@@ -18,6 +18,10 @@ struct DisplayOptions {
     bool exact = false;
     // Every frame, also compare the picture with the full-detail, unculled one.
     bool reference = false;
+    // Also write each pixel's object (id + 1, 0 = background) into the target's item buffer:
+    // sort-last compositing breaks depth ties by it, as one display's draw order (ascending
+    // ids, GL_LESS: the first drawn wins) does.
+    bool items = false;
 };
 
 // One frame of the display, appended to the pipeline's stats row.

@@ -6,12 +6,16 @@
 #include "prep/prepare.h"
 #include "roles/occlusion_switch.h"
 #include "scene/csv.h"
+#include "scene/errors.h"
 #include "test_support.h"
 #include "view/camera_path.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <map>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -133,6 +137,114 @@ TEST(LiveSwitchStop, AStopBeforeTheFirstFrameEndsEveryRankWithNoFrames) {
     const std::string rows = runAll(3, live, sum);
     EXPECT_EQ(sum.frames, 0u);
     EXPECT_EQ(rows, "");
+}
+
+// 2 + P ranks in-process: the switch culls what 3 ranks cull, each display rank gets exactly its
+// partition's part of every frame's visible set.
+TEST(SortLast, DisplayRanksTogetherShowTheSwitchsVisibleSets) {
+    const std::vector<CameraPose>& cameras = fixture().cameras;
+    roles::RunOptions run;
+    run.cameras = cameras;
+    roles::RunSummary three, five;
+    const std::string rows3 = runAll(3, run, three);
+    const std::string rows5 = runAll(5, run, five);
+    const std::string header = roles::rankStatsHeader(run);
+    const std::vector<std::string> names = csvFields(header, "header");
+    const auto col = [&](const char* name) {
+        return size_t(std::find(names.begin(), names.end(), name) - names.begin());
+    };
+    std::map<std::string, std::vector<std::vector<std::string>>> by_frame3, by_frame5;
+    const auto split = [&](const std::string& rows, auto& out) {
+        std::istringstream lines(rows);
+        for (std::string line; std::getline(lines, line);) {
+            std::vector<std::string> f = csvFields(line, "row");
+            out[f.at(2)].push_back(std::move(f));
+        }
+    };
+    split(rows3, by_frame3);
+    split(rows5, by_frame5);
+    ASSERT_EQ(by_frame5.size(), cameras.size());
+    const std::vector<uint16_t> partition = roles::partitionObjects(*fixture().file, 3);
+    for (const auto& [frame, rows] : by_frame5) {
+        ASSERT_EQ(rows.size(), 4u) << "frame " << frame;  // its culler and three display ranks
+        const auto& rows_3 = by_frame3.at(frame);
+        uint64_t visible = 0, visible_3 = 0;
+        for (const auto& r : rows) {
+            if (r[col("role")] == "or+hc") {
+                for (const auto& q : rows_3)
+                    if (q[col("role")] == "or+hc") EXPECT_EQ(r[col("visible_hash")], q[col("visible_hash")]);
+            } else {
+                EXPECT_EQ(r[col("partition")], std::to_string(roles::RankLayout(5).partitionOf(std::stoi(r[0]))));
+                visible += std::stoull(r[col("objects_visible")]);
+            }
+        }
+        for (const auto& q : rows_3)
+            if (q[col("role")] == "rvg") visible_3 = std::stoull(q[col("objects_visible")]);
+        EXPECT_EQ(visible, visible_3) << "frame " << frame;
+    }
+    EXPECT_EQ(five.displays, 3);
+    EXPECT_EQ(five.objects_visible, three.objects_visible);
+    EXPECT_EQ(five.active_triangles, three.active_triangles);
+    (void)partition;
+}
+
+TEST(SortLast, PartitionsAreDeterministicSpatialAndBalancedByTriangles) {
+    const OssFile& file = *fixture().file;
+    for (int parts : {1, 2, 3, 5}) {
+        const std::vector<uint16_t> a = roles::partitionObjects(file, parts), b = roles::partitionObjects(file, parts);
+        EXPECT_EQ(a, b);
+        ASSERT_EQ(a.size(), file.objectCount());
+        std::vector<double> triangles(size_t(parts), 0.0);
+        double total = 0;
+        for (uint32_t i = 0; i < a.size(); ++i) {
+            ASSERT_LT(a[i], parts);
+            const double t = std::max(1.0, double(file.meshRecords()[file.objects()[i].mesh].triangle_count));
+            triangles[a[i]] += t;
+            total += t;
+        }
+        // Balanced up to the largest object: no part far from 1 / parts of the triangles.
+        for (double t : triangles) EXPECT_NEAR(t / total, 1.0 / parts, 0.5 / parts) << parts << " parts";
+    }
+    EXPECT_THROW(roles::partitionObjects(file, 0), std::invalid_argument);
+}
+
+TEST(SortLast, LayoutsOfTwoPlusPRanks) {
+    const roles::RankLayout five(5);
+    EXPECT_EQ(five.displays(), 3);
+    EXPECT_EQ(five.displayRanks(), (std::vector<int>{0, 3, 4}));
+    EXPECT_EQ(five.cullingRanks(), (std::vector<int>{1, 2}));
+    EXPECT_EQ(five.partitionOf(4), 2);
+    EXPECT_EQ(five.partitionOf(2), -1);
+    EXPECT_STREQ(five.roleOf(3), "rvg");
+    EXPECT_EQ(roles::RankLayout(3).displays(), 1);
+    EXPECT_THROW(roles::RankLayout(roles::RankLayout::kMaxRanks + 1), UsageError);
+    EXPECT_THROW(roles::RankLayout(0), UsageError);
+}
+
+// In-process compositing: the first rank gets the nearest fragment per pixel; equal depths go
+// to the lower object.
+TEST(SortLast, InProcessCompositeKeepsTheNearestAndTheLowerObjectOnTies) {
+    InProcessHub hub(4);
+    std::vector<std::unique_ptr<Transport>> ends;
+    for (int r = 0; r < 4; ++r) ends.push_back(hub.connect(r));
+    const std::vector<int> group{0, 2, 3};
+    std::vector<std::vector<DepthPixel>> images = {
+        {{0.5f, 7, 1}, {1.0f, 0, 9}, {0.3f, 9, 1}},
+        {{0.4f, 3, 2}, {1.0f, 0, 9}, {0.3f, 4, 2}},
+        {{0.6f, 5, 3}, {0.9f, 6, 3}, {0.7f, 1, 3}},
+    };
+    std::vector<std::thread> threads;
+    for (size_t m = 1; m < group.size(); ++m)
+        threads.emplace_back([&, m] { ends[size_t(group[m])]->composite(group, images[m], std::chrono::seconds(5)); });
+    ends[0]->composite(group, images[0], std::chrono::seconds(5));
+    for (std::thread& t : threads) t.join();
+    EXPECT_EQ(images[0][0].item, 3u);
+    EXPECT_EQ(images[0][1].item, 6u);
+    EXPECT_EQ(images[0][2].item, 4u);  // a tie at 0.3: the lower object
+    EXPECT_GT(ends[2]->counters().composite_bytes_sent, 0u);
+    threads.clear();
+    for (auto& e : ends) threads.emplace_back([&e] { e->finish(std::chrono::seconds(5)); });
+    for (std::thread& t : threads) t.join();
 }
 
 }  // namespace

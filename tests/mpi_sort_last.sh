@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# Sort-last display ranks: `mpirun -np 4` and `-np 5` (the occlusion switch and 2 or 3 display
+# ranks, each drawing its partition, depth-composited with MPI's collectives into rank 0's
+# picture) write the same PNG frames as `-np 3`, pixel for pixel, or (where two partitions' depths
+# tie) at a PSNR of at least 60 dB; after an orbit, which sees the whole plant, each display rank
+# holds a share of the resident geometry near 1/P (between 0.5/P and 1.5/P).
+set -u
+export TESTS_DIR; TESTS_DIR=$(cd "$(dirname "$0")" && pwd)
+exe=$1
+dir=$(mktemp -d)
+trap 'rm -rf "$dir"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+mpirun=(mpirun --oversubscribe --mca odls_base_sigkill_timeout 3)
+"$exe" gen plant --objects 800 -o "$dir/p.glb" 2>/dev/null || fail "gen"
+"$exe" prep "$dir/p.glb" -o "$dir/p.oss" 2>/dev/null || fail "prep"
+"$exe" path walk "$dir/p.oss" --frames 24 -o "$dir/walk.cam" 2>/dev/null || fail "path walk"
+"$exe" path orbit "$dir/p.oss" --frames 12 -o "$dir/orbit.cam" 2>/dev/null || fail "path orbit"
+{ cat "$dir/walk.cam"; grep -v '^#' "$dir/orbit.cam"; } >"$dir/path.cam"
+for n in 3 4 5; do
+  timeout 180 "${mpirun[@]}" -np $n "$exe" render "$dir/p.oss" --path "$dir/path.cam" --headless --size 200x150 \
+    --out "$dir/f$n" --stats "$dir/s$n.csv" >"$dir/out$n" 2>"$dir/err$n" || fail "mpirun -np $n: $(tail -5 "$dir/err$n")"
+done
+grep -q "^sort-last: 2 display ranks" "$dir/out4" || fail "-np 4: $(cat "$dir/out4")"
+grep -q "^sort-last: 3 display ranks" "$dir/out5" || fail "-np 5: $(cat "$dir/out5")"
+grep -q "^sort-last" "$dir/out3" && fail "-np 3 printed a sort-last line"
+python3 - "$dir" <<'PY' || fail "pictures of 2 + P ranks against 3 ranks"
+import csv, math, os, sys
+sys.path.insert(0, os.environ["TESTS_DIR"])
+from png_rgb import read_png_rgb
+d = sys.argv[1]
+frames = sorted(os.listdir(f'{d}/f3'))
+assert len(frames) == 36, f'{len(frames)} frames from 3 ranks'
+for n in (4, 5):
+    assert sorted(os.listdir(f'{d}/f{n}')) == frames, f'-np {n}: other frame files'
+    identical, lowest = 0, 1e9
+    for name in frames:
+        a, b = open(f'{d}/f3/{name}', 'rb').read(), open(f'{d}/f{n}/{name}', 'rb').read()
+        if a == b:
+            identical += 1
+            continue
+        wa, ha, ra = read_png_rgb(f'{d}/f3/{name}')
+        wb, hb, rb = read_png_rgb(f'{d}/f{n}/{name}')
+        assert (wa, ha) == (wb, hb) == (200, 150), name
+        se = sum((x - y) ** 2 for p, q in zip(ra, rb) for x, y in zip(p, q))
+        psnr = 100.0 if se == 0 else 10 * math.log10(255 ** 2 * 3 * wa * ha / se)
+        lowest = min(lowest, psnr)
+        assert psnr >= 60, f'-np {n} {name}: PSNR {psnr:.2f} dB against -np 3'
+    print(f'-np {n}: {identical} of {len(frames)} frames identical' + ('' if lowest > 1e8 else f', lowest PSNR {lowest:.2f} dB'))
+    rows = [r for r in csv.DictReader(open(f'{d}/s{n}.csv')) if r['role'] == 'rvg']
+    held = [int(r['resident_triangles']) for r in rows if int(r['frame']) == 35]
+    parts = n - 2
+    assert len(held) == parts and all(0.5 / parts <= h / sum(held) <= 1.5 / parts for h in held), \
+        f'-np {n}: resident triangles per display rank after the orbit {held}'
+    print(f'-np {n}: resident triangles per display rank after the orbit {held}')
+    assert all(int(r['bytes_composite']) > 0 for r in rows), f'-np {n}: a display row without composite bytes'
+PY
+echo ok
