@@ -4,7 +4,9 @@
 # window (rank 0, the display; ranks 1 and 2 are the occlusion switch), whose title shows the
 # ranks and the latency; real key presses (xdotool) move the camera, so that two screenshots
 # differ, freeze it, and Escape ends all three ranks with exit status 0 within 10 s. Every rank's
-# rows reach --stats. Without an X display rank 0 fails and the culling ranks stop at once.
+# rows reach --stats. With 5 ranks (the switch and 3 sort-last display ranks) the one window shows
+# the composite, moves and ends the same way, and F says why it cannot freeze. Without an X
+# display rank 0 fails and the culling ranks stop at once.
 set -u
 export TESTS_DIR; TESTS_DIR=$(cd "$(dirname "$0")" && pwd)
 exe=$1
@@ -28,8 +30,8 @@ status=$?
 grep -q "^error: window: .*--headless" "$dir/stderr" || fail "no display, 3 ranks: stderr: $(cat "$dir/stderr")"
 
 drive() {
-  local exe=$1 dir=$2 pid win wins status i title
-  mpirun --oversubscribe -np 3 "$exe" render "$dir/p.oss" --out "$dir/out" --size 320x240 --stats "$dir/s.csv" \
+  local exe=$1 dir=$2 n=$3 pid win wins status i title
+  mpirun --oversubscribe -np $n "$exe" render "$dir/p.oss" --out "$dir/out" --size 320x240 --stats "$dir/s.csv" \
     >"$dir/stdout" 2>"$dir/stderr" &
   pid=$!
   trap 'kill -9 $pid 2>/dev/null' EXIT
@@ -43,7 +45,7 @@ drive() {
     echo "no stdout line '$1' after $2 s"
     return 1
   }
-  await "^window: 320x240, .*3 ranks" 60 || return 1
+  await "^window: 320x240, .*$n ranks" 60 || return 1
   win=$(timeout 20 xdotool search --sync --name '^occswitch' | head -n 1)
   [ -n "$win" ] || { echo "no occswitch window after 20 s"; return 1; }
   # A culling rank that opened a window would have done so by now.
@@ -58,7 +60,11 @@ drive() {
   title=$(xdotool getwindowname "$win")
   echo "title: $title"
   xdotool key 2 && await "^window: the mode keys need one rank" 10 || return 1
-  xdotool key f && await "^window: culling frozen$" 10 || return 1
+  if [ $n -gt 3 ]; then
+    xdotool key f && await "^window: F (freeze) needs 1 to 3 ranks" 10 || return 1
+  else
+    xdotool key f && await "^window: culling frozen$" 10 || return 1
+  fi
   xdotool keydown d && sleep 0.5 && xdotool keyup d
   sleep 0.3
   xdotool key p && await "screenshot_2.png$" 10 || return 1
@@ -72,32 +78,41 @@ drive() {
   status=$?
   echo "exit $status"
 }
-timeout 150 xvfb-run -a -s "-screen 0 1024x768x24" bash -c "$(declare -f drive); drive \"\$@\"" drive "$exe" "$dir" \
-  >"$dir/drive" 2>&1
-status=$?
-[ $status -eq 0 ] && [ "$(tail -n 1 "$dir/drive")" = "exit 0" ] ||
-  fail "window on 3 ranks (xvfb-run status $status): $(cat "$dir/drive")
+for n in 3 5; do
+  rm -rf "$dir/out" "$dir/s.csv"
+  timeout 150 xvfb-run -a -s "-screen 0 1024x768x24" bash -c "$(declare -f drive); drive \"\$@\"" drive "$exe" "$dir" $n \
+    >"$dir/drive" 2>&1
+  status=$?
+  [ $status -eq 0 ] && [ "$(tail -n 1 "$dir/drive")" = "exit 0" ] ||
+    fail "window on $n ranks (xvfb-run status $status): $(cat "$dir/drive")
 stdout: $(cat "$dir/stdout")
 stderr: $(cat "$dir/stderr")"
-out=$(cat "$dir/stdout")
-title=$(grep "^title: " "$dir/drive")
-[[ $title =~ occswitch\ \ [0-9.]+\ fps\ \ 3\ ranks\ \ latency\ [0-9]+\ frames?\ [0-9.]+\ ms\ \ [0-9]+\ visible\ objects ]] ||
-  fail "window title: $title"
-line=$(grep "^window: [0-9]* frames on 3 ranks, latency " <<<"$out") || fail "no end line: $out"
-frames=$(sed 's/^window: \([0-9]*\) frames.*/\1/' <<<"$line")
-[ "$frames" -ge 3 ] || fail "$frames frames: $line"
-# Every rank's rows: the display's frames, and each culling rank's share of them.
-python3 - "$dir/s.csv" "$frames" <<'PY' || fail "stats of the window run"
+  out=$(cat "$dir/stdout")
+  title=$(grep "^title: " "$dir/drive")
+  [[ $title =~ occswitch\ \ [0-9.]+\ fps\ \ $n\ ranks\ \ latency\ [0-9]+\ frames?\ [0-9.]+\ ms\ \ [0-9]+\ visible\ objects ]] ||
+    fail "$n ranks: window title: $title"
+  line=$(grep "^window: [0-9]* frames on $n ranks, latency " <<<"$out") || fail "$n ranks: no end line: $out"
+  frames=$(sed 's/^window: \([0-9]*\) frames.*/\1/' <<<"$line")
+  [ "$frames" -ge 3 ] || fail "$n ranks: $frames frames: $line"
+  # Every rank's rows: the display ranks' frames, and each culling rank's share of them.
+  python3 - "$dir/s.csv" "$frames" "$n" <<'PY' || fail "$n ranks: stats of the window run"
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
-frames = int(sys.argv[2])
-per = {r: [int(x["frame"]) for x in rows if x["rank"] == r] for r in ("0", "1", "2")}
-assert per["0"] == list(range(frames)), ("display frames", per["0"][:5], frames)
+frames, n = int(sys.argv[2]), int(sys.argv[3])
+displays = ["0"] + [str(r) for r in range(3, n)]
+for d in displays:
+    assert [int(x["frame"]) for x in rows if x["rank"] == d] == list(range(frames)), ("display frames", d)
+per = {r: [int(x["frame"]) for x in rows if x["rank"] == r] for r in ("1", "2")}
 assert sorted(per["1"] + per["2"]) == list(range(frames)), "culling ranks' frames"
 assert all(f % 2 == 0 for f in per["1"]) and all(f % 2 == 1 for f in per["2"]), "the switch alternates"
-assert all(x["role"] == "or+hc" for x in rows if x["rank"] != "0")
+assert all(x["role"] == "or+hc" for x in rows if x["rank"] in ("1", "2"))
 PY
-for n in 0 1 2; do [ -s "$dir/out/screenshot_$n.png" ] || fail "screenshot_$n.png missing"; done
-cmp -s "$dir/out/screenshot_0.png" "$dir/out/screenshot_1.png" && fail "W did not move the picture"
-cmp -s "$dir/out/screenshot_1.png" "$dir/out/screenshot_2.png" && fail "D over the frozen frame did not move the picture"
-echo "ok: $line"
+  for s in 0 1 2; do [ -s "$dir/out/screenshot_$s.png" ] || fail "$n ranks: screenshot_$s.png missing"; done
+  cmp -s "$dir/out/screenshot_0.png" "$dir/out/screenshot_1.png" && fail "$n ranks: W did not move the picture"
+  if [ $n -le 3 ]; then
+    cmp -s "$dir/out/screenshot_1.png" "$dir/out/screenshot_2.png" && fail "D over the frozen frame did not move the picture"
+  else
+    cmp -s "$dir/out/screenshot_1.png" "$dir/out/screenshot_2.png" && fail "$n ranks: D did not move the picture"
+  fi
+  echo "ok: $line"
+done

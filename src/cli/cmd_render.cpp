@@ -18,6 +18,7 @@
 #include "render/frame_display.h"
 #include "render/headless_context.h"
 #include "render/png_writer.h"
+#include "render/sort_last.h"
 #include "render/window.h"
 #endif
 
@@ -83,7 +84,7 @@ private:
 #ifdef OCC_HAVE_GL
 // `render` in a window: with one rank the single-process pipeline; under mpirun with 2 or 3
 // ranks rank 0 opens the one window and displays, the others cull (no window, no GL).
-int runInWindow(RenderOptions& o, const OssFile& file, Transport& transport) {
+int runInWindow(RenderOptions& o, const OssFile& file, Transport& transport, int device_ordinal) {
     const roles::RankLayout layout(transport.size());
     // In a window the frame rate is what matters: the occluders follow the raster's speed.
     if (o.occluder_ms < 0) o.pipeline.occluder_ms = kWindowOccluderMs;
@@ -113,8 +114,26 @@ int runInWindow(RenderOptions& o, const OssFile& file, Transport& transport) {
             return render::runWindow(file, o.pipeline, w);
         }
         if (!rank0) {
+            // A sort-last display rank (2 + P) draws its partition offscreen for rank 0's window.
+            std::unique_ptr<render::HeadlessContext> context;
+            std::unique_ptr<render::FrameDisplay> display;
+            std::unique_ptr<render::SortLastCompositor> compositor;
+            if (layout.partitionOf(transport.rank()) > 0) {
+                context = std::make_unique<render::HeadlessContext>(device_ordinal);
+                compositor = std::make_unique<render::SortLastCompositor>(transport, layout.displayRanks(), run.timeout);
+                run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t) {
+                    render::DisplayOptions d;
+                    d.items = true;
+                    if (!display)
+                        display = std::make_unique<render::FrameDisplay>(pipeline, w.width, w.height, d);
+                    display->display(pipeline, pose);
+                    compositor->composite(*display);
+                    return std::string();
+                };
+            }
             roles::RunSummary ignored;
             roles::runRanks(transport, file, o.pipeline, run, ignored);
+            display.reset();
             return 0;
         }
         StatsFile stats(o.stats, roles::rankStatsHeader(run));
@@ -184,7 +203,7 @@ int runRender(RenderOptions o) {
         transport = hub->connect(0);
     }
 #ifdef OCC_HAVE_GL
-    if (draws && !o.headless) return runInWindow(o, file, *transport);
+    if (draws && !o.headless) return runInWindow(o, file, *transport, device.ordinal);
 #endif
     const std::vector<CameraPose> cameras = readCameraPath(o.path);
     const bool rank0 = transport->rank() == 0;
@@ -247,10 +266,9 @@ int runRender(RenderOptions o) {
     display_options.reference = o.reference;
     // Sort-last: every display rank draws its partition; the pictures are composited into rank 0's.
     const std::vector<int> display_ranks = layout.displayRanks();
-    std::vector<DepthPixel> composite;
-    std::vector<uint8_t> rgb;
-    std::vector<float> depth;
-    std::vector<uint32_t> items;
+    std::unique_ptr<render::SortLastCompositor> compositor;
+    if (display_ranks.size() > 1)
+        compositor = std::make_unique<render::SortLastCompositor>(*transport, display_ranks, run.timeout);
     display_options.items = display_ranks.size() > 1;
     if (draws && displays) {
         context = std::make_unique<render::HeadlessContext>(device.ordinal);
@@ -261,20 +279,9 @@ int runRender(RenderOptions o) {
                                                                  display_options);
             const render::DisplayStats d = display->display(pipeline, pose);
             const std::vector<uint8_t>* picture = &display->picture();
-            if (display_ranks.size() > 1) {
-                display->target().readDepth(depth);
-                display->target().readItems(items);
-                const std::vector<uint8_t>& own = display->picture();
-                composite.resize(depth.size());
-                for (size_t i = 0; i < depth.size(); ++i)
-                    composite[i] = {depth[i], items[i],
-                                    uint32_t(own[3 * i]) | uint32_t(own[3 * i + 1]) << 8 | uint32_t(own[3 * i + 2]) << 16};
-                transport->composite(display_ranks, composite, run.timeout);
-                if (!rank0) return render::displayStatsRow(d, display_options);
-                rgb.resize(3 * composite.size());
-                for (size_t i = 0; i < composite.size(); ++i)
-                    for (int c = 0; c < 3; ++c) rgb[3 * i + size_t(c)] = uint8_t(composite[i].rgb >> (8 * c));
-                picture = &rgb;
+            if (compositor) {
+                picture = compositor->composite(*display);
+                if (!picture) return render::displayStatsRow(d, display_options);  // not rank 0
             }
             draw_ms += d.ms_draw;
             false_culls += double(d.false_culls);

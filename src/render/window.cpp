@@ -4,6 +4,7 @@
 #include "render/frame_display.h"
 #include "render/gl_check.h"
 #include "render/png_writer.h"
+#include "render/sort_last.h"
 #include "view/camera_path.h"
 
 #define GLFW_INCLUDE_NONE
@@ -121,6 +122,8 @@ public:
     Session& operator=(const Session&) = delete;
     // The drivers destroy their displays first: those still need the window's context.
     ~Session() {
+        if (composite_fbo_) glDeleteFramebuffers(1, &composite_fbo_);
+        if (composite_texture_) glDeleteTextures(1, &composite_texture_);
         glfwDestroyWindow(window_);
         glfwTerminate();
     }
@@ -146,6 +149,10 @@ public:
             case GLFW_KEY_2: mode_ = CullMode::Lod; break;
             case GLFW_KEY_3: mode_ = CullMode::OcLod; break;
             case GLFW_KEY_F:
+                if (!freeze_refusal_.empty()) {
+                    std::printf("window: %s\n", freeze_refusal_.c_str());
+                    break;
+                }
                 frozen_ = !frozen_;
                 std::printf("window: culling %s\n", frozen_ ? "frozen" : "live");
                 break;
@@ -209,21 +216,30 @@ public:
     // Shows the picture in `target` (a screenshot first when P was pressed).
     void present(FrameTarget& target) {
         if (screenshot_) {
-            screenshot_ = false;
-            const std::string name = nextFreeName(wo_.out, "screenshot", ".png");
             std::vector<uint8_t> rgb;
             target.readColour(rgb);
-            writePng(name, wo_.width, wo_.height, 3, rgb.data());
-            std::printf("window: screenshot %s\n", name.c_str());
-            std::fflush(stdout);
+            writeScreenshot(rgb);
         }
-        int fw = 0, fh = 0;
-        glfwGetFramebufferSize(window_, &fw, &fh);
-        glBlitNamedFramebuffer(target.framebuffer(), 0, 0, 0, GLint(wo_.width), GLint(wo_.height), 0, 0, fw, fh,
-                               GL_COLOR_BUFFER_BIT, GL_LINEAR);
-        checkGlError("presenting the frame", __FILE__, __LINE__);
-        glfwSwapBuffers(window_);
+        blit(target.framebuffer());
     }
+
+    // Shows a picture made elsewhere (3 * W * H bytes, bottom row first: a sort-last composite).
+    void present(const std::vector<uint8_t>& rgb) {
+        if (screenshot_) writeScreenshot(rgb);
+        if (!composite_texture_) {
+            glCreateTextures(GL_TEXTURE_2D, 1, &composite_texture_);
+            glTextureStorage2D(composite_texture_, 1, GL_RGBA8, GLsizei(wo_.width), GLsizei(wo_.height));
+            glCreateFramebuffers(1, &composite_fbo_);
+            glNamedFramebufferTexture(composite_fbo_, GL_COLOR_ATTACHMENT0, composite_texture_, 0);
+        }
+        glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+        glTextureSubImage2D(composite_texture_, 0, 0, 0, GLsizei(wo_.width), GLsizei(wo_.height), GL_RGB,
+                            GL_UNSIGNED_BYTE, rgb.data());
+        blit(composite_fbo_);
+    }
+
+    // F then says this instead of freezing (a layout that cannot draw a frozen frame).
+    void refuseFreeze(std::string why) { freeze_refusal_ = std::move(why); }
 
     // Counts a new frame and, every half second, sets the title: fps, then `what`, then the
     // frozen and recording marks.
@@ -252,6 +268,23 @@ public:
     }
 
 private:
+    void writeScreenshot(const std::vector<uint8_t>& rgb) {
+        screenshot_ = false;
+        const std::string name = nextFreeName(wo_.out, "screenshot", ".png");
+        writePng(name, wo_.width, wo_.height, 3, rgb.data());
+        std::printf("window: screenshot %s\n", name.c_str());
+        std::fflush(stdout);
+    }
+
+    void blit(GLuint framebuffer) {
+        int fw = 0, fh = 0;
+        glfwGetFramebufferSize(window_, &fw, &fh);
+        glBlitNamedFramebuffer(framebuffer, 0, 0, 0, GLint(wo_.width), GLint(wo_.height), 0, 0, fw, fh,
+                               GL_COLOR_BUFFER_BIT, GL_LINEAR);
+        checkGlError("presenting the frame", __FILE__, __LINE__);
+        glfwSwapBuffers(window_);
+    }
+
     void writeRecording() {
         const std::string name = nextFreeName(wo_.out, "recorded", ".cam");
         writeCameraPath(name, recorded_);
@@ -267,6 +300,8 @@ private:
     size_t path_frame_ = 0;
     bool frozen_ = false, recording_ = false, flying_ = false, screenshot_ = false;
     std::optional<CullMode> mode_;
+    std::string freeze_refusal_;
+    GLuint composite_texture_ = 0, composite_fbo_ = 0;
     double last_x_ = 0, last_y_ = 0;
     Clock::time_point last_, title_time_;
     uint64_t title_frames_ = 0;
@@ -311,6 +346,21 @@ std::string runWindowRanks(Transport& transport, const OssFile& file, const Pipe
     std::unique_ptr<FrameDisplay> display;  // made with the pipeline of the first frame
     const Pipeline* shown = nullptr;        // the pipeline whose frame the display holds
     const int ranks = transport.size();
+    const roles::RankLayout layout(ranks);
+    // Sort-last (2 + P ranks): the window shows the composite of every display rank's partition.
+    std::unique_ptr<SortLastCompositor> compositor;
+    const std::vector<uint8_t>* composite = nullptr;
+    DisplayOptions display_options;
+    if (layout.displays() > 1) {
+        compositor = std::make_unique<SortLastCompositor>(transport, layout.displayRanks(), run.timeout);
+        display_options.items = true;
+        session.refuseFreeze("F (freeze) needs 1 to 3 ranks: with " + std::to_string(ranks) +
+                             " each display rank holds only its partition of the frame");
+    }
+    const auto show = [&] {
+        if (composite) session.present(*composite);
+        else session.present(display->target());
+    };
     // Each frame's camera and when it was taken from the user (the latency's start).
     std::vector<int64_t> taken_ns;
     CameraPose sent, view;  // the newest camera sent; where the user looks (the view of a frozen frame)
@@ -336,11 +386,12 @@ std::string runWindowRanks(Transport& transport, const OssFile& file, const Pipe
         return true;
     };
     run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t f) {
-        if (!display) display = std::make_unique<FrameDisplay>(pipeline, wo.width, wo.height, DisplayOptions{});
+        if (!display) display = std::make_unique<FrameDisplay>(pipeline, wo.width, wo.height, display_options);
         shown = &pipeline;
         if (session.frozen()) display->drawCullingView(pipeline, session.camera(view));
         else display->display(pipeline, pose);
-        session.present(display->target());
+        if (compositor) composite = compositor->composite(*display);
+        show();
         presented = Clock::now();
         // The camera of frame f + 1 (or later) was taken before frame f is drawn.
         const double ms = double(now_ns() - taken_ns.at(f)) / 1e6;
@@ -360,7 +411,7 @@ std::string runWindowRanks(Transport& transport, const OssFile& file, const Pipe
         session.pump();
         if (display && Clock::now() - presented >= std::chrono::milliseconds(16)) {
             if (session.frozen() && shown) display->drawCullingView(*shown, session.camera(session.flyPose()));
-            session.present(display->target());
+            show();
             presented = Clock::now();
         }
         std::this_thread::sleep_for(std::chrono::milliseconds(1));

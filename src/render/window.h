@@ -33,14 +33,16 @@ struct WindowOptions {
 // no GLX). Returns the exit status.
 int runWindow(const OssFile& file, const PipelineOptions& options, const WindowOptions& window);
 
-// The same window as rank 0 of 2 or 3 ranks: rank 0 is the display (RVG) of a live
+// The same window as rank 0 of 2 or more ranks: rank 0 is the display (RVG) of a live
 // roles::runRanks, which every other rank runs with `live` set. Each frame's camera is the
 // user's newest pose (a camera buffer of one: poses made while the switch is busy are skipped);
 // while a culling rank works the window keeps answering and shows the newest complete frame.
 // F freezes: the switch goes on culling the frozen camera and the window draws the frozen
 // visible set from where the user flies (culled objects in the frustum as red boxes; the
 // occluders live on the culling ranks and are not drawn). The mode keys only work with one
-// rank. The title shows fps, ranks, the latency in frames and ms, and visible objects. Esc
+// rank. With 2 + P ranks the window shows the sort-last composite of every display rank's
+// partition (the other display ranks run runRanks with a drawing that composites, see
+// SortLastCompositor), and F is refused. The title shows fps, ranks, the latency in frames and ms, and visible objects. Esc
 // ends every rank. Returns runRanks's rows and fills `summary`; throws WindowUnavailable
 // before any message is sent when no window can be opened (the caller tells the other ranks).
 std::string runWindowRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
