@@ -4,7 +4,9 @@
 # ranks, each drawing its partition, depth-composited with MPI's collectives into rank 0's
 # picture) write the same PNG frames as `-np 3`, pixel for pixel, or (where two partitions' depths
 # tie) at a PSNR of at least 60 dB; after an orbit, which sees the whole plant, each display rank
-# holds a share of the resident geometry near 1/P (between 0.5/P and 1.5/P).
+# holds a share of the resident geometry near 1/P (between 0.5/P and 1.5/P). A display rank
+# killed mid-run (in the middle of the compositing collectives) ends the whole job within 10 s,
+# the others naming it.
 set -u
 export TESTS_DIR; TESTS_DIR=$(cd "$(dirname "$0")" && pwd)
 exe=$1
@@ -56,4 +58,30 @@ for n in (4, 5):
     print(f'-np {n}: resident triangles per display rank after the orbit {held}')
     assert all(int(r['bytes_composite']) > 0 for r in rows), f'-np {n}: a display row without composite bytes'
 PY
+# A display rank killed mid-run.
+"$exe" path walk "$dir/p.oss" --frames 20000 -o "$dir/long.cam" 2>/dev/null || fail "long path"
+"${mpirun[@]}" -np 5 "$exe" render "$dir/p.oss" --path "$dir/long.cam" --headless --size 128x96 >/dev/null 2>"$dir/errk" &
+job=$!
+victim=
+for _ in $(seq 100); do
+  sleep 0.1
+  for pid in $(pgrep -f "occswitch render $dir/p.oss --path $dir/long.cam"); do
+    tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=4" && victim=$pid
+  done
+  [ -n "$victim" ] && break
+done
+[ -n "$victim" ] || { kill -9 $job; fail "rank 4 never started"; }
+sleep 3
+kill -0 $job 2>/dev/null || fail "the 5-rank run ended before the kill: $(tail -3 "$dir/errk")"
+kill -9 "$victim"
+killed=$(date +%s.%N)
+for _ in $(seq 150); do kill -0 $job 2>/dev/null || break; sleep 0.1; done
+if kill -0 $job 2>/dev/null; then kill -9 $job; fail "ranks still running 15 s after display rank 4 was killed"; fi
+wait $job; status=$?
+took=$(awk -v a="$killed" -v b="$(date +%s.%N)" 'BEGIN { print b - a }')
+[ $status -ne 0 ] || fail "mpirun exit 0 after a killed display rank"
+awk -v t="$took" 'BEGIN { exit !(t < 10) }' || fail "a killed display rank: the job took $took s to end"
+n=$(grep -c "^error: rank 4: " "$dir/errk")
+[ "$n" -ge 1 ] || fail "no rank named rank 4: $(grep error "$dir/errk")"
+echo "killed display rank 4: the job ended in $took s, $n ranks named it"
 echo ok

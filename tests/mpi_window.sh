@@ -5,7 +5,8 @@
 # ranks and the latency; real key presses (xdotool) move the camera, so that two screenshots
 # differ, freeze it, and Escape ends all three ranks with exit status 0 within 10 s. Every rank's
 # rows reach --stats. With 5 ranks (the switch and 3 sort-last display ranks) the one window shows
-# the composite, moves and ends the same way, and F says why it cannot freeze. Without an X
+# the composite, moves and ends the same way, and F says why it cannot freeze. A culling rank
+# killed while the window runs ends every rank within 10 s, rank 0 naming it. Without an X
 # display rank 0 fails and the culling ranks stop at once.
 set -u
 export TESTS_DIR; TESTS_DIR=$(cd "$(dirname "$0")" && pwd)
@@ -78,6 +79,30 @@ drive() {
   status=$?
   echo "exit $status"
 }
+drive_kill() {
+  local exe=$1 dir=$2 pid victim i status
+  mpirun --oversubscribe --mca odls_base_sigkill_timeout 3 -np 3 "$exe" render "$dir/p.oss" --size 160x120 \
+    >"$dir/kstdout" 2>"$dir/kstderr" &
+  pid=$!
+  trap 'kill -9 $pid 2>/dev/null' EXIT
+  for ((i = 0; i < 600; ++i)); do grep -q "^window: 160x120" "$dir/kstdout" && break; sleep 0.1; done
+  for p in $(pgrep -f "occswitch render $dir/p.oss --size 160x120"); do
+    tr '\0' '\n' <"/proc/$p/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=2" && victim=$p
+  done
+  [ -n "${victim:-}" ] || { echo "rank 2 not found"; return 1; }
+  sleep 1
+  kill -9 "$victim"
+  for ((i = 0; i < 100; ++i)); do kill -0 $pid 2>/dev/null || break; sleep 0.1; done
+  kill -0 $pid 2>/dev/null && { echo "still running 10 s after rank 2 was killed"; return 1; }
+  wait $pid
+  echo "exit $?"
+}
+timeout 120 xvfb-run -a -s "-screen 0 1024x768x24" bash -c "$(declare -f drive_kill); drive_kill \"\$@\"" drive_kill \
+  "$exe" "$dir" >"$dir/drive" 2>&1
+status=$(tail -n 1 "$dir/drive")
+[ "$status" != "exit 0" ] && [[ $status == exit* ]] || fail "window, rank 2 killed: $(cat "$dir/drive")"
+grep -q "^error: rank 2: " "$dir/kstderr" || fail "window, rank 2 killed: rank 0 did not name it: $(cat "$dir/kstderr")"
+
 for n in 3 5; do
   rm -rf "$dir/out" "$dir/s.csv"
   timeout 150 xvfb-run -a -s "-screen 0 1024x768x24" bash -c "$(declare -f drive); drive \"\$@\"" drive "$exe" "$dir" $n \
