@@ -116,8 +116,12 @@ public:
             stop_frames_ = packet.frame;
             // The other switch rank sent its last frame's delta to this one too.
             const int other = layout_.size() >= 3 ? 3 - t_.rank() : -1;
-            if (other > 0 && packet.frame == f && f > 0)
-                decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, waitLimit()), {other, f - 1, objects_});
+            if (other > 0 && packet.frame == f && f > 0) {
+                known_.apply(decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, waitLimit()),
+                                                   {other, f - 1, objects_}),
+                             other);
+                remember(f - 1, known_);
+            }
             return false;
         }
         pose_ = packet.pose;
@@ -139,11 +143,13 @@ public:
             const VisibleSetDelta d = decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, waitLimit()),
                                                             {other, f - 1, objects_});
             known_.apply(d, other);
+            remember(f - 1, known_);
         }
         FrameStats stats = or_stats_;
         stats.frame = f;
         pipeline_.cullPass(pose_, f, stats, known_.entries());
         VisibleSet current = visibleSetOf(pipeline_);
+        remember(f, current);
         const VisibleSetDelta delta =
             run_.deltas && f > 0 ? makeDelta(known_, current, f) : makeFullDelta(current, f);
         const std::vector<uint8_t> bytes = encodeVisibleSetDelta(delta, objects_, t_.rank());
@@ -202,13 +208,31 @@ private:
             const EndOfFrame e =
                 decodeEndOfFrame(t_.receive(r, MessageKind::EndOfFrame, waitLimit()), {r, eof_seen_, objects_});
             slowest_display_ns_ = std::max(slowest_display_ns_, e.compute_ns);
+            // The display's set must be the switch's (its partition of it).
+            if (const auto known = sizes_.find(eof_seen_); known != sizes_.end()) {
+                const uint32_t expected = known->second[size_t(std::max(0, layout_.partitionOf(r)))];
+                if (e.visible_count != expected)
+                    throw RankError(r, "end-of-frame of frame " + std::to_string(eof_seen_) + ": " +
+                                           std::to_string(e.visible_count) + " visible objects, the switch sent " +
+                                           std::to_string(expected));
+            }
             // A live run's last frame is known once the stop came; the display ranks other than
             // rank 0 learn it only from the stop, after their last frame.
             const bool known = (!run_.live || (frames() != UINT64_MAX && !last_unknown_)) && r == 0;
             if (known && e.last != (eof_seen_ + 1 == frames()))
                 throw RankError(r, "end-of-frame of frame " + std::to_string(eof_seen_) + ": wrong 'last' flag");
         }
+        sizes_.erase(sizes_.begin(), sizes_.upper_bound(eof_seen_));
         ++eof_seen_;
+    }
+
+    // The sizes of frame f's visible set per display partition, for the end-of-frame check.
+    void remember(uint64_t f, const VisibleSet& v) {
+        std::vector<uint32_t> sizes(size_t(layout_.displays()), 0);
+        if (layout_.displays() == 1) sizes[0] = uint32_t(v.size());
+        else
+            for (const auto& e : v.entries()) ++sizes[partition_[e.first]];
+        if (f >= eof_seen_) sizes_[f] = std::move(sizes);
     }
 
     // The run's frames: the path's, or in a live run UINT64_MAX until the display stopped it.
@@ -235,6 +259,7 @@ private:
     FrameStats or_stats_;
     VisibleSet known_;       // V of the last frame this rank knows
     uint64_t eof_seen_ = 0;  // end-of-frames received: frames 0 .. eof_seen_ - 1
+    std::map<uint64_t, std::vector<uint32_t>> sizes_;  // remember()
     uint64_t stop_frames_ = UINT64_MAX;  // a live run: the frame count of the display's stop
     bool last_unknown_ = false;
 };
@@ -335,10 +360,6 @@ private:
         p.frame = f;
         p.stop = stop;
         p.pose = pose;
-        p.view = viewMatrix(pose);
-        p.projection = projectionMatrix(pose, options_.width, options_.height);
-        p.width = options_.width;
-        p.height = options_.height;
         p.sent_ns = nowNs();
         return p;
     }
@@ -381,6 +402,7 @@ void addToSummary(RunSummary& sum, const FrameStats& s, const NetColumns& net, d
     sum.active_triangles += double(s.active_triangles);
     sum.streamed_triangles += double(s.streamed_triangles);
     sum.ms_wait += net.ms_wait;
+    sum.ms_composite += net.ms_composite;
     if (s.frame > 0) {
         sum.bus_h2d_bytes += s.bus_h2d_bytes;
         sum.bus_d2h_bytes += s.bus_d2h_bytes;
@@ -391,49 +413,42 @@ void addToSummary(RunSummary& sum, const FrameStats& s, const NetColumns& net, d
     }
 }
 
-// Sums every rank's message columns of the merged rows into the summary.
-void addTraffic(RunSummary& sum, const std::string& rows, const std::string& header) {
-    const auto split = [](const std::string& line) {
-        std::vector<std::string> fields;
-        std::stringstream ss(line);
-        for (std::string field; std::getline(ss, field, ',');) fields.push_back(field);
-        return fields;
-    };
-    const std::vector<std::string> names = split(header);
-    const auto column = [&](const char* name) {
-        return size_t(std::find(names.begin(), names.end(), name) - names.begin());
-    };
-    const size_t camera = column("bytes_camera"), delta = column("bytes_delta"), eof = column("bytes_eof"),
-                 full = column("full_pvs_bytes"), part = column("partition"), composite = column("bytes_composite"),
-                 ms_composite = column("ms_composite"), triangles = column("active_triangles"), rank = column("rank"),
-                 visible = column("objects_visible"), streamed = column("streamed_triangles");
-    // Sort-last: rank 0's pipeline holds its partition only; the frame's figures are the sums
-    // over the display ranks' rows.
-    if (sum.displays > 1) sum.objects_visible = sum.active_triangles = sum.streamed_triangles = 0;
-    std::vector<double> frames_of(size_t(sum.displays), 0.0);
+// What one row adds to its rank's totals (sent with the report; rank 0 sums them).
+void addToTotals(ReportTotals& t, const FrameStats& s, const NetColumns& net) {
+    t.bytes_camera += net.bytes[0];
+    t.bytes_delta += net.bytes[1];
+    t.bytes_eof += net.bytes[2];
+    t.full_pvs_bytes += net.full_pvs_bytes;
+    t.bytes_composite += net.composite_bytes;
+    if (net.partition < 0) return;
+    t.partition = net.partition;
+    t.frames_displayed += 1;
+    t.objects_visible += double(s.objects_visible);
+    t.active_triangles += double(s.active_triangles);
+    t.streamed_triangles += double(s.streamed_triangles);
+}
+
+// The run's totals over every rank's into the summary.
+void addTotals(RunSummary& sum, const std::vector<ReportTotals>& all) {
     sum.partition_triangles.assign(size_t(sum.displays), 0.0);
-    std::istringstream lines(rows);
-    for (std::string line; std::getline(lines, line);) {
-        const std::vector<std::string> f = split(line);
-        if (f.size() <= ms_composite) continue;
-        sum.bytes_camera += std::stoull(f[camera]);
-        sum.bytes_delta += std::stoull(f[delta]);
-        sum.bytes_eof += std::stoull(f[eof]);
-        sum.full_pvs_bytes += std::stoull(f[full]);
-        sum.bytes_composite += std::stoull(f[composite]);
-        if (f[rank] == "0") sum.ms_composite += std::stod(f[ms_composite]);
-        if (!f[part].empty()) {
-            const size_t p = std::stoul(f[part]);
-            if (p < frames_of.size()) sum.partition_triangles[p] += std::stod(f[triangles]), frames_of[p] += 1;
-            if (sum.displays > 1) {
-                sum.objects_visible += std::stod(f[visible]);
-                sum.active_triangles += std::stod(f[triangles]);
-                sum.streamed_triangles += std::stod(f[streamed]);
-            }
+    // Sort-last: rank 0's pipeline holds its partition only; the frame's figures are the sums
+    // over the display ranks.
+    if (sum.displays > 1) sum.objects_visible = sum.active_triangles = sum.streamed_triangles = 0;
+    for (const ReportTotals& t : all) {
+        sum.bytes_camera += t.bytes_camera;
+        sum.bytes_delta += t.bytes_delta;
+        sum.bytes_eof += t.bytes_eof;
+        sum.full_pvs_bytes += t.full_pvs_bytes;
+        sum.bytes_composite += t.bytes_composite;
+        if (t.partition < 0 || t.frames_displayed == 0) continue;
+        if (size_t(t.partition) < sum.partition_triangles.size())
+            sum.partition_triangles[size_t(t.partition)] = t.active_triangles / double(t.frames_displayed);
+        if (sum.displays > 1) {
+            sum.objects_visible += t.objects_visible;
+            sum.active_triangles += t.active_triangles;
+            sum.streamed_triangles += t.streamed_triangles;
         }
     }
-    for (size_t p = 0; p < frames_of.size(); ++p)
-        if (frames_of[p] > 0) sum.partition_triangles[p] /= frames_of[p];
 }
 
 }  // namespace
@@ -540,6 +555,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
         BusWindow bus;  // after the pipeline's start-up copies
         const std::string no_draw = emptyColumns(run.draw_header);
         std::vector<std::string> rows;
+        ReportTotals totals;
         summary = RunSummary{};
         std::chrono::milliseconds finish_limit = run.timeout;
 
@@ -574,6 +590,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 net.ms_wait = counted.ms_wait;
                 bus.take(s);
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
+                addToTotals(totals, s, net);
                 addToSummary(summary, s, net, std::chrono::duration<double, std::milli>(Clock::now() - start).count());
                 if (run.on_frame) run.on_frame(f + 1);
                 more = camera(f + 1, pose);
@@ -605,6 +622,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 net.partition = shown.partition;
                 bus.take(s);
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
+                addToTotals(totals, s, net);
                 addToSummary(summary, s, net, std::chrono::duration<double, std::milli>(Clock::now() - start).count());
                 if (run.on_frame) run.on_frame(f + 1);
             }
@@ -628,6 +646,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 net.partition = shown.partition;
                 bus.take(s);
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
+                addToTotals(totals, s, net);
             }
         } else {
             Culler culler(transport, pipeline, file, layout, run, partition);
@@ -643,6 +662,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 net.visible_hash = sent.visible_hash;
                 net.added = sent.added, net.removed = sent.removed, net.changed = sent.changed;
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, no_draw));
+                addToTotals(totals, s, net);
                 more = f + step < frames && culler.occluders(f + step);
             }
             culler.drainEndOfFrames();
@@ -652,8 +672,9 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
 
         std::string text;
         for (const std::string& r : rows) text += r;
+        std::vector<ReportTotals> all_totals{totals};
         if (rank != 0) {
-            transport.send(0, MessageKind::Report, encodeReport(text, rows.size(), rank));
+            transport.send(0, MessageKind::Report, encodeReport({totals, text}, rows.size(), rank));
         } else if (layout.size() > 1) {
             // Every rank's rows, ordered by frame, then rank.
             std::vector<std::pair<uint64_t, std::string>> merged;
@@ -661,9 +682,13 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             for (int r = 1; r < layout.size(); ++r) {
                 const uint64_t expected =
                     layout.size() >= 3 && layout.partitionOf(r) < 0 ? (frames + (r == 1 ? 1 : 0)) / 2 : frames;
-                const std::string report =
+                const Report report =
                     decodeReport(transport.receive(r, MessageKind::Report, run.timeout), {r, expected, file.objectCount()});
-                std::istringstream lines(report);
+                if (report.totals.partition != layout.partitionOf(r))
+                    throw RankError(r, "report: partition " + std::to_string(report.totals.partition) + ", expected " +
+                                           std::to_string(layout.partitionOf(r)));
+                all_totals.push_back(report.totals);
+                std::istringstream lines(report.text);
                 for (std::string line; std::getline(lines, line);) {
                     try {
                         merged.emplace_back(frameOfRow(line), line + "\n");
@@ -679,7 +704,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
         }
         if (rank == 0) {
             summary.displays = layout.displays();
-            addTraffic(summary, text, rankStatsHeader(run));
+            addTotals(summary, all_totals);
         }
         transport.finish(finish_limit);
         return text;

@@ -2,6 +2,7 @@
 #include "cli/commands.h"
 #include "cli/bench_all.h"
 #include "cli/bench_massive.h"
+#include "cli/bench_ranks.h"
 #include "cli/bench_pipeline.h"
 
 #include "cli/progress.h"
@@ -610,7 +611,27 @@ Command addBenchCommand(CLI::App& app) {
         ->capture_default_str();
     massive->add_option("--run-timeout", mo->run_timeout_s, "seconds after which a run is stopped and reported")
         ->capture_default_str();
-    return {bench, [o, prep, po, size, pvs, ao, all, mo, massive] {
+    auto ro = std::make_shared<BenchRanksOptions>();
+    CLI::App* ranks = bench->add_subcommand(
+        "ranks", "The same walk rendered headless by every layout of --ranks through mpirun on this machine (1\n"
+                 "rank, 2, the 3-rank switch, 2 + P sort-last display ranks): bytes per frame by message kind,\n"
+                 "composite bytes and ms, latency in frames and ms, busy and wait time per rank, and whether\n"
+                 "every layout culled the same visible sets and drew the same pictures as the first; then the\n"
+                 "cluster model of docs/scaling.md fed with the stage costs measured. Writes ranks.md,\n"
+                 "ranks.csv, ranks_per_rank.csv and model.csv into --out; exit 1 if a layout culled differently.");
+    ranks->add_option("--out", ro->out, "results folder (created if missing)")->required();
+    ranks->add_option("--ranks", ro->ranks, "the layouts, as rank counts")->delimiter(',')->capture_default_str();
+    ranks->add_option("--objects", ro->objects, "objects of the plant made when --scene is not given")
+        ->check(CLI::Range(10u, 10000000u))->capture_default_str();
+    ranks->add_option("--scene", ro->scene, "an existing .oss scene instead of the plant");
+    ranks->add_option("--frames", ro->frames, "cameras of the walk")->check(CLI::Range(3u, 100000u))->capture_default_str();
+    ranks->add_option("--size", ro->size, "render --size WxH")->capture_default_str();
+    ranks->add_option("--link-gbps", ro->link_gbps, "link speeds the model predicts for")->delimiter(',')
+        ->capture_default_str();
+    ranks->add_option("--run-timeout", ro->run_timeout_s, "seconds after which a run is stopped and reported")
+        ->capture_default_str();
+    return {bench, [o, prep, po, size, pvs, ao, all, mo, massive, ro, ranks] {
+                if (ranks->parsed()) return runBenchRanks(*ro);
                 if (prep->parsed()) return runBenchPrep(*o);
                 if (all->parsed()) return runBenchAll(*ao);
                 if (massive->parsed()) return runBenchMassive(*mo);

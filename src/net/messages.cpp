@@ -37,10 +37,7 @@ public:
         f32(v.y);
         f32(v.z);
     }
-    void mat4(const glm::mat4& m) {
-        for (int c = 0; c < 4; ++c)
-            for (int r = 0; r < 4; ++r) f32(m[c][r]);
-    }
+    void f64(double v) { u64(std::bit_cast<uint64_t>(v)); }
     size_t position() const { return at_; }
     std::vector<uint8_t> take() { return std::move(bytes_); }
     std::vector<uint8_t>& bytes() { return bytes_; }
@@ -66,12 +63,7 @@ public:
     int64_t i64(size_t at) const { return int64_t(get(at, 8)); }
     float f32(size_t at) const { return std::bit_cast<float>(u32(at)); }
     glm::vec3 vec3(size_t at) const { return {f32(at), f32(at + 4), f32(at + 8)}; }
-    glm::mat4 mat4(size_t at) const {
-        glm::mat4 m;
-        for (int c = 0; c < 4; ++c)
-            for (int r = 0; r < 4; ++r) m[c][r] = f32(at + 4 * size_t(4 * c + r));
-        return m;
-    }
+    double f64(size_t at) const { return std::bit_cast<double>(u64(at)); }
 
 private:
     uint64_t get(size_t at, int n) const {
@@ -181,13 +173,6 @@ std::pair<uint8_t, std::span<const uint8_t>> checkHeader(std::span<const uint8_t
 
 void checkFlags(const DecodeContext& ctx, MessageKind kind, uint64_t frame, uint8_t flags, uint8_t allowed) {
     if (flags & ~allowed) fail(ctx, frameWhat(kind, frame) + ": unknown flags " + std::to_string(flags));
-}
-
-bool finite(const glm::mat4& m) {
-    for (int c = 0; c < 4; ++c)
-        for (int r = 0; r < 4; ++r)
-            if (!std::isfinite(m[c][r])) return false;
-    return true;
 }
 
 // Checks that ids are ascending, unique and < object_count; `name` is the list's name.
@@ -355,10 +340,6 @@ std::vector<uint8_t> encodeCameraPacket(const CameraPacket& packet, int sender) 
     w.f32(packet.pose.fovy_degrees);
     w.f32(packet.pose.near_plane);
     w.f32(packet.pose.far_plane);
-    w.mat4(packet.view);
-    w.mat4(packet.projection);
-    w.u32(packet.width);
-    w.u32(packet.height);
     w.i64(packet.sent_ns);
     return finishMessage(w);
 }
@@ -396,24 +377,62 @@ std::vector<uint8_t> encodeEndOfFrame(const EndOfFrame& eof, int sender) {
     return finishMessage(w);
 }
 
-std::vector<uint8_t> encodeReport(const std::string& text, uint64_t frames, int sender) {
-    if (text.size() > kMaxReportBytes) throw std::invalid_argument("encodeReport: text over kMaxReportBytes");
-    ByteWriter w = startMessage(MessageKind::Report, 0, sender, frames, text.size());
-    for (char c : text) w.u8(uint8_t(c));
+std::vector<uint8_t> encodeReport(const Report& report, uint64_t frames, int sender) {
+    if (report.text.size() > kMaxReportBytes) throw std::invalid_argument("encodeReport: text over kMaxReportBytes");
+    const ReportTotals& t = report.totals;
+    ByteWriter w = startMessage(MessageKind::Report, 0, sender, frames, kReportTotalsSize + report.text.size());
+    w.u64(t.bytes_camera);
+    w.u64(t.bytes_delta);
+    w.u64(t.bytes_eof);
+    w.u64(t.full_pvs_bytes);
+    w.u64(t.bytes_composite);
+    w.u32(uint32_t(t.partition));
+    w.u32(0);
+    w.u64(t.frames_displayed);
+    w.f64(t.objects_visible);
+    w.f64(t.active_triangles);
+    w.f64(t.streamed_triangles);
+    for (char c : report.text) w.u8(uint8_t(c));
     return finishMessage(w);
 }
 
-std::string decodeReport(std::span<const uint8_t> bytes, const DecodeContext& ctx) {
+Report decodeReport(std::span<const uint8_t> bytes, const DecodeContext& ctx) {
     const auto [flags, payload] = checkHeader(bytes, MessageKind::Report, ctx);
     const std::string what = frameWhat(MessageKind::Report, ctx.expected_frame);
     checkFlags(ctx, MessageKind::Report, ctx.expected_frame, flags, 0);
-    if (payload.size() > kMaxReportBytes) fail(ctx, what + ": " + std::to_string(payload.size()) + " bytes of text");
-    std::string text(payload.begin(), payload.end());
+    if (payload.size() < kReportTotalsSize)
+        fail(ctx, what + ": " + std::to_string(payload.size()) + " payload bytes, shorter than the " +
+                      std::to_string(kReportTotalsSize) + " bytes of totals");
+    if (payload.size() - kReportTotalsSize > kMaxReportBytes)
+        fail(ctx, what + ": " + std::to_string(payload.size() - kReportTotalsSize) + " bytes of text");
+    const ByteReader r(payload);
+    Report report;
+    ReportTotals& t = report.totals;
+    t.bytes_camera = r.u64(0);
+    t.bytes_delta = r.u64(8);
+    t.bytes_eof = r.u64(16);
+    t.full_pvs_bytes = r.u64(24);
+    t.bytes_composite = r.u64(32);
+    t.partition = int32_t(r.u32(40));
+    if (r.u32(44) != 0) fail(ctx, what + ": the totals' padding is not zero");
+    t.frames_displayed = r.u64(48);
+    t.objects_visible = r.f64(56);
+    t.active_triangles = r.f64(64);
+    t.streamed_triangles = r.f64(72);
+    if (t.partition < -1 || t.partition >= 65535) fail(ctx, what + ": partition " + std::to_string(t.partition));
+    for (double v : {t.objects_visible, t.active_triangles, t.streamed_triangles})
+        if (!std::isfinite(v) || v < 0) fail(ctx, what + ": a total is negative or not finite");
+    if (t.partition < 0 && t.frames_displayed != 0) fail(ctx, what + ": displayed frames without a partition");
+    if (t.frames_displayed > ctx.expected_frame)
+        fail(ctx, what + ": " + std::to_string(t.frames_displayed) + " frames displayed of " +
+                      std::to_string(ctx.expected_frame));
+    report.text.assign(payload.begin() + std::ptrdiff_t(kReportTotalsSize), payload.end());
+    const std::string& text = report.text;
     for (size_t i = 0; i < text.size(); ++i)
         if (!(text[i] == '\n' || (text[i] >= 0x20 && text[i] < 0x7f)))
             fail(ctx, what + ": byte " + std::to_string(i) + " of the text is not printable ASCII");
     if (!text.empty() && text.back() != '\n') fail(ctx, what + ": the text does not end with a newline");
-    return text;
+    return report;
 }
 
 CameraPacket decodeCameraPacket(std::span<const uint8_t> bytes, const DecodeContext& ctx) {
@@ -433,16 +452,8 @@ CameraPacket decodeCameraPacket(std::span<const uint8_t> bytes, const DecodeCont
     p.pose.fovy_degrees = r.f32(36);
     p.pose.near_plane = r.f32(40);
     p.pose.far_plane = r.f32(44);
-    p.view = r.mat4(48);
-    p.projection = r.mat4(112);
-    p.width = r.u32(176);
-    p.height = r.u32(180);
-    p.sent_ns = r.i64(184);
+    p.sent_ns = r.i64(48);
     if (const std::string defect = poseDefect(p.pose); !defect.empty()) fail(ctx, what + ": camera " + defect);
-    if (!finite(p.view) || !finite(p.projection)) fail(ctx, what + ": a view or projection entry is not finite");
-    if (p.width < 1 || p.width > kMaxViewportSide || p.height < 1 || p.height > kMaxViewportSide)
-        fail(ctx, what + ": viewport " + std::to_string(p.width) + "x" + std::to_string(p.height) + " outside 1.." +
-                      std::to_string(kMaxViewportSide));
     return p;
 }
 

@@ -33,28 +33,40 @@ const char* messageKindName(MessageKind kind);
 
 // Wire constants (docs/protocol.md). A receiver accepts exactly kProtocolVersion.
 inline constexpr uint32_t kMessageMagic = 0x4D53434Fu;  // "OCSM" read as little-endian u32
-inline constexpr uint16_t kProtocolVersion = 1;
+inline constexpr uint16_t kProtocolVersion = 2;
 inline constexpr size_t kMessageHeaderSize = 32;
-inline constexpr size_t kCameraPayloadSize = 192;
+inline constexpr size_t kCameraPayloadSize = 56;
 inline constexpr size_t kDeltaPayloadHeaderSize = 24;
 inline constexpr size_t kEndOfFramePayloadSize = 16;
-inline constexpr uint32_t kMaxViewportSide = 16384;  // a camera packet's width and height are in [1, this]
 inline constexpr size_t kMaxReportBytes = size_t(256) << 20;  // a report's text
+inline constexpr size_t kReportTotalsSize = 80;                // a report's typed totals, before its text
 
 // What the display rank (RVG) sends every frame. sent_ns is the sender's steady clock at send
 // time; only the sender compares it (round-trip latency), other ranks carry it back unchanged.
 // A stop packet (a live run the user ended) says no frame `frame` or later will come: `frame`
 // is the number of frames of the run, the receiver's next frame or the one before it; its pose
-// is the last one sent.
+// is the last one sent. Only what the receivers use: each rank derives the matrices from the
+// pose and its own viewport (every rank runs with the same options).
 struct CameraPacket {
     uint64_t frame = 0;
     bool stop = false;
     CameraPose pose;
-    glm::mat4 view{1.0f};
-    glm::mat4 projection{1.0f};
-    uint32_t width = 0;
-    uint32_t height = 0;
     int64_t sent_ns = 0;
+};
+
+// What a rank's run added up, sent with its report so that rank 0 builds the run's summary
+// from numbers, not by reading the CSV text back. Bytes are what the rank sent.
+struct ReportTotals {
+    uint64_t bytes_camera = 0, bytes_delta = 0, bytes_eof = 0, full_pvs_bytes = 0, bytes_composite = 0;
+    int32_t partition = -1;        // a display rank's partition, -1 for a culling rank
+    uint64_t frames_displayed = 0;  // a display rank's frames
+    double objects_visible = 0, active_triangles = 0, streamed_triangles = 0;  // sums over them
+    bool operator==(const ReportTotals&) const = default;
+};
+
+struct Report {
+    ReportTotals totals;
+    std::string text;
 };
 
 // The change of the visible set (PVS with each object's LOD vertex count) from frame - 1 to
@@ -126,7 +138,7 @@ std::vector<uint8_t> encodeVisibleSetDelta(const VisibleSetDelta& delta, uint32_
 std::vector<uint8_t> encodeEndOfFrame(const EndOfFrame& eof, int sender);
 // The report's frame field is the number of frames its text covers; text is CSV rows ending in
 // newlines: printable ASCII and '\n' only, at most kMaxReportBytes.
-std::vector<uint8_t> encodeReport(const std::string& text, uint64_t frames, int sender);
+std::vector<uint8_t> encodeReport(const Report& report, uint64_t frames, int sender);
 
 // Bytes encodeVisibleSetDelta() produces, without encoding.
 size_t encodedSize(const VisibleSetDelta& delta);
@@ -150,6 +162,6 @@ CameraPacket decodeCameraPacket(std::span<const uint8_t> bytes, const DecodeCont
 VisibleSetDelta decodeVisibleSetDelta(std::span<const uint8_t> bytes, const DecodeContext& ctx);
 EndOfFrame decodeEndOfFrame(std::span<const uint8_t> bytes, const DecodeContext& ctx);
 // ctx.expected_frame is the number of frames the report must cover.
-std::string decodeReport(std::span<const uint8_t> bytes, const DecodeContext& ctx);
+Report decodeReport(std::span<const uint8_t> bytes, const DecodeContext& ctx);
 
 }  // namespace occ

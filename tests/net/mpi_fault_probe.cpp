@@ -83,10 +83,6 @@ CameraPacket cameraOf(uint64_t frame) {
     const float t = float(frame) * 0.05f;
     p.pose.eye = {10.0f * std::cos(t), 2.0f, 10.0f * std::sin(t)};
     p.pose.target = {0.0f, 0.0f, 0.0f};
-    p.width = 1280;
-    p.height = 720;
-    p.view = viewMatrix(p.pose);
-    p.projection = projectionMatrix(p.pose, p.width, p.height);
     p.sent_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                     std::chrono::steady_clock::now().time_since_epoch())
                     .count();
@@ -110,7 +106,7 @@ int run(MpiTransport& t, const Options& o) {
         if (rank == 0)
             for (int p = 0; p < size; ++p) t.send(p, MessageKind::Camera, encodeCameraPacket(cameraOf(frame), 0));
         const CameraPacket camera = decodeCameraPacket(t.receive(0, MessageKind::Camera, timeout), {0, frame, kObjects});
-        if (camera.width != 1280) throw RankError(0, "camera packet changed in transit");
+        if (camera.pose.eye != cameraOf(frame).pose.eye) throw RankError(0, "camera packet changed in transit");
 
         const VisibleSet current = visibleSetOf(rank, frame);
         const VisibleSetDelta delta =

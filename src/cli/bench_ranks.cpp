@@ -1,0 +1,297 @@
+// SPDX-License-Identifier: MIT
+#include "cli/bench_ranks.h"
+
+#include "cli/bench_runner.h"
+#include "cli/commands.h"
+#include "scene/atomic_file.h"
+#include "scene/oss_file.h"
+
+#include <map>
+#include <set>
+
+namespace occ::cli {
+
+namespace {
+
+using namespace bench;
+
+std::string fixed(double v, int digits) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%.*f", digits, v);
+    return b;
+}
+
+// What one layout's run measured (frames after the first).
+struct Layout {
+    int ranks = 0;
+    uint64_t frames = 0;
+    double camera = 0, delta = 0, eof = 0, composite = 0;  // bytes per frame, every rank's
+    double ms_composite = 0;                               // rank 0, per frame
+    double latency_frames = 0, latency_ms = 0;
+    struct Rank {
+        std::string role, partition;
+        double busy = 0, wait = 0;  // ms per frame
+        double active_triangles = 0;
+    };
+    std::map<int, Rank> per_rank;
+    std::vector<std::string> full_set_hash;  // per frame, the whole visible set
+    // Stage costs (ms per frame): the switch's OR and HC, the display's streaming + reform + draw.
+    double or_ms = 0, hc_ms = 0, rvg_ms = 0;
+    double max_partition_share = 1;  // the busiest display rank's share of active triangles (mean)
+    uint64_t same_pictures = 0, pictures = 0;
+};
+
+double num(const CsvTable& t, size_t row, const char* column) {
+    if (!t.has(column)) return 0;
+    const double v = t.num(row, column);
+    return std::isfinite(v) ? v : 0;
+}
+
+Layout measure(int ranks, const fs::path& csv) {
+    const CsvTable t = CsvTable::read(csv.string());
+    Layout l;
+    l.ranks = ranks;
+    std::map<uint64_t, std::string> hashes;
+    std::map<int, uint64_t> rows_of;
+    std::map<uint64_t, std::vector<double>> partition_triangles;
+    uint64_t or_rows = 0, rvg_rows = 0;
+    for (size_t r = 0; r < t.rows(); ++r) {
+        const uint64_t frame = uint64_t(t.num(r, "frame"));
+        const int rank = int(t.num(r, "rank"));
+        const std::string role = t.text(r, t.col("role"));
+        const bool display = role != "or+hc";
+        const bool whole = ranks <= 3 ? rank == 0 : !display;  // the row that carries the whole set
+        if (whole) hashes[frame] = t.text(r, t.col("visible_hash"));
+        if (frame == 0) continue;
+        l.camera += num(t, r, "bytes_camera");
+        l.delta += num(t, r, "bytes_delta");
+        l.eof += num(t, r, "bytes_eof");
+        l.composite += num(t, r, "bytes_composite");
+        Layout::Rank& k = l.per_rank[rank];
+        k.role = role;
+        k.partition = t.text(r, t.col("partition"));
+        k.busy += num(t, r, "ms_total") + num(t, r, "ms_draw") + num(t, r, "ms_composite");
+        k.wait += num(t, r, "ms_wait");
+        k.active_triangles += display ? num(t, r, "active_triangles") : 0;
+        rows_of[rank] += 1;
+        if (rank == 0) {
+            l.frames += 1;
+            l.ms_composite += num(t, r, "ms_composite");
+            l.latency_frames += num(t, r, "latency_frames");
+            l.latency_ms += num(t, r, "latency_ms");
+        }
+        if (role != "rvg") {  // OR + HC (the culling ranks, or the one rank)
+            l.or_ms += num(t, r, "ms_occluder_select") + num(t, r, "ms_depth_raster") + num(t, r, "ms_hzm_build");
+            l.hc_ms += num(t, r, "ms_frustum_cull") + num(t, r, "ms_hzm_test") + num(t, r, "ms_lod_select") +
+                       num(t, r, "ms_scan");
+            ++or_rows;
+        }
+        if (display) {
+            l.rvg_ms += num(t, r, "ms_stream_collect") + num(t, r, "ms_defragment") + num(t, r, "ms_reform") +
+                        num(t, r, "ms_draw");
+            ++rvg_rows;
+            partition_triangles[frame].push_back(num(t, r, "active_triangles"));
+        }
+    }
+    const double n = double(std::max<uint64_t>(1, l.frames));
+    l.camera /= n, l.delta /= n, l.eof /= n, l.composite /= n, l.ms_composite /= n;
+    l.latency_frames /= n, l.latency_ms /= n;
+    for (auto& [rank, k] : l.per_rank) {
+        const double m = double(std::max<uint64_t>(1, rows_of[rank]));
+        k.busy /= m, k.wait /= m, k.active_triangles /= m;
+    }
+    l.or_ms /= double(std::max<uint64_t>(1, or_rows));
+    l.hc_ms /= double(std::max<uint64_t>(1, or_rows));
+    // The display work of a frame, all display ranks together (what one display would do).
+    l.rvg_ms /= double(std::max<size_t>(1, partition_triangles.size()));
+    (void)rvg_rows;
+    double share = 0;
+    for (const auto& [frame, tri] : partition_triangles) {
+        double sum = 0, most = 0;
+        for (double v : tri) sum += v, most = std::max(most, v);
+        share += sum > 0 ? most / sum : 1.0 / double(tri.size());
+    }
+    l.max_partition_share = partition_triangles.empty() ? 1 : share / double(partition_triangles.size());
+    for (const auto& [frame, h] : hashes) l.full_set_hash.push_back(h);
+    return l;
+}
+
+// The cluster model of docs/scaling.md: ms per frame of each stage for 2 + P ranks (P = 1: the
+// 3-rank switch) on a link of `gbps`, from the stage costs measured on one machine.
+struct Prediction {
+    double switch_ms, display_ms, composite_ms, fps;
+};
+
+Prediction predict(const Layout& measured, int partitions, double gbps, uint32_t width, uint32_t height,
+                   double imbalance) {
+    constexpr double kLinkLatencyMs = 0.005;  // one MPI message between nodes (5 us)
+    constexpr double kMergeNsPerPixel = 1.0;  // the compositing op, memory-bound
+    const double pixels = double(width) * double(height);
+    const double image_bytes = pixels * 12.0;  // DepthPixel
+    const double bytes_per_ms = gbps * 1e9 / 8.0 / 1000.0;
+    const double p = double(partitions);
+    Prediction r{};
+    // The switch: each of its ranks has two frame periods for one OR and one HC (they alternate).
+    r.switch_ms = 0.5 * (measured.or_ms + measured.hc_ms) + 2 * kLinkLatencyMs;
+    // A display rank: its partition's share of streaming, reform and drawing (the busiest one's).
+    r.display_ms = measured.rvg_ms * std::min(1.0, imbalance / p);
+    // Reduce-scatter then gather: each rank sends (P-1)/P of its image and receives as much, then
+    // one block to rank 0, which receives (P-1)/P of an image; log2 P message rounds.
+    if (partitions > 1)
+        r.composite_ms = (2.0 * (p - 1.0) / p * image_bytes) / bytes_per_ms +
+                         std::ceil(std::log2(p)) * 2 * kLinkLatencyMs + (p - 1.0) / p * pixels * kMergeNsPerPixel / 1e6;
+    r.fps = 1000.0 / std::max(r.switch_ms, r.display_ms + r.composite_ms);
+    return r;
+}
+
+}  // namespace
+
+int runBenchRanks(const BenchRanksOptions& o) {
+    uint32_t width = 0, height = 0;
+    parseViewportSize("--size", o.size, width, height);
+    if (o.ranks.empty()) throw UsageError("bench ranks: --ranks needs at least one layout");
+    for (int n : o.ranks)
+        if (n < 1 || n > 64) throw UsageError("bench ranks: --ranks " + std::to_string(n) + ": expected 1 to 64");
+    if (o.frames < 3) throw UsageError("bench ranks: --frames must be at least 3");
+    const std::string mpirun = findInPath("mpirun");
+    if (mpirun.empty() && (o.ranks.size() > 1 || o.ranks.front() > 1))
+        throw SystemError("bench ranks: mpirun not found (run launch/setup)");
+    const InterruptHandlers interrupts;
+    const fs::path out(o.out);
+    makeOutputFolder(o.out);
+    for (const char* sub : {"scenes", "raw", "logs", "frames"}) fs::create_directories(out / sub);
+    Runner runner(out / "logs", o.run_timeout_s, "bench ranks");
+    const std::string exe = fs::read_symlink("/proc/self/exe").string();
+
+    fs::path scene = o.scene;
+    if (scene.empty()) {
+        scene = out / "scenes" / ("plant_" + std::to_string(o.objects) + ".oss");
+        if (!fs::exists(scene)) {
+            const fs::path glb = out / "scenes" / ("plant_" + std::to_string(o.objects) + ".glb");
+            runner.run("gen", {exe, "gen", "plant", "--objects", std::to_string(o.objects), "-o", glb.string()});
+            runner.run("prep", {exe, "prep", glb.string(), "-o", scene.string()});
+            fs::remove(glb);
+        }
+    }
+    const OssFile file = OssFile::open(scene.string());
+    const fs::path cam = out / "scenes" / ("walk" + std::to_string(o.frames) + ".cam");
+    runner.run("path", {exe, "path", "walk", scene.string(), "--frames", std::to_string(o.frames), "-o", cam.string()});
+
+    std::vector<Layout> layouts;
+    for (int n : o.ranks) {
+        const std::string name = "np" + std::to_string(n);
+        std::vector<std::string> argv;
+        if (n > 1) {
+            argv = {mpirun, "-np", std::to_string(n), "--oversubscribe", "--mca", "odls_base_sigkill_timeout", "3"};
+            if (::geteuid() == 0) argv.push_back("--allow-run-as-root");
+        }
+        const fs::path frames = out / "frames" / name;
+        fs::remove_all(frames);
+        // Every layout with the 3-rank switch's occluders (the PVS two frames back), so that all
+        // must cull the same sets and draw the same pictures.
+        for (const std::string& a : {exe, std::string("render"), scene.string(), std::string("--path"), cam.string(),
+                                     std::string("--headless"), std::string("--size"), o.size, std::string("--budget"),
+                                     std::string("10%"), std::string("--pvs-occluder-lag"), std::string("2"),
+                                     std::string("--stats"), (out / "raw" / (name + ".csv")).string(),
+                                     std::string("--out"), frames.string()})
+            argv.push_back(a);
+        const RunResult r = runner.run(name, argv);
+        Layout l = measure(n, out / "raw" / (name + ".csv"));
+        for (const auto& entry : fs::directory_iterator(frames)) {
+            const fs::path first = out / "frames" / ("np" + std::to_string(o.ranks.front())) / entry.path().filename();
+            l.pictures += 1;
+            l.same_pictures += fs::exists(first) && readText(first) == readText(entry.path());
+        }
+        std::fprintf(stderr, "bench ranks: %d rank%s: %llu frames, %.0f bytes/frame of messages, %.0f composited, "
+                             "latency %.2f frames (%.1f s)\n",
+                     n, n > 1 ? "s" : "", static_cast<unsigned long long>(l.frames), l.camera + l.delta + l.eof,
+                     l.composite, l.latency_frames, r.seconds);
+        layouts.push_back(std::move(l));
+    }
+    const Layout& reference = layouts.front();
+
+    std::ostringstream md, csv, per_rank;
+    csv << "ranks,displays,frames,bytes_camera,bytes_delta,bytes_eof,bytes_composite,ms_composite,latency_frames,"
+           "latency_ms,same_visible_sets,same_pictures,pictures,max_partition_share\n";
+    md << "# Layouts against ranks (`occswitch bench ranks`)\n\n"
+       << "Scene " << scene.filename().string() << " (" << file.objectCount() << " objects), a " << o.frames
+       << "-camera walk, `render --headless --size " << o.size << " --budget 10% --pvs-occluder-lag 2`,\n"
+       << "every layout through mpirun on this one machine (oversubscribed: the bytes, latency and\n"
+       << "correctness carry over to a cluster, the times do not). Per frame after the first; bytes are\n"
+       << "what every rank sent. Visible sets and pictures are compared with the " << reference.ranks
+       << "-rank run's.\n\n"
+       << "| ranks | display ranks | camera B | delta B | end-of-frame B | composite B | composite ms | "
+          "latency frames | latency ms | same visible sets | same pictures |\n"
+       << "|---|---|---|---|---|---|---|---|---|---|---|\n";
+    per_rank << "| ranks | rank | role | partition | busy ms | wait ms | active triangles |\n|---|---|---|---|---|---|---|\n";
+    std::string rank_csv = "ranks,rank,role,partition,busy_ms,wait_ms,active_triangles\n";
+    for (const Layout& l : layouts) {
+        const int displays = l.ranks <= 3 ? 1 : l.ranks - 2;
+        const bool same_sets = l.full_set_hash == reference.full_set_hash;
+        csv << l.ranks << "," << displays << "," << l.frames << "," << fixed(l.camera, 1) << "," << fixed(l.delta, 1)
+            << "," << fixed(l.eof, 1) << "," << fixed(l.composite, 1) << "," << fixed(l.ms_composite, 3) << ","
+            << fixed(l.latency_frames, 3) << "," << fixed(l.latency_ms, 3) << "," << (same_sets ? 1 : 0) << ","
+            << l.same_pictures << "," << l.pictures << "," << fixed(l.max_partition_share, 3) << "\n";
+        md << "| " << l.ranks << " | " << displays << " | " << fixed(l.camera, 0) << " | " << fixed(l.delta, 0) << " | "
+           << fixed(l.eof, 0) << " | " << fixed(l.composite, 0) << " | " << fixed(l.ms_composite, 2) << " | "
+           << fixed(l.latency_frames, 2) << " | " << fixed(l.latency_ms, 2) << " | " << (same_sets ? "yes" : "**no**")
+           << " | " << l.same_pictures << " of " << l.pictures << " |\n";
+        for (const auto& [rank, k] : l.per_rank) {
+            per_rank << "| " << l.ranks << " | " << rank << " | " << k.role << " | " << k.partition << " | "
+                     << fixed(k.busy, 2) << " | " << fixed(k.wait, 2) << " | " << fixed(k.active_triangles, 0) << " |\n";
+            rank_csv += std::to_string(l.ranks) + "," + std::to_string(rank) + "," + k.role + "," + k.partition + "," +
+                        fixed(k.busy, 3) + "," + fixed(k.wait, 3) + "," + fixed(k.active_triangles, 0) + "\n";
+        }
+    }
+    md << "\nBusy is a rank's own work per frame (its pipeline stages, drawing and compositing), wait the\n"
+       << "time it spent blocked on a message.\n\n" << per_rank.str();
+
+    // The model, fed with the 3-rank run's stage costs (or the largest measured layout's).
+    const Layout* base = &layouts.back();
+    for (const Layout& l : layouts)
+        if (l.ranks == 3) base = &l;
+    // The busiest display rank's triangle share times P, mean of the sort-last runs (1: balanced).
+    double imbalance = 0;
+    int sort_last = 0;
+    for (const Layout& l : layouts)
+        if (l.ranks > 3) imbalance += l.max_partition_share * double(l.ranks - 2), ++sort_last;
+    imbalance = sort_last ? imbalance / double(sort_last) : 1.0;
+    std::ostringstream model_csv;
+    model_csv << "display_ranks,ranks,link_gbps,width,height,switch_ms,display_ms,composite_ms,fps\n";
+    md << "\n## The cluster model (docs/scaling.md)\n\nStage costs measured here (" << base->ranks
+       << " ranks): OR " << fixed(base->or_ms, 2) << " ms, HC " << fixed(base->hc_ms, 2)
+       << " ms, the display's streaming + reform + draw " << fixed(base->rvg_ms, 2)
+       << " ms per frame; display imbalance (busiest display rank's triangle share x P) " << fixed(imbalance, 2)
+       << ". Predicted fps:\n\n| display ranks |";
+    for (double g : o.link_gbps) md << " " << fixed(g, 0) << " Gb/s, " << o.size << " | " << fixed(g, 0) << " Gb/s, 2048x2048 |";
+    md << "\n|---|";
+    for (size_t i = 0; i < o.link_gbps.size(); ++i) md << "---|---|";
+    md << "\n";
+    for (int p : {1, 2, 4, 8, 16}) {
+        md << "| " << p << " |";
+        for (double g : o.link_gbps)
+            for (const auto& [w, h] : {std::pair<uint32_t, uint32_t>{width, height}, {2048u, 2048u}}) {
+                const Prediction r = predict(*base, p, g, w, h, imbalance);
+                model_csv << p << "," << (p == 1 ? 3 : p + 2) << "," << g << "," << w << "," << h << ","
+                          << fixed(r.switch_ms, 3) << "," << fixed(r.display_ms, 3) << "," << fixed(r.composite_ms, 3)
+                          << "," << fixed(r.fps, 1) << "\n";
+                md << " " << fixed(r.fps, 1) << " |";
+            }
+        md << "\n";
+    }
+    writeFileAtomic((out / "ranks.csv").string(), csv.str());
+    writeFileAtomic((out / "ranks_per_rank.csv").string(), rank_csv);
+    writeFileAtomic((out / "model.csv").string(), model_csv.str());
+    writeFileAtomic((out / "ranks.md").string(), md.str());
+    std::printf("%s\n", (out / "ranks.md").c_str());
+    bool all_same = true;
+    for (const Layout& l : layouts) all_same = all_same && l.full_set_hash == reference.full_set_hash;
+    if (!all_same) {
+        std::fprintf(stderr, "bench ranks: a layout culled other visible sets than %d rank(s): see %s\n",
+                     reference.ranks, (out / "ranks.md").c_str());
+        return 1;
+    }
+    return 0;
+}
+
+}  // namespace occ::cli
