@@ -477,8 +477,9 @@ const char* RankLayout::roleOf(int rank) const {
     return partitionOf(rank) >= 0 ? "rvg" : "or+hc";
 }
 
-std::vector<uint16_t> partitionObjects(const OssFile& file, int parts) {
+std::vector<uint16_t> partitionObjects(const OssFile& file, int parts, int cells) {
     if (parts < 1 || parts > 65535) throw std::invalid_argument("partitionObjects: parts outside [1, 65535]");
+    if (cells < 1 || cells > 1024) throw std::invalid_argument("partitionObjects: cells outside [1, 1024]");
     const auto objects = file.objects();
     const auto meshes = file.meshRecords();
     std::vector<uint16_t> partition(objects.size(), 0);
@@ -495,10 +496,11 @@ std::vector<uint16_t> partitionObjects(const OssFile& file, int parts) {
         // Every object weighs at least one triangle, so that empty ones spread too.
         items[i] = {0.5f * (lo + hi), std::max(1.0, double(meshes[o.mesh].triangle_count)), i};
     }
-    // Splits items [begin, end) into parts [first, first + k).
+    // Splits items [begin, end) into leaves [first, first + k).
+    std::vector<uint32_t> leaf(objects.size(), 0);
     const auto split = [&](auto&& self, size_t begin, size_t end, int first, int k) -> void {
         if (k == 1 || end - begin <= 1) {
-            for (size_t j = begin; j < end; ++j) partition[items[j].id] = uint16_t(first);
+            for (size_t j = begin; j < end; ++j) leaf[items[j].id] = uint32_t(first);
             return;
         }
         glm::vec3 lo(INFINITY), hi(-INFINITY);
@@ -522,7 +524,27 @@ std::vector<uint16_t> partitionObjects(const OssFile& file, int parts) {
         self(self, begin, cut, first, left);
         self(self, cut, end, first + left, k - left);
     };
-    split(split, 0, items.size(), 0, parts);
+    const int leaves = parts * cells;
+    split(split, 0, items.size(), 0, leaves);
+    // One cell per part: leaf L is partition L. More: the heaviest leaf first to the lightest
+    // partition (ties to the lower number), so that objects heavier than a leaf's share still
+    // even out; neighbouring leaves mostly land on different partitions.
+    std::vector<int> owner(static_cast<size_t>(leaves));
+    if (cells == 1) {
+        for (int l = 0; l < leaves; ++l) owner[size_t(l)] = l;
+    } else {
+        std::vector<double> weight(static_cast<size_t>(leaves), 0.0), load(static_cast<size_t>(parts), 0.0);
+        for (const Item& it : items) weight[leaf[it.id]] += it.triangles;
+        std::vector<int> order(static_cast<size_t>(leaves));
+        for (int l = 0; l < leaves; ++l) order[size_t(l)] = l;
+        std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return weight[size_t(a)] > weight[size_t(b)]; });
+        for (int l : order) {
+            const int p = int(std::min_element(load.begin(), load.end()) - load.begin());
+            owner[size_t(l)] = p;
+            load[size_t(p)] += weight[size_t(l)];
+        }
+    }
+    for (uint32_t i = 0; i < objects.size(); ++i) partition[i] = uint16_t(owner[leaf[i]]);
     return partition;
 }
 
@@ -549,7 +571,8 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                              std::to_string(layout.size()) + " ranks: the switch's occluder rank has the PVS of " +
                              std::to_string(layout.occluderLag()) + " frames back at the newest");
         const std::vector<uint16_t> partition =
-            layout.displays() > 1 ? partitionObjects(file, layout.displays()) : std::vector<uint16_t>();
+            layout.displays() > 1 ? partitionObjects(file, layout.displays(), run.sort_last_cells)
+                                  : std::vector<uint16_t>();
         Pipeline pipeline(file, o);
         CounterWindow window(transport);
         BusWindow bus;  // after the pipeline's start-up copies

@@ -56,16 +56,21 @@ private:
     int size_;
 };
 
-// The sort-last partitions of the 2 + P layout: partition[i] of every object, `parts` spatially
-// coherent groups balanced by full-detail triangles. A k-d split of the objects' box centres:
-// a group of k parts is cut across its widest axis where the triangles before the cut are
-// floor(k / 2) / k of the group's, recursively. Deterministic (the same on every rank).
-// Throws std::invalid_argument for parts outside [1, 65535].
-std::vector<uint16_t> partitionObjects(const OssFile& file, int parts);
+// The sort-last partitions of the 2 + P layout: partition[i] of every object, `parts` groups
+// balanced by full-detail triangles. A k-d split of the objects' box centres into parts x cells
+// leaves: a group of k leaves is cut across its widest axis where the triangles before the cut
+// are floor(k / 2) / k of the group's, recursively. cells = 1: leaf L is partition L, one
+// coherent region each; more: the heaviest leaf first to the lightest partition, each partition
+// the union of about `cells` regions spread over the scene, so that any view sees every
+// partition (docs/scaling.md).
+// Deterministic (the same on every rank). Throws std::invalid_argument for parts outside
+// [1, 65535] or cells outside [1, 1024].
+std::vector<uint16_t> partitionObjects(const OssFile& file, int parts, int cells = 1);
 
 struct RunOptions {
     std::vector<CameraPose> cameras;
     bool deltas = true;  // false: every visible-set message carries the full set (--no-deltas)
+    int sort_last_cells = 1;  // 2 + P ranks: regions per display partition (partitionObjects)
     // How long a rank waits for a message before it declares the sender dead.
     std::chrono::milliseconds timeout{5000};
     // The display's drawing (RVG, rank 0), called after each frame's streaming with the

@@ -193,7 +193,8 @@ int runBenchRanks(const BenchRanksOptions& o) {
                                      std::string("--headless"), std::string("--size"), o.size, std::string("--budget"),
                                      std::string("10%"), std::string("--pvs-occluder-lag"), std::string("2"),
                                      std::string("--stats"), (out / "raw" / (name + ".csv")).string(),
-                                     std::string("--out"), frames.string()})
+                                     std::string("--out"), frames.string(), std::string("--sort-last-cells"),
+                                     std::to_string(o.sort_last_cells)})
             argv.push_back(a);
         const RunResult r = runner.run(name, argv);
         Layout l = measure(n, out / "raw" / (name + ".csv"));
@@ -215,7 +216,8 @@ int runBenchRanks(const BenchRanksOptions& o) {
            "latency_ms,same_visible_sets,same_pictures,pictures,max_partition_share\n";
     md << "# Layouts against ranks (`occswitch bench ranks`)\n\n"
        << "Scene " << scene.filename().string() << " (" << file.objectCount() << " objects), a " << o.frames
-       << "-camera walk, `render --headless --size " << o.size << " --budget 10% --pvs-occluder-lag 2`,\n"
+       << "-camera walk, `render --headless --size " << o.size << " --budget 10% --pvs-occluder-lag 2 --sort-last-cells "
+       << o.sort_last_cells << "`,\n"
        << "every layout through mpirun on this one machine (oversubscribed: the bytes, latency and\n"
        << "correctness carry over to a cluster, the times do not). Per frame after the first; bytes are\n"
        << "what every rank sent. Visible sets and pictures are compared with the " << reference.ranks

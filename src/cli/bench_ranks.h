@@ -14,6 +14,7 @@ struct BenchRanksOptions {
     uint32_t frames = 60;                     // cameras of the walk
     std::string scene;                        // an existing .oss instead of the plant
     std::string size = "320x240";             // render --size
+    int sort_last_cells = 1;                  // render --sort-last-cells
     double run_timeout_s = 1800;
     std::vector<double> link_gbps{10, 100};   // link speeds the cluster model predicts for
 };

@@ -626,6 +626,8 @@ Command addBenchCommand(CLI::App& app) {
     ranks->add_option("--scene", ro->scene, "an existing .oss scene instead of the plant");
     ranks->add_option("--frames", ro->frames, "cameras of the walk")->check(CLI::Range(3u, 100000u))->capture_default_str();
     ranks->add_option("--size", ro->size, "render --size WxH")->capture_default_str();
+    ranks->add_option("--sort-last-cells", ro->sort_last_cells, "render --sort-last-cells")
+        ->check(CLI::Range(1, 1024))->capture_default_str();
     ranks->add_option("--link-gbps", ro->link_gbps, "link speeds the model predicts for")->delimiter(',')
         ->capture_default_str();
     ranks->add_option("--run-timeout", ro->run_timeout_s, "seconds after which a run is stopped and reported")

@@ -47,6 +47,7 @@ struct RenderOptions {
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
     double occluder_ms = -1;  // -1: the default of the mode (on in a window)
     double rank_timeout = 5.0;
+    int sort_last_cells = 1;
     int device = -1;
     std::string out, debug_views;
     std::vector<uint64_t> debug_frames;
@@ -106,6 +107,7 @@ int runInWindow(RenderOptions& o, const OssFile& file, Transport& transport, int
     if (rank0 && !o.out.empty()) makeOutputFolder(o.out);
     roles::RunOptions run;
     run.deltas = !o.no_deltas;
+    run.sort_last_cells = o.sort_last_cells;
     run.timeout = std::chrono::milliseconds(int64_t(o.rank_timeout * 1000));
     run.live = true;
     try {
@@ -230,6 +232,7 @@ int runRender(RenderOptions o) {
     roles::RunOptions run;
     run.cameras = cameras;
     run.deltas = !o.no_deltas;
+    run.sort_last_cells = o.sort_last_cells;
     run.timeout = std::chrono::milliseconds(int64_t(o.rank_timeout * 1000));
     // --pace recorded: pose i of the path is due i / path_fps seconds after the first; each frame
     // takes the newest pose due when it starts (a slow frame skips poses, as a user's would), and a
@@ -462,6 +465,11 @@ Command addRenderCommand(CLI::App& app) {
     sub->add_option("--stats", o->stats,
                     "write per-frame statistics to this CSV file (under mpirun: every rank's rows, with a rank column)");
     sub->add_flag("--no-deltas", o->no_deltas, "send the full visible set every frame instead of what changed");
+    sub->add_option("--sort-last-cells", o->sort_last_cells,
+                    "with more than 3 ranks: regions of the scene per display rank (1 = one coherent region\n"
+                    "each; more spreads each rank's objects so that every view is shared, docs/scaling.md)")
+        ->check(CLI::Range(1, 1024))
+        ->capture_default_str();
     sub->add_option("--rank-timeout", o->rank_timeout,
                     "seconds a rank waits for a message before it declares the sender dead")
         ->capture_default_str();

@@ -164,15 +164,15 @@ TEST(SortLast, DisplayRanksTogetherShowTheSwitchsVisibleSets) {
     split(rows3, by_frame3);
     split(rows5, by_frame5);
     ASSERT_EQ(by_frame5.size(), cameras.size());
-    const std::vector<uint16_t> partition = roles::partitionObjects(*fixture().file, 3);
     for (const auto& [frame, rows] : by_frame5) {
         ASSERT_EQ(rows.size(), 4u) << "frame " << frame;  // its culler and three display ranks
         const auto& rows_3 = by_frame3.at(frame);
         uint64_t visible = 0, visible_3 = 0;
         for (const auto& r : rows) {
             if (r[col("role")] == "or+hc") {
-                for (const auto& q : rows_3)
+                for (const auto& q : rows_3) {
                     if (q[col("role")] == "or+hc") EXPECT_EQ(r[col("visible_hash")], q[col("visible_hash")]);
+                }
             } else {
                 EXPECT_EQ(r[col("partition")], std::to_string(roles::RankLayout(5).partitionOf(std::stoi(r[0]))));
                 visible += std::stoull(r[col("objects_visible")]);
@@ -185,13 +185,14 @@ TEST(SortLast, DisplayRanksTogetherShowTheSwitchsVisibleSets) {
     EXPECT_EQ(five.displays, 3);
     EXPECT_EQ(five.objects_visible, three.objects_visible);
     EXPECT_EQ(five.active_triangles, three.active_triangles);
-    (void)partition;
+    ASSERT_EQ(five.partition_triangles.size(), 3u);
 }
 
 TEST(SortLast, PartitionsAreDeterministicSpatialAndBalancedByTriangles) {
     const OssFile& file = *fixture().file;
-    for (int parts : {1, 2, 3, 5}) {
-        const std::vector<uint16_t> a = roles::partitionObjects(file, parts), b = roles::partitionObjects(file, parts);
+    for (const auto& [parts, cells] : std::vector<std::pair<int, int>>{{1, 1}, {2, 1}, {3, 1}, {5, 1}, {3, 8}, {4, 16}}) {
+        const std::vector<uint16_t> a = roles::partitionObjects(file, parts, cells),
+                                    b = roles::partitionObjects(file, parts, cells);
         EXPECT_EQ(a, b);
         ASSERT_EQ(a.size(), file.objectCount());
         std::vector<double> triangles(size_t(parts), 0.0);
@@ -203,9 +204,28 @@ TEST(SortLast, PartitionsAreDeterministicSpatialAndBalancedByTriangles) {
             total += t;
         }
         // Balanced up to the largest object: no part far from 1 / parts of the triangles.
-        for (double t : triangles) EXPECT_NEAR(t / total, 1.0 / parts, 0.5 / parts) << parts << " parts";
+        for (double t : triangles) EXPECT_NEAR(t / total, 1.0 / parts, 0.5 / parts) << parts << " parts, " << cells;
     }
+    // One cell per part: a part is one region, so two parts' box centres do not interleave along
+    // the first cut (the widest axis of the scene).
+    const std::vector<uint16_t> two = roles::partitionObjects(file, 2);
+    int axis = 0;
+    glm::vec3 lo(INFINITY), hi(-INFINITY);
+    const auto centre = [&](uint32_t i) {
+        const auto& o = file.objects()[i];
+        return 0.5f * (glm::vec3(o.aabb_min[0], o.aabb_min[1], o.aabb_min[2]) +
+                       glm::vec3(o.aabb_max[0], o.aabb_max[1], o.aabb_max[2]));
+    };
+    for (uint32_t i = 0; i < two.size(); ++i) lo = glm::min(lo, centre(i)), hi = glm::max(hi, centre(i));
+    const glm::vec3 e = hi - lo;
+    axis = e.x >= e.y && e.x >= e.z ? 0 : e.y >= e.z ? 1 : 2;
+    float max0 = -INFINITY, min1 = INFINITY;
+    for (uint32_t i = 0; i < two.size(); ++i)
+        if (two[i] == 0) max0 = std::max(max0, centre(i)[axis]);
+        else min1 = std::min(min1, centre(i)[axis]);
+    EXPECT_LE(max0, min1);
     EXPECT_THROW(roles::partitionObjects(file, 0), std::invalid_argument);
+    EXPECT_THROW(roles::partitionObjects(file, 2, 0), std::invalid_argument);
 }
 
 TEST(SortLast, LayoutsOfTwoPlusPRanks) {
