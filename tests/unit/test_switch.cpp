@@ -171,7 +171,9 @@ TEST(SortLast, DisplayRanksTogetherShowTheSwitchsVisibleSets) {
         for (const auto& r : rows) {
             if (r[col("role")] == "or+hc") {
                 for (const auto& q : rows_3) {
-                    if (q[col("role")] == "or+hc") EXPECT_EQ(r[col("visible_hash")], q[col("visible_hash")]);
+                    if (q[col("role")] == "or+hc") {
+                        EXPECT_EQ(r[col("visible_hash")], q[col("visible_hash")]);
+                    }
                 }
             } else {
                 EXPECT_EQ(r[col("partition")], std::to_string(roles::RankLayout(5).partitionOf(std::stoi(r[0]))));
