@@ -20,7 +20,7 @@ echo "$out" | grep -q "20 frames at .* 3 ranks" || fail "summary: $out"
 dry=$("$root/launch/mpi-render" --dry-run --hostfile "$root/launch/hostfile.example" --display-host render-node-2 -- x.oss)
 echo "$dry" | grep -q "rank 0=render-node-2" || fail "display host: $dry"
 echo "$dry" | grep -q "odls_base_sigkill_timeout 3" || fail "fault flags: $dry"
-for bad in "-n 4 -- x.oss" "--hostfile $dir/missing -- x.oss" "--display-host h -- x.oss" "--bogus" ""; do
+for bad in "-n 65 -- x.oss" "-n two -- x.oss" "--hostfile $dir/missing -- x.oss" "--display-host h -- x.oss" "--bogus" ""; do
   # shellcheck disable=SC2086
   "$root/launch/mpi-render" $bad >/dev/null 2>"$dir/err"; status=$?
   [ $status -eq 2 ] || fail "mpi-render $bad: exit $status"
