@@ -5,13 +5,13 @@
 # picture) write the same PNG frames as `-np 3`, pixel for pixel, or (where two partitions' depths
 # tie) at a PSNR of at least 60 dB; after an orbit, which sees the whole plant, each display rank
 # holds a share of the resident geometry near 1/P (between 0.5/P and 1.5/P). A display rank
-# killed mid-run (in the middle of the compositing collectives) ends the whole job within 10 s,
-# the others naming it.
+# killed mid-run (in the middle of the compositing collectives), or stopped (SIGSTOP: silent),
+# ends the whole job within 10 s, the others naming it.
 set -u
 export TESTS_DIR; TESTS_DIR=$(cd "$(dirname "$0")" && pwd)
 exe=$1
 dir=$(mktemp -d)
-trap 'rm -rf "$dir"' EXIT
+trap 'rm -rf "$dir"; [ -n "${job:-}" ] && kill -9 $job 2>/dev/null' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 mpirun=(mpirun --oversubscribe --mca odls_base_sigkill_timeout 3)
@@ -58,30 +58,36 @@ for n in (4, 5):
     print(f'-np {n}: resident triangles per display rank after the orbit {held}')
     assert all(int(r['bytes_composite']) > 0 for r in rows), f'-np {n}: a display row without composite bytes'
 PY
-# A display rank killed mid-run.
+# A display rank killed (rank 4) or silent (rank 3, SIGSTOP, --rank-timeout 3) mid-run.
 "$exe" path walk "$dir/p.oss" --frames 20000 -o "$dir/long.cam" 2>/dev/null || fail "long path"
-"${mpirun[@]}" -np 5 "$exe" render "$dir/p.oss" --path "$dir/long.cam" --headless --size 128x96 >/dev/null 2>"$dir/errk" &
-job=$!
-victim=
-for _ in $(seq 100); do
-  sleep 0.1
-  for pid in $(pgrep -f "occswitch render $dir/p.oss --path $dir/long.cam"); do
-    tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=4" && victim=$pid
+for fault in kill stop; do
+  victim_rank=$([ $fault = kill ] && echo 4 || echo 3)
+  "${mpirun[@]}" -np 5 "$exe" render "$dir/p.oss" --path "$dir/long.cam" --headless --size 128x96 --rank-timeout 3 \
+    >/dev/null 2>"$dir/errk" &
+  job=$!
+  victim=
+  for _ in $(seq 100); do
+    sleep 0.1
+    for pid in $(pgrep -f "occswitch render $dir/p.oss --path $dir/long.cam"); do
+      tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=$victim_rank" && victim=$pid
+    done
+    [ -n "$victim" ] && break
   done
-  [ -n "$victim" ] && break
+  [ -n "$victim" ] || { kill -9 $job; fail "rank $victim_rank never started"; }
+  sleep 3
+  kill -0 $job 2>/dev/null || fail "the 5-rank run ended before the $fault: $(tail -3 "$dir/errk")"
+  [ $fault = kill ] && kill -9 "$victim" || kill -STOP "$victim"
+  killed=$(date +%s.%N)
+  for _ in $(seq 150); do kill -0 $job 2>/dev/null || break; sleep 0.1; done
+  if kill -0 $job 2>/dev/null; then kill -9 $job "$victim"; fail "ranks still running 15 s after the $fault of rank $victim_rank"; fi
+  wait $job; status=$?
+  kill -9 "$victim" 2>/dev/null
+  took=$(awk -v a="$killed" -v b="$(date +%s.%N)" 'BEGIN { print b - a }')
+  [ $status -ne 0 ] || fail "mpirun exit 0 after the $fault of display rank $victim_rank"
+  awk -v t="$took" 'BEGIN { exit !(t < 10) }' || fail "$fault of display rank $victim_rank: the job took $took s to end"
+  n=$(grep -c "^error: rank $victim_rank: " "$dir/errk")
+  [ "$n" -ge 1 ] || fail "$fault: no rank named rank $victim_rank: $(grep error "$dir/errk")"
+  echo "$fault of display rank $victim_rank: the job ended in $took s, $n ranks named it"
 done
-[ -n "$victim" ] || { kill -9 $job; fail "rank 4 never started"; }
-sleep 3
-kill -0 $job 2>/dev/null || fail "the 5-rank run ended before the kill: $(tail -3 "$dir/errk")"
-kill -9 "$victim"
-killed=$(date +%s.%N)
-for _ in $(seq 150); do kill -0 $job 2>/dev/null || break; sleep 0.1; done
-if kill -0 $job 2>/dev/null; then kill -9 $job; fail "ranks still running 15 s after display rank 4 was killed"; fi
-wait $job; status=$?
-took=$(awk -v a="$killed" -v b="$(date +%s.%N)" 'BEGIN { print b - a }')
-[ $status -ne 0 ] || fail "mpirun exit 0 after a killed display rank"
-awk -v t="$took" 'BEGIN { exit !(t < 10) }' || fail "a killed display rank: the job took $took s to end"
-n=$(grep -c "^error: rank 4: " "$dir/errk")
-[ "$n" -ge 1 ] || fail "no rank named rank 4: $(grep error "$dir/errk")"
-echo "killed display rank 4: the job ended in $took s, $n ranks named it"
+job=
 echo ok
