@@ -6,7 +6,8 @@
 # differ, freeze it, and Escape ends all three ranks with exit status 0 within 10 s. Every rank's
 # rows reach --stats. With 5 ranks (the switch and 3 sort-last display ranks) the one window shows
 # the composite, moves and ends the same way, and F says why it cannot freeze. A culling rank
-# killed while the window runs ends every rank within 10 s, rank 0 naming it. Without an X
+# killed while the window runs ends every rank within 10 s, rank 0 naming it; one stopped for
+# 2 s does not freeze the window (a key press still takes a screenshot meanwhile). Without an X
 # display rank 0 fails and the culling ranks stop at once.
 set -u
 export TESTS_DIR; TESTS_DIR=$(cd "$(dirname "$0")" && pwd)
@@ -37,7 +38,7 @@ drive() {
   pid=$!
   trap 'kill -9 $pid 2>/dev/null' EXIT
   await() {
-    for ((i = 0; i < $2 * 20; ++i)); do
+    for ((i = 0; i < ${2%.*} * 20 + 10; ++i)); do
       grep -q -- "$1" "$dir/stdout" && return 0
       kill -0 $pid 2>/dev/null || break
       sleep 0.05
@@ -69,6 +70,19 @@ drive() {
   xdotool keydown d && sleep 0.5 && xdotool keyup d
   sleep 0.3
   xdotool key p && await "screenshot_2.png$" 10 || return 1
+  # A culling rank that does not answer for a while (SIGSTOP, 2 s): the window still answers keys.
+  local culler=
+  for p in $(pgrep -f "occswitch render $dir/p.oss --out"); do
+    tr '\0' '\n' <"/proc/$p/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=1" && culler=$p
+  done
+  [ -n "$culler" ] || { echo "rank 1 not found"; return 1; }
+  kill -STOP "$culler"
+  sleep 0.3
+  xdotool key p
+  await "screenshot_3.png$" 1.5 || { kill -CONT "$culler"; echo "the window did not answer while rank 1 was stopped"; return 1; }
+  sleep 0.5
+  kill -CONT "$culler"
+  sleep 0.5
   xdotool key Escape
   for ((i = 0; i < 200; ++i)); do
     kill -0 $pid 2>/dev/null || break
