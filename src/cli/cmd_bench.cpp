@@ -457,7 +457,7 @@ int runBenchPrep(const BenchPrepOptions& o) {
         "bounding-box diagonal; per mesh all vertices plus min(%u, %u x triangles) area samples per surface. mean err: "
         "weighted by the meshes' triangles; max err: the worst mesh; mean dist: weighted mean of each mesh's mean "
         "sampled distance. A vanished LOD (0 triangles) counts as 1. above: meshes left above their target (ours: "
-        "collapse floor q, boundary vertices are locked). meshopt @ ours' count: meshopt asked for the triangles ours "
+        "collapse floor q: vertices on non-manifold edges or where border chains meet are locked). meshopt @ ours' count: meshopt asked for the triangles ours "
         "reached wherever ours stopped above the target (equal size), else the target row's result.\n",
         o.samples, o.samples_per_triangle);
 
@@ -556,7 +556,7 @@ Command addBenchCommand(CLI::App& app) {
                      "time budget of the OpenMesh reference (meshes in a fixed random order until spent)")
         ->capture_default_str();
     prep->add_flag("--meshopt-lock-border", o->meshopt_lock_border,
-                   "pass meshopt_SimplifyLockBorder, so meshopt keeps boundary vertices as ours does");
+                   "pass meshopt_SimplifyLockBorder, so meshopt keeps border vertices (as ours did before they could collapse)");
 
     auto po = std::make_shared<PipelineBenchOptions>();
     auto size = std::make_shared<std::string>("512x512");

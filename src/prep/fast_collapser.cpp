@@ -56,7 +56,7 @@ public:
 
     CollapseSequence run() {
         buildIncidence();
-        lockNonManifoldEdges();
+        classifyVertices();
         if (cost_kind_ == CollapseCost::Quadric) buildQuadrics();
         for (uint32_t u = 0; u < n_; ++u)
             if (!locked_[u]) pushBest(u);
@@ -100,32 +100,50 @@ private:
         best_target_.assign(n_, kNone);
         mark_.assign(n_, 0);
         second_mark_.assign(n_, 0);
+        count_.assign(n_, 0);
     }
 
-    // An edge used by one triangle is a boundary, by three or more a non-manifold seam: both
-    // ends stay, so open CAD sheets keep their outline and non-manifold input stays intact.
-    // Each vertex counts, through its incidence list, how many of its triangles use the edge to
-    // each neighbour (no global sort of edge keys needed).
-    void lockNonManifoldEdges() {
-        std::vector<uint32_t> uses(n_, 0), touched;
+    // Each vertex's kind, from how many of its triangles use the edge to each neighbour (counted
+    // through its incidence list, no global sort of edge keys): an edge used by three or more
+    // triangles is a non-manifold seam and locks both ends (non-manifold input stays intact);
+    // one used by one triangle is a border. A vertex on exactly two border edges whose fan is one
+    // open chain (triangles = neighbours - 1) is a border vertex, which may move along its border
+    // (Quadric cost; EdgeLength keeps the outline, as the hand-checked fixtures expect); any
+    // other vertex on a border (a corner where chains meet) is locked.
+    void classifyVertices() {
+        border_.assign(n_, 0);
+        const bool borders_move = cost_kind_ == CollapseCost::Quadric;
+        std::vector<uint32_t> uses(n_, 0), last_triangle(n_, 0), touched;
         for (uint32_t v = 0; v < n_; ++v) {
             if (head_[v] == kNone) {
                 locked_[v] = 1;  // a vertex used by no triangle has nothing to collapse along
                 continue;
             }
             touched.clear();
+            uint32_t triangles = 0;
             for (uint32_t node = head_[v]; node != kNone; node = node_next_[node]) {
                 const uint32_t t = node_tri_[node];
+                ++triangles;
                 for (int c = 0; c < 3; ++c) {
                     const uint32_t w = corner_[3 * t + c];
                     if (w == v) continue;
                     if (uses[w]++ == 0) touched.push_back(w);
+                    last_triangle[w] = t;
                 }
             }
+            uint32_t border_edges = 0;
             for (uint32_t w : touched) {
-                if (uses[w] != 2) locked_[v] = locked_[w] = 1;
+                if (uses[w] > 2) locked_[v] = locked_[w] = 1;
+                if (uses[w] == 1) {
+                    ++border_edges;
+                    if (v < w) border_edges_.push_back({v, w, last_triangle[w]});
+                    if (!borders_move) locked_[v] = locked_[w] = 1;
+                }
                 uses[w] = 0;
             }
+            if (border_edges == 0) continue;
+            if (borders_move && border_edges == 2 && triangles + 1 == touched.size()) border_[v] = 1;
+            else locked_[v] = 1;
         }
     }
 
@@ -140,6 +158,24 @@ private:
             Quadric q;
             q.addPlane(unit, -glm::dot(unit, p0), 0.5 * len);
             for (int c = 0; c < 3; ++c) quadric_[corner_[3 * t + c]].add(q);
+        }
+        // A border edge also adds, to both ends, the plane through it at right angles to its
+        // face (Garland & Heckbert's boundary constraint), weighted as a heavy face of the
+        // edge's length squared: moving a border vertex off its outline costs.
+        for (const BorderEdge& b : border_edges_) {
+            const uint32_t t = b.triangle;
+            const glm::dvec3 p0 = pos_[corner_[3 * t]], p1 = pos_[corner_[3 * t + 1]], p2 = pos_[corner_[3 * t + 2]];
+            const glm::dvec3 n = glm::cross(p1 - p0, p2 - p0);
+            const double len = glm::length(n);
+            const glm::dvec3 pa = pos_[b.a], along = glm::dvec3(pos_[b.b]) - pa;
+            const double edge = glm::length(along);
+            if (len <= 0.0 || edge <= 0.0) continue;
+            const glm::dvec3 across = glm::cross(along / edge, n / len);
+            Quadric e;
+            e.addPlane(across, -glm::dot(across, pa), kBorderWeight * edge * edge);
+            e.weight = 0;  // a constraint, not surface: the recorded distance stays a surface mean
+            quadric_[b.a].add(e);
+            quadric_[b.b].add(e);
         }
     }
 
@@ -189,17 +225,43 @@ private:
         return m;
     }
 
+    // The neighbours a border vertex may move to: the far ends of its border edges (the
+    // neighbours that share one triangle with it).
+    void borderNeighbours(uint32_t u, std::vector<uint32_t>& out) {
+        out.clear();
+        const uint32_t m = ++mark_id_;
+        candidates_.clear();
+        forTriangles(u, [&](uint32_t t) {
+            for (int c = 0; c < 3; ++c) {
+                const uint32_t w = corner_[3 * t + c];
+                if (w == u) continue;
+                if (mark_[w] != m) mark_[w] = m, count_[w] = 0, candidates_.push_back(w);
+                ++count_[w];
+            }
+        });
+        for (uint32_t w : candidates_)
+            if (count_[w] == 1) out.push_back(w);
+    }
+
     void pushBest(uint32_t u) {
         float best = INFINITY;
         uint32_t target = kNone;
-        // u is unlocked, so its fan is a closed disk: the corner after u in each triangle visits
-        // every neighbour exactly once.
-        forTriangles(u, [&](uint32_t t) {
-            const uint32_t* c = &corner_[3 * t];
-            const uint32_t w = c[0] == u ? c[1] : (c[1] == u ? c[2] : c[0]);
-            const float e = cost(u, w);
-            if (e < best || (e == best && w < target)) best = e, target = w;
-        });
+        if (border_[u]) {
+            borderNeighbours(u, border_neighbours_);
+            for (uint32_t w : border_neighbours_) {
+                const float e = cost(u, w);
+                if (e < best || (e == best && w < target)) best = e, target = w;
+            }
+        } else {
+            // u is interior, so its fan is a closed disk: the corner after u in each triangle
+            // visits every neighbour exactly once.
+            forTriangles(u, [&](uint32_t t) {
+                const uint32_t* c = &corner_[3 * t];
+                const uint32_t w = c[0] == u ? c[1] : (c[1] == u ? c[2] : c[0]);
+                const float e = cost(u, w);
+                if (e < best || (e == best && w < target)) best = e, target = w;
+            });
+        }
         ++stamp_[u];
         best_cost_[u] = best;
         best_target_[u] = target;
@@ -208,7 +270,8 @@ private:
 
     void retryWithLegalTarget(uint32_t u) {
         neighbours_.clear();
-        markNeighbours(u, &neighbours_);
+        if (border_[u]) borderNeighbours(u, neighbours_);
+        else markNeighbours(u, &neighbours_);
         float best = INFINITY;
         uint32_t target = kNone;
         for (uint32_t w : neighbours_) {
@@ -241,6 +304,9 @@ private:
             }
         });
         if (common != shared) return false;
+        // An interior vertex moves along an interior edge (two triangles), a border vertex
+        // along its border (one): the border stays a border.
+        if (shared != (border_[u] ? 1u : 2u)) return false;
 
         bool ok = true;
         const glm::vec3 pu = pos_[u], pv = pos_[v];
@@ -301,7 +367,7 @@ private:
         markNeighbours(v, &neighbours_);
         for (uint32_t w : neighbours_) {
             if (locked_[w]) continue;
-            if (best_target_[w] == u || best_target_[w] == v || best_target_[w] == kNone) {
+            if (border_[w] || best_target_[w] == u || best_target_[w] == v || best_target_[w] == kNone) {
                 pushBest(w);
                 continue;
             }
@@ -321,7 +387,13 @@ private:
     const uint32_t n_, t_;
 
     std::vector<uint32_t> head_, tail_, node_tri_, node_next_;
-    std::vector<uint8_t> alive_, removed_, locked_;
+    std::vector<uint8_t> alive_, removed_, locked_, border_;
+    struct BorderEdge {
+        uint32_t a, b, triangle;
+    };
+    std::vector<BorderEdge> border_edges_;  // the input's border edges and their triangle, for the quadrics
+    std::vector<uint32_t> count_, candidates_, border_neighbours_;
+    static constexpr double kBorderWeight = 10.0;
     std::vector<uint32_t> stamp_, mark_, second_mark_;
     std::vector<float> best_cost_;       // cost of the candidate currently queued for each vertex
     std::vector<uint32_t> best_target_;  // its kept vertex, kNone if none

@@ -54,7 +54,7 @@ struct ProgressiveMesh {
     std::vector<float> error;          // error of the collapse that removes v; 0 for v < q
     std::vector<uint32_t> triangles;   // 3 corners per triangle, full-detail, re-arranged numbering
     std::vector<uint32_t> map;         // vertexCount() + 1 entries, non-decreasing, map[n] = triangleCount()
-    uint32_t q = 0;                    // vertices never collapsed (boundary, locked, non-manifold)
+    uint32_t q = 0;                    // vertices never collapsed (locked: non-manifold, where borders meet)
     uint32_t refused_faces = 0;        // faces the collapser could not take (kept, never removed)
     uint32_t source_vertices = 0;      // vertex count of the input, before welding
     uint32_t dropped_triangles = 0;    // input triangles degenerate after welding (not stored)
