@@ -83,7 +83,7 @@ private:
 };
 
 #ifdef OCC_HAVE_GL
-// `render` in a window: with one rank the single-process pipeline; under mpirun with 2 or 3
+// `render` in a window: with one rank the single-process pipeline; under mpirun with 2 or more
 // ranks rank 0 opens the one window and displays, the others cull (no window, no GL).
 int runInWindow(RenderOptions& o, const OssFile& file, Transport& transport, int device_ordinal) {
     const roles::RankLayout layout(transport.size());
@@ -101,7 +101,7 @@ int runInWindow(RenderOptions& o, const OssFile& file, Transport& transport, int
         throw UsageError("render: --pace recorded replays --path headless (--headless or --no-display); a window "
                          "plays the path one pose per frame, then you fly");
     if (layout.size() == 1 && !o.stats.empty())
-        throw UsageError("render: --stats in a window needs 2 or 3 ranks (mpirun); on one rank record a path (R) "
+        throw UsageError("render: --stats in a window needs 2 or more ranks (mpirun); on one rank record a path (R) "
                          "and render it with --headless --stats");
     const bool rank0 = transport.rank() == 0;
     if (rank0 && !o.out.empty()) makeOutputFolder(o.out);
