@@ -37,4 +37,18 @@ uint64_t lodSelect(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t
                    DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
                    DevicePtr<uint32_t> triangle_count, DeviceArray<float>& shares);
 
+// Error-bounded LOD (SWITCH's and CHLOD's rule, `--lod error`): for each listed object the
+// coarsest level whose simplification error projects to at most tau pixels: the smallest
+// vc_i in [q_i, P_i] with lod_error_i[vc_i] * scale[i] * H / (2 tan(fovy / 2) D_i) <= tau,
+// D_i, A_i and pet as lodSelect's (0 when A_i < pet or P_i = 0). lod_error + map_first[mesh]
+// holds, per mesh, vertex_count + 1 non-increasing entries: the largest collapse error of the
+// level with k vertices, in object space (0 at full detail); scale[i] is how much object i's
+// world matrix enlarges lengths at most. Writes vertex_count and triangle_count as lodSelect
+// does and returns sum vc_i. No budget: the error bounds the picture, the count follows.
+uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
+                          const Camera& camera, float tau, float pet, DevicePtr<const uint64_t> map_first,
+                          DevicePtr<const float> lod_error, DevicePtr<const float> scale,
+                          DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
+                          DevicePtr<uint32_t> triangle_count);
+
 }  // namespace occ::k

@@ -42,7 +42,7 @@ constexpr double kWindowOccluderMs = 10.0;
 
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto", budget = "auto";
-    std::string pace = "fast";
+    std::string pace = "fast", lod = "budget";
     double path_fps = 60;
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
     double occluder_ms = -1;  // -1: the default of the mode (on in a window)
@@ -161,6 +161,7 @@ int runRender(RenderOptions o) {
     o.pipeline.pvs_occluder_triangles = parseOccluderTriangles(o.pvs_occluders);
     parseBudget(o.budget, o.pipeline.budget, o.pipeline.budget_share);
     o.pipeline.mode = parseCullMode(o.mode);
+    o.pipeline.lod = parseLodRule(o.lod);
     o.pipeline.stream = parseStreamMode(o.stream);
     if (o.pipeline.pvs_occluder_lag > 2) throw UsageError("render: --pvs-occluder-lag must be 1 or 2");
     if (o.occluder_ms >= 0) o.pipeline.occluder_ms = o.occluder_ms;
@@ -497,6 +498,12 @@ Command addRenderCommand(CLI::App& app) {
                     "one vertex per pixel of --size, at most the scene's vertices (small models draw whole)")
         ->capture_default_str();
     sub->add_option("--pet", o->pipeline.pet, "pixel error threshold: smaller objects are not drawn")
+        ->capture_default_str();
+    sub->add_option("--lod", o->lod,
+                    "budget: Eq. 1 shares the vertex budget (--budget, --alpha); error: each object at the\n"
+                    "coarsest level whose simplification error projects to at most --tau pixels (no budget)")
+        ->capture_default_str();
+    sub->add_option("--tau", o->pipeline.tau, "--lod error: pixels of simplification error allowed")
         ->capture_default_str();
     sub->add_option("--lod-hysteresis", o->pipeline.lod_hysteresis,
                     "keep an object's last vertex count while Eq. 1's is within this fraction of it (0 = off)")

@@ -13,6 +13,7 @@
 #include <xxhash.h>
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <cstring>
 #include <execution>
@@ -38,6 +39,12 @@ CullMode parseCullMode(const std::string& s) {
     throw OptionError("mode", "'" + s + "': expected full, lod or oc+lod");
 }
 
+LodRule parseLodRule(const std::string& s) {
+    if (s == "budget") return LodRule::Budget;
+    if (s == "error") return LodRule::Error;
+    throw OptionError("lod", "'" + s + "': expected budget (Eq. 1 under the vertex budget) or error (within tau pixels)");
+}
+
 StreamMode parseStreamMode(const std::string& s) {
     if (s == "sc") return StreamMode::Coherent;
     if (s == "snc") return StreamMode::NonCoherent;
@@ -60,7 +67,31 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     if (options.pvs_occluder_lag < 1 || options.pvs_occluder_lag > 2)
         throw OptionError("pvs_occluder_lag", std::to_string(options.pvs_occluder_lag) + ": must be 1 or 2");
 
+    if (!(options.tau > 0.0f && std::isfinite(options.tau)))
+        throw OptionError("tau", OptionError::value(options.tau) + ": must be a positive number of pixels");
+
     scene_ = DeviceScene::upload(file);
+    if (options.lod == LodRule::Error) {
+        // The error of the level with k vertices is the largest error of the collapses it has
+        // undone, those of vertices k .. n - 1: a suffix maximum, 0 at full detail.
+        std::vector<float> lod_error(std::max<size_t>(1, file.allMaps().size()), 0.0f);
+        for (uint32_t m = 0; m < scene_.mesh_count; ++m) {
+            const OssFile::MeshView mesh = file.mesh(m);
+            float* e = lod_error.data() + scene_.host_map_first[m];
+            const uint32_t nv = mesh.vertexCount();
+            e[nv] = 0.0f;
+            for (uint32_t k = nv; k-- > 0;) e[k] = std::max(e[k + 1], mesh.error[k]);
+        }
+        std::vector<float> scale(std::max<uint32_t>(1, scene_.object_count), 1.0f);
+        for (uint32_t i = 0; i < scene_.object_count; ++i) {
+            const glm::mat4& w = scene_.host_world[i];
+            scale[i] = std::max({glm::length(glm::vec3(w[0])), glm::length(glm::vec3(w[1])), glm::length(glm::vec3(w[2]))});
+        }
+        lod_error_.resize(lod_error.size());
+        k::copyToDevice(lod_error_.ptr(), lod_error.data(), lod_error.size());
+        object_scale_.resize(scale.size());
+        k::copyToDevice(object_scale_.ptr(), scale.data(), scale.size());
+    }
     const uint32_t n = scene_.object_count;
     double scene_vertices = 0;
     for (uint32_t i = 0; i < n; ++i) scene_vertices += scene_.host_objects[i].vertex_count;
@@ -298,6 +329,12 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
         }
         k::copyToDevice(pvs_vc_device_.ptr(), pvs_vc_.data(), count);
         k::copyToDevice(pvs_tc_device_.ptr(), pvs_tc_.data(), count);
+    } else if (options_.lod == LodRule::Error) {
+        // No hysteresis: keeping a coarser level than the bound allows would break it.
+        k::lodSelectByError(scene_.objects.ptr(), pvs, count, camera, options_.tau, options_.pet, scene_.map_first.ptr(),
+                            lod_error_.ptr(), object_scale_.ptr(), scene_.maps, pvs_vc_device_.ptr(),
+                            pvs_tc_device_.ptr());
+        k::copyToHost(pvs_vc_.data(), pvs_vc_device_.ptr(), count);
     } else {
         const k::LodParams params{float(budget_), options_.alpha, options_.pet};
         k::lodSelect(scene_.objects.ptr(), pvs, count, camera, params, scene_.map_first.ptr(), scene_.maps,

@@ -33,6 +33,11 @@ enum class CullMode { Full, Lod, OcLod };
 // set gathered and copied each frame; no streaming, object by object.
 enum class StreamMode { Coherent, NonCoherent, None };
 
+// How a frame's LODs are chosen: Eq. 1 under the vertex budget N (Peng & Cao), or the coarsest
+// level of each object whose simplification error projects to at most tau pixels (SWITCH and
+// CHLOD's rule; no budget, the error bounds the picture).
+enum class LodRule { Budget, Error };
+
 struct PipelineOptions {
     uint32_t width = 512, height = 512;  // viewport, also the occlusion depth buffer's size
     CullMode mode = CullMode::OcLod;
@@ -83,7 +88,11 @@ struct PipelineOptions {
     float lod_hysteresis = 0.1f;
     float alpha = 3.0f;                  // Eq. 1 exponent
     float pet = 1.0f;                    // pixel error threshold
+    LodRule lod = LodRule::Budget;
+    float tau = 1.0f;                    // LodRule::Error: pixels of simplification error allowed (> 0)
 };
+
+LodRule parseLodRule(const std::string& s);  // "budget" or "error"; OptionError("lod") otherwise
 
 // The one-rank pipeline: every stage of a frame over the kernels (DESIGN.md, "One frame").
 // Keeps the previous frame's active set and layout for coherent streaming.
@@ -205,6 +214,9 @@ private:
     k::DeviceArray<float> hzm_;
     k::DeviceArray<uint32_t> pvs_device_, pvs_vc_device_, pvs_tc_device_;
     k::DeviceArray<float> lod_shares_;
+    // LodRule::Error: per mesh, vertex_count + 1 entries laid out as the maps (map_first): the
+    // largest collapse error of the level with k vertices; per object, its world scale.
+    k::DeviceArray<float> lod_error_, object_scale_;
     k::PinnedArray<k::LodEntry> previous_lod_;  // the hysteresis' last visible set, on its way up
     k::DeviceArray<k::LodEntry> previous_lod_device_;
     k::LodHysteresisScratch hysteresis_scratch_;

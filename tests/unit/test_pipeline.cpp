@@ -210,6 +210,49 @@ TEST_F(PipelineFrames, VertexBudgetIsRespectedUpToTheFloors) {
     }
 }
 
+// --lod error: each visible object at the coarsest level whose recorded error projects within
+// tau pixels. A larger tau never draws an object finer; a huge tau draws every drawn object at
+// its floor q; the vertex budget plays no part.
+TEST_F(PipelineFrames, ErrorBoundedLodsFollowTauNotTheBudget) {
+    const PipelineFixture& f = fixture();
+    const auto levels = [&](float tau, double share) {
+        PipelineOptions options = smallOptions(StreamMode::Coherent);
+        options.lod = LodRule::Error;
+        options.tau = tau;
+        options.budget_share = share;
+        Pipeline pipeline(*f.file, options);
+        std::vector<std::map<uint32_t, uint32_t>> frames;
+        for (size_t frame = 0; frame < 8; ++frame) {
+            pipeline.runFrame(f.cameras[frame * 3], frame);
+            std::map<uint32_t, uint32_t> lod;
+            const auto ids = pipeline.visibleObjects();
+            const auto vc = pipeline.visibleLodVertices();
+            for (size_t j = 0; j < ids.size(); ++j) lod[ids[j]] = vc[j];
+            frames.push_back(std::move(lod));
+        }
+        return frames;
+    };
+    const auto fine = levels(0.25f, 0.1), coarse = levels(4.0f, 0.1), same_tau = levels(0.25f, 0.5),
+               floor = levels(1e9f, 0.1);
+    uint64_t fine_sum = 0, coarse_sum = 0;
+    for (size_t frame = 0; frame < fine.size(); ++frame) {
+        EXPECT_EQ(fine[frame], same_tau[frame]) << "the budget changed an error-bounded frame";
+        ASSERT_EQ(fine[frame].size(), coarse[frame].size());  // LODs do not change what is visible
+        for (const auto& [id, vc] : fine[frame]) {
+            EXPECT_LE(coarse[frame].at(id), vc) << "object " << id << ", frame " << frame;
+            const k::ObjectInfo& o = [&]() -> const k::ObjectInfo& {
+                static std::unique_ptr<Pipeline> p;
+                if (!p) p = std::make_unique<Pipeline>(*f.file, smallOptions(StreamMode::Coherent));
+                return p->scene().host_objects[id];
+            }();
+            // Objects under the pixel error threshold are not drawn at any tau.
+            EXPECT_EQ(floor[frame].at(id), vc == 0 ? 0u : std::min(o.q, o.vertex_count));
+            fine_sum += vc, coarse_sum += coarse[frame].at(id);
+        }
+    }
+    EXPECT_LT(coarse_sum, fine_sum);  // tau matters on this walk
+}
+
 // Beyond the paper: a frame whose view (so complexities and drawn set) did not change streams,
 // moves and reforms nothing, and still draws the right thing.
 TEST_F(PipelineFrames, AnUnchangedFrameStreamsMovesAndReformsNothing) {
