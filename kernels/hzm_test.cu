@@ -115,7 +115,73 @@ struct HzmOcclusion {
     }
 };
 
+// The share of a box's image rectangle that the occluders may leave visible: at the finest
+// level where the rectangle spans at most 8 x 8 texels, the pixels of the rectangle under texels
+// that do not prove the box hidden, over all its pixels. An upper bound of the visible share
+// (a texel that cannot prove the box hidden may still hide most of it), 1 for a box that
+// crosses the near plane or that no depth map covers.
+struct VisibleShare {
+    const ObjectInfo* objects;
+    const uint32_t* ids;
+    glm::mat4 view_proj;
+    float near_plane;
+    HzmLevels hzm;
+    const float* texels;
+
+    OCC_HD float operator()(uint32_t j) const {
+        if (hzm.level_count == 0) return 1.0f;
+        const Aabb box = objects[ids[j]].aabb;
+        const float w0 = float(hzm.width[0]), h0 = float(hzm.height[0]);
+        float xmin = FLT_MAX, ymin = FLT_MAX, xmax = -FLT_MAX, ymax = -FLT_MAX, z_min = FLT_MAX;
+        for (int c = 0; c < 8; ++c) {
+            const glm::vec3 corner((c & 1) ? box.max.x : box.min.x, (c & 2) ? box.max.y : box.min.y,
+                                   (c & 4) ? box.max.z : box.min.z);
+            const glm::vec4 clip = view_proj * glm::vec4(corner, 1.0f);
+            if (!(clip.w > near_plane) || !(clip.z >= -clip.w)) return 1.0f;
+            const float inv_w = 1.0f / clip.w;
+            const float x = (clip.x * inv_w * 0.5f + 0.5f) * w0;
+            const float y = (clip.y * inv_w * 0.5f + 0.5f) * h0;
+            const float z = clip.z * inv_w * 0.5f + 0.5f;
+            if (x != x || y != y || z != z) return 1.0f;
+            xmin = x < xmin ? x : xmin;
+            xmax = x > xmax ? x : xmax;
+            ymin = y < ymin ? y : ymin;
+            ymax = y > ymax ? y : ymax;
+            z_min = z < z_min ? z : z_min;
+        }
+        if (!(xmax >= 0.0f && xmin < w0 && ymax >= 0.0f && ymin < h0)) return 1.0f;
+        const auto x0 = uint32_t(floorf(xmin > 0.0f ? xmin : 0.0f));
+        const auto x1 = uint32_t(floorf(xmax < w0 - 1.0f ? xmax : w0 - 1.0f));
+        const auto y0 = uint32_t(floorf(ymin > 0.0f ? ymin : 0.0f));
+        const auto y1 = uint32_t(floorf(ymax < h0 - 1.0f ? ymax : h0 - 1.0f));
+        uint32_t level = 0;
+        while (level + 1 < hzm.level_count && ((x1 >> level) - (x0 >> level) > 7 || (y1 >> level) - (y0 >> level) > 7))
+            ++level;
+        double open = 0;
+        for (uint32_t ty = y0 >> level; ty <= y1 >> level; ++ty)
+            for (uint32_t tx = x0 >> level; tx <= x1 >> level; ++tx) {
+                if (z_min > texels[hzm.offset[level] + uint64_t(ty) * hzm.width[level] + tx] + kDepthEpsilon) continue;
+                // The texel's pixels inside the rectangle.
+                const uint32_t px0 = (tx << level) > x0 ? (tx << level) : x0;
+                const uint32_t px1 = ((tx + 1) << level) - 1 < x1 ? ((tx + 1) << level) - 1 : x1;
+                const uint32_t py0 = (ty << level) > y0 ? (ty << level) : y0;
+                const uint32_t py1 = ((ty + 1) << level) - 1 < y1 ? ((ty + 1) << level) - 1 : y1;
+                open += double(px1 - px0 + 1) * double(py1 - py0 + 1);
+            }
+        const double all = double(x1 - x0 + 1) * double(y1 - y0 + 1);
+        return float(open / all);
+    }
+};
+
 }  // namespace
+
+void hzmVisibleShare(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
+                     const Camera& camera, const HzmLevels& hzm, DevicePtr<float> share) {
+    if (count == 0) return;
+    thrust::transform(thrust::device, thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(count),
+                      raw(share),
+                      VisibleShare{raw(objects), raw(ids), camera.view_proj, camera.near_plane, hzm, raw(hzm.data)});
+}
 
 void hzmTest(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count, const Camera& camera,
              const HzmLevels& hzm, DevicePtr<uint8_t> occluded) {

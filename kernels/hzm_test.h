@@ -42,4 +42,13 @@ namespace occ::k {
 void hzmTest(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count, const Camera& camera,
              const HzmLevels& hzm, DevicePtr<uint8_t> occluded);
 
+// Visibility weighting (Charalambos 2006's q / alpha, estimated): for j < count, share[j] = the
+// fraction of objects[ids[j]]'s image rectangle (as hzmTest projects it) not proven hidden by
+// the pyramid at the finest level where the rectangle spans at most 8 x 8 texels: the pixels
+// under texels whose depth does not hide the box's nearest point, over the rectangle's pixels.
+// In [0, 1], an upper bound of the visible share at that resolution; 1 for a box crossing the
+// near plane, off screen, or with no pyramid. Reads at most 64 texels per box.
+void hzmVisibleShare(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
+                     const Camera& camera, const HzmLevels& hzm, DevicePtr<float> share);
+
 }  // namespace occ::k

@@ -74,6 +74,7 @@ struct LogShare {
     Camera camera;
     float exponent;  // (alpha - 1) / alpha
     float pet;
+    const float* visible_share;  // may be null
 
     OCC_HD float operator()(uint32_t j) const {
         const ObjectInfo& o = objects[ids[j]];
@@ -81,9 +82,12 @@ struct LogShare {
         const Projection pr = projectBox(o, camera);
         const float area = pr.area, depth = pr.depth;
         if (area < pet) return -INFINITY;
+        // What the occluders leave of the image weighs instead of all of it (pet still tests
+        // the whole image: a mostly hidden object is drawn, coarser).
+        const float seen = visible_share ? area * visible_share[j] : area;
         // With pet = 0 an object may be drawn with no area: a vanishing share, so it sits at its
         // floor, rather than log(0) = -inf, which would mean "not drawn".
-        return exponent * (logf(fmaxf(area, 1e-30f)) + logf(float(o.vertex_count)) - logf(depth));
+        return exponent * (logf(fmaxf(seen, 1e-30f)) + logf(float(o.vertex_count)) - logf(depth));
     }
 };
 
@@ -236,6 +240,7 @@ struct ErrorLevel {
     const uint32_t* ids;
     Camera camera;
     float tau, pet;
+    const float* visible_share;  // may be null
     const uint64_t* map_first;
     const float* lod_error;
     const float* scale;
@@ -252,7 +257,9 @@ struct ErrorLevel {
             if (pr.area >= pet) {
                 // World units that project to tau pixels at the object's nearest depth.
                 const float pixels_per_unit = float(camera.height) / (2.0f * tanf(0.5f * camera.fovy) * pr.depth);
-                const float allowed = tau / (pixels_per_unit * fmaxf(scale[id], 1e-30f));
+                float allowed = tau / (pixels_per_unit * fmaxf(scale[id], 1e-30f));
+                // eps q / alpha <= tau: the less of it shows, the larger the error allowed.
+                if (visible_share) allowed /= fmaxf(visible_share[j], 1e-30f);
                 const float* e = lod_error + map_first[o.mesh];
                 // e is non-increasing in k and e[P] = 0: the smallest k >= q with e[k] <= allowed.
                 uint32_t lo = o.q < o.vertex_count ? o.q : o.vertex_count, hi = o.vertex_count;
@@ -277,7 +284,8 @@ struct Plus {
 }  // namespace
 
 uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
-                          const Camera& camera, float tau, float pet, DevicePtr<const uint64_t> map_first,
+                          const Camera& camera, float tau, float pet, DevicePtr<const float> visible_share,
+                          DevicePtr<const uint64_t> map_first,
                           DevicePtr<const float> lod_error, DevicePtr<const float> scale,
                           DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
                           DevicePtr<uint32_t> triangle_count) {
@@ -285,7 +293,7 @@ uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const u
     const thrust::counting_iterator<uint32_t> first(0);
     const uint64_t sum = thrust::transform_reduce(
         thrust::device, first, first + count,
-        ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(map_first), raw(lod_error), raw(scale), raw(maps),
+        ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first), raw(lod_error), raw(scale), raw(maps),
                    raw(vertex_count), raw(triangle_count)},
         uint64_t(0), Plus());
     countReadback(sizeof sum);
@@ -304,7 +312,7 @@ uint64_t lodSelect(DevicePtr<const ObjectInfo> object_memory, DevicePtr<const ui
     float* const shares = raw(share_memory.ptr());
 
     const float exponent = (params.alpha - 1.0f) / params.alpha;
-    thrust::transform(thrust::device, first, first + count, shares, LogShare{objects, ids, camera, exponent, params.pet});
+    thrust::transform(thrust::device, first, first + count, shares, LogShare{objects, ids, camera, exponent, params.pet, raw(params.visible_share)});
     const float max_log = thrust::reduce(thrust::device, shares, shares + count, -INFINITY, Maximum());
     countReadback(sizeof max_log);
     thrust::transform(thrust::device, shares, shares + count, shares, NormalizeShare{max_log});

@@ -10,6 +10,11 @@ struct LodParams {
     float budget;  // N: vertices to spend over the listed objects, >= 0
     float alpha;   // exponent of Eq. 1, >= 1 (Peng & Cao use 3; 1 shares the budget equally)
     float pet;     // pixel error threshold: objects covering fewer pixels are not drawn
+    // Visibility weighting: per listed object (count entries, device memory) the share of its
+    // image left visible (hzmVisibleShare); A_i becomes A_i x share[j] in Eq. 1's weight, and
+    // the error-bounded rule allows an error tau / share[j] (Charalambos 2006's eps q / alpha).
+    // Null: A_i as projected.
+    DevicePtr<const float> visible_share = nullptr;
 };
 
 // LOD selection, Eq. 1 of Peng & Cao 2013 as reconstructed for occswitch. For each listed object
@@ -46,7 +51,8 @@ uint64_t lodSelect(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t
 // world matrix enlarges lengths at most. Writes vertex_count and triangle_count as lodSelect
 // does and returns sum vc_i. No budget: the error bounds the picture, the count follows.
 uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
-                          const Camera& camera, float tau, float pet, DevicePtr<const uint64_t> map_first,
+                          const Camera& camera, float tau, float pet, DevicePtr<const float> visible_share,
+                          DevicePtr<const uint64_t> map_first,
                           DevicePtr<const float> lod_error, DevicePtr<const float> scale,
                           DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
                           DevicePtr<uint32_t> triangle_count);

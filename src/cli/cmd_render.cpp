@@ -42,7 +42,7 @@ constexpr double kWindowOccluderMs = 10.0;
 
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto", budget = "auto";
-    std::string pace = "fast", lod = "budget";
+    std::string pace = "fast", lod = "budget", visibility_weighted = "off";
     double path_fps = 60;
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
     double occluder_ms = -1;  // -1: the default of the mode (on in a window)
@@ -162,6 +162,9 @@ int runRender(RenderOptions o) {
     parseBudget(o.budget, o.pipeline.budget, o.pipeline.budget_share);
     o.pipeline.mode = parseCullMode(o.mode);
     o.pipeline.lod = parseLodRule(o.lod);
+    if (o.visibility_weighted != "on" && o.visibility_weighted != "off")
+        throw UsageError("--visibility-weighted " + o.visibility_weighted + ": expected on or off");
+    o.pipeline.visibility_weighted = o.visibility_weighted == "on";
     o.pipeline.stream = parseStreamMode(o.stream);
     if (o.pipeline.pvs_occluder_lag > 2) throw UsageError("render: --pvs-occluder-lag must be 1 or 2");
     if (o.occluder_ms >= 0) o.pipeline.occluder_ms = o.occluder_ms;
@@ -504,6 +507,10 @@ Command addRenderCommand(CLI::App& app) {
                     "coarsest level whose simplification error projects to at most --tau pixels (no budget)")
         ->capture_default_str();
     sub->add_option("--tau", o->pipeline.tau, "--lod error: pixels of simplification error allowed")
+        ->capture_default_str();
+    sub->add_option("--visibility-weighted", o->visibility_weighted,
+                    "on: weigh each object by the share of its image the occluders leave visible (HZM), in Eq. 1\n"
+                    "and in --lod error's bound (Charalambos 2006); off: the projected area (oc+lod only)")
         ->capture_default_str();
     sub->add_option("--lod-hysteresis", o->pipeline.lod_hysteresis,
                     "keep an object's last vertex count while Eq. 1's is within this fraction of it (0 = off)")

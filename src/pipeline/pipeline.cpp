@@ -197,6 +197,14 @@ void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
     stats.occluder_triangles = g.triangle_total;
 }
 
+k::DevicePtr<const float> Pipeline::visibleShares(const k::Camera& camera, k::DevicePtr<const uint32_t> pvs,
+                                                  uint32_t count) {
+    if (!options_.visibility_weighted || options_.mode != CullMode::OcLod) return nullptr;
+    visible_share_.growTo(std::max<uint32_t>(1, count));
+    k::hzmVisibleShare(scene_.objects.ptr(), pvs, count, camera, hzmLevels(), visible_share_.ptr());
+    return visible_share_.ptr();
+}
+
 uint32_t Pipeline::hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out) {
     k::hzmTest(scene_.objects.ptr(), frustum_ids_.ptr(), frustum_count_, camera, hzmLevels(), occluded_.ptr());
     return k::compactSelected(frustum_ids_.ptr(), occluded_.ptr(), frustum_count_, 0, out);
@@ -331,12 +339,12 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
         k::copyToDevice(pvs_tc_device_.ptr(), pvs_tc_.data(), count);
     } else if (options_.lod == LodRule::Error) {
         // No hysteresis: keeping a coarser level than the bound allows would break it.
-        k::lodSelectByError(scene_.objects.ptr(), pvs, count, camera, options_.tau, options_.pet, scene_.map_first.ptr(),
+        k::lodSelectByError(scene_.objects.ptr(), pvs, count, camera, options_.tau, options_.pet, visibleShares(camera, pvs, count), scene_.map_first.ptr(),
                             lod_error_.ptr(), object_scale_.ptr(), scene_.maps, pvs_vc_device_.ptr(),
                             pvs_tc_device_.ptr());
         k::copyToHost(pvs_vc_.data(), pvs_vc_device_.ptr(), count);
     } else {
-        const k::LodParams params{float(budget_), options_.alpha, options_.pet};
+        const k::LodParams params{float(budget_), options_.alpha, options_.pet, visibleShares(camera, pvs, count)};
         k::lodSelect(scene_.objects.ptr(), pvs, count, camera, params, scene_.map_first.ptr(), scene_.maps,
                      pvs_vc_device_.ptr(), pvs_tc_device_.ptr(), lod_shares_);
         if (options_.lod_hysteresis > 0 && !previous_lod.empty()) {

@@ -90,6 +90,10 @@ struct PipelineOptions {
     float pet = 1.0f;                    // pixel error threshold
     LodRule lod = LodRule::Budget;
     float tau = 1.0f;                    // LodRule::Error: pixels of simplification error allowed (> 0)
+    // oc+lod: weigh each visible object by the share of its image the HZM leaves visible
+    // (k::hzmVisibleShare): Eq. 1 spends on what shows, the error rule allows tau / share
+    // (Charalambos 2006's eps q / alpha). Off: the projected area, as Peng & Cao.
+    bool visibility_weighted = false;
 };
 
 LodRule parseLodRule(const std::string& s);  // "budget" or "error"; OptionError("lod") otherwise
@@ -191,6 +195,8 @@ private:
     // The frustum objects the HZM does not prove hidden, into out (ascending); returns how many.
     void adaptOccluderBudget(const FrameStats& stats);
     uint32_t hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out);
+    // options_.visibility_weighted in oc+lod: the PVS entries' visible shares; else null.
+    k::DevicePtr<const float> visibleShares(const k::Camera& camera, k::DevicePtr<const uint32_t> pvs, uint32_t count);
 
     const OssFile& file_;
     PipelineOptions options_;
@@ -217,6 +223,7 @@ private:
     // LodRule::Error: per mesh, vertex_count + 1 entries laid out as the maps (map_first): the
     // largest collapse error of the level with k vertices; per object, its world scale.
     k::DeviceArray<float> lod_error_, object_scale_;
+    k::DeviceArray<float> visible_share_;  // visibility_weighted: per PVS entry
     k::PinnedArray<k::LodEntry> previous_lod_;  // the hysteresis' last visible set, on its way up
     k::DeviceArray<k::LodEntry> previous_lod_device_;
     k::LodHysteresisScratch hysteresis_scratch_;

@@ -113,6 +113,29 @@ protected:
     Pyramid pyramid;
 };
 
+// hzmVisibleShare: the share of a box's image rectangle not proven hidden (visibility weighting).
+float visibleShare(const ObjectInfo& box, const Camera& camera, const HzmLevels& hzm) {
+    const DeviceArray<ObjectInfo> objects = toDevice(std::vector<ObjectInfo>{box});
+    const DeviceArray<uint32_t> ids = toDevice(std::vector<uint32_t>{0});
+    DeviceArray<float> share = test::filledDevice<float>(1, -7.0f);
+    hzmVisibleShare(objects.ptr(), ids.ptr(), 1, camera, hzm, share.ptr());
+    return toHost(share)[0];
+}
+
+TEST_F(NearWallLeftHalf, VisibleShareIsWhatTheWallLeavesOfTheBoxsImage) {
+    // Behind the wall's edge, half its image on each side (x from -4 to 4 at depth 12 -> 32 px
+    // around column 32): about half visible, never less than what the pixels say.
+    const float half = visibleShare(boxObject({-4, -3, -12}, {4, 3, -11}), camera, pyramid.levels);
+    EXPECT_GE(half, 0.45f);
+    EXPECT_LE(half, 0.60f);
+    // In the clear half: all of it; behind the wall entirely: none; in front of the wall: all.
+    EXPECT_FLOAT_EQ(visibleShare(boxObject({2, -3, -12}, {8, 3, -10}), camera, pyramid.levels), 1.0f);
+    EXPECT_FLOAT_EQ(visibleShare(boxObject({-8, -3, -12}, {-1, 3, -10}), camera, pyramid.levels), 0.0f);
+    EXPECT_FLOAT_EQ(visibleShare(boxObject({-3, -1, -4}, {-2, 1, -3}), camera, pyramid.levels), 1.0f);
+    // Crossing the near plane: counted as all visible.
+    EXPECT_FLOAT_EQ(visibleShare(boxObject({-1, -1, -3}, {1, 1, 0}), camera, pyramid.levels), 1.0f);
+}
+
 TEST_F(NearWallLeftHalf, BoxBehindWallIsOccluded) { EXPECT_EQ(occluded({-8, -3, -12}, {-1, 3, -10}), 1); }
 
 TEST_F(NearWallLeftHalf, BoxPeekingOverTheRightHalfIsVisible) {
