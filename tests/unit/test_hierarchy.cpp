@@ -1,0 +1,122 @@
+// SPDX-License-Identifier: MIT
+// The object hierarchy and its HLODs (issue 16, first step: built in memory, not yet in the .oss).
+#include "import/plant.h"
+#include "prep/hierarchy.h"
+#include "prep/lod_prefix.h"
+#include "prep/prepare.h"
+#include "test_support.h"
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <set>
+
+namespace occ {
+namespace {
+
+struct HierarchyFixture {
+    std::unique_ptr<OssFile> file;
+    std::vector<k::Aabb> boxes;
+    std::vector<uint64_t> triangles;
+    HierarchyFixture() {
+        const std::string path = (test::scratchDir() / "hierarchy_plant.oss").string();
+        writeOss(path, prepareScene(generatePlant({400, 11}), PrepOptions{}));
+        file = std::make_unique<OssFile>(OssFile::open(path));
+        for (const oss::ObjectDisk& o : file->objects()) {
+            boxes.push_back({{o.aabb_min[0], o.aabb_min[1], o.aabb_min[2]}, {o.aabb_max[0], o.aabb_max[1], o.aabb_max[2]}});
+            triangles.push_back(file->meshRecords()[o.mesh].triangle_count);
+        }
+    }
+};
+
+const HierarchyFixture& fixture() {
+    static const HierarchyFixture f;
+    return f;
+}
+
+bool contains(const k::Aabb& outer, const k::Aabb& inner) {
+    return glm::all(glm::lessThanEqual(outer.min, inner.min)) && glm::all(glm::greaterThanEqual(outer.max, inner.max));
+}
+
+TEST(Hierarchy, EveryObjectIsOneLeafAndNodesBoundTheirChildrenBreadthFirst) {
+    const HierarchyFixture& f = fixture();
+    for (uint32_t fanout : {2u, 4u, 8u}) {
+        const ObjectHierarchy h = buildObjectHierarchy(f.boxes, f.triangles, fanout);
+        std::set<uint32_t> leaves;
+        uint64_t root_triangles = 0;
+        for (uint64_t t : f.triangles) root_triangles += t;
+        EXPECT_EQ(h.nodes[0].triangles, root_triangles);
+        for (size_t n = 0; n < h.nodes.size(); ++n) {
+            const HierarchyNode& node = h.nodes[n];
+            if (node.child_count == 0) {
+                ASSERT_LT(node.object, f.boxes.size());
+                EXPECT_TRUE(leaves.insert(node.object).second) << "object " << node.object << " twice";
+                EXPECT_TRUE(contains(node.box, f.boxes[node.object]));
+                continue;
+            }
+            EXPECT_GE(node.child_count, 2u);
+            EXPECT_LE(node.child_count, fanout);
+            EXPECT_GT(node.first_child, n);  // children come after their parent
+            uint64_t sum = 0;
+            for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) {
+                EXPECT_EQ(h.nodes[c].depth, node.depth + 1);
+                EXPECT_TRUE(contains(node.box, h.nodes[c].box));
+                sum += h.nodes[c].triangles;
+            }
+            EXPECT_EQ(sum, node.triangles);
+            if (n > 0) {
+                EXPECT_GE(node.depth, h.nodes[n - 1].depth);  // level by level
+            }
+        }
+        EXPECT_EQ(leaves.size(), f.boxes.size());
+        // About log_fanout(objects) levels below the root: balanced by count.
+        const double ideal = std::ceil(std::log(double(f.boxes.size())) / std::log(double(fanout)));
+        EXPECT_LE(double(h.levels - 1), ideal + 1) << "fanout " << fanout;
+    }
+    EXPECT_THROW(buildObjectHierarchy(f.boxes, f.triangles, 1), std::invalid_argument);
+}
+
+// Every inner node's HLOD is a valid progressive mesh in world space, inside its node's box,
+// covering most of it, from a merged input of about twice node_triangles.
+TEST(Hierarchy, HlodsAreProgressiveMeshesOfTheirSubtrees) {
+    const HierarchyFixture& f = fixture();
+    const ObjectHierarchy h = buildObjectHierarchy(f.boxes, f.triangles, 8);
+    HlodOptions options;
+    options.node_triangles = 600;
+    const std::vector<ProgressiveMesh> hlods = buildHlods(*f.file, h, options);
+    ASSERT_EQ(hlods.size(), h.nodes.size());
+    LodPrefixScratch scratch;
+    uint32_t inner = 0;
+    for (size_t n = 0; n < h.nodes.size(); ++n) {
+        const HierarchyNode& node = h.nodes[n];
+        const ProgressiveMesh& p = hlods[n];
+        if (node.child_count == 0) {
+            EXPECT_EQ(p.vertexCount(), 0u);
+            continue;
+        }
+        ++inner;
+        ASSERT_GT(p.triangleCount(), 0u) << "node " << n;
+        EXPECT_FALSE(checkLodPrefix(p.vertexCount(), p.ecol, p.triangles, p.map, p.q, scratch).has_value()) << n;
+        // A little over 2 x node_triangles at most (children round up to a level), and never
+        // more than the subtree has.
+        EXPECT_LE(p.triangleCount(), std::min<uint64_t>(node.triangles, 3 * options.node_triangles)) << "node " << n;
+        k::Aabb b{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+        for (const glm::vec3& v : p.positions) b.min = glm::min(b.min, v), b.max = glm::max(b.max, v);
+        const glm::vec3 slack = 1e-4f * (node.box.max - node.box.min) + glm::vec3(1e-5f);
+        EXPECT_TRUE(contains({node.box.min - slack, node.box.max + slack}, b)) << "node " << n;
+        EXPECT_GE(glm::length(b.max - b.min), 0.5f * glm::length(node.box.max - node.box.min)) << "node " << n;
+    }
+    EXPECT_GT(inner, 8u);
+}
+
+TEST(Hierarchy, LevelWithTrianglesFindsTheSmallestLevelThatHasThem) {
+    const std::vector<uint32_t> map{2, 2, 2, 3, 5, 5, 8};  // q = 2, n = 6
+    EXPECT_EQ(levelWithTriangles(map, 2, 1), 2u);
+    EXPECT_EQ(levelWithTriangles(map, 2, 4), 4u);
+    EXPECT_EQ(levelWithTriangles(map, 2, 5), 4u);
+    EXPECT_EQ(levelWithTriangles(map, 2, 6), 6u);
+    EXPECT_EQ(levelWithTriangles(map, 2, 100), 6u);
+}
+
+}  // namespace
+}  // namespace occ
