@@ -396,7 +396,8 @@ std::string runWindowRanks(Transport& transport, const OssFile& file, const Pipe
         // The camera of frame f + 1 (or later) was taken before frame f is drawn.
         const double ms = double(now_ns() - taken_ns.at(f)) / 1e6;
         const uint64_t frames = taken_ns.size() - 1 - f;
-        if (f > 0) latency_ms += ms, latency_frames += frames, ++latency_count;
+        // The last frame has no later camera (the user quit): its 0 frames are no latency.
+        if (f > 0 && frames > 0) latency_ms += ms, latency_frames += frames, ++latency_count;
         visible = pipeline.visibleObjects().size();
         session.frameShown([&] {
             return std::to_string(ranks) + " ranks  latency " + std::to_string(frames) + " frame" +
