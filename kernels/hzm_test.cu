@@ -15,6 +15,53 @@ namespace {
 
 constexpr float kDepthEpsilon = 1e-6f;
 
+// A box's image as both tests read it: the level-0 pixel rectangle [x0, x1] x [y0, y1] its
+// corners' window rectangle touches, clipped to the viewport, and its nearest window depth.
+// False when no texel can say anything about the box: a corner on or behind the near plane, a
+// non-finite corner, or a rectangle entirely outside the viewport.
+struct BoxImage {
+    uint32_t x0, x1, y0, y1;
+    float z_min;
+};
+
+OCC_HD inline bool boxImage(const Aabb& box, const glm::mat4& view_proj, float near_plane, float w0, float h0,
+                            BoxImage& image) {
+    float xmin = FLT_MAX, ymin = FLT_MAX, xmax = -FLT_MAX, ymax = -FLT_MAX, z_min = FLT_MAX;
+    // The projection is linear, so corner c is the min corner's image plus the images of the
+    // box edges selected by its bits: 3 vector adds per corner instead of a matrix product
+    // (half the time of the whole test; the rounding differs by a few ulps of the terms).
+    const glm::vec4 base = view_proj * glm::vec4(box.min, 1.0f);
+    const glm::vec4 ex = view_proj[0] * (box.max.x - box.min.x);
+    const glm::vec4 ey = view_proj[1] * (box.max.y - box.min.y);
+    const glm::vec4 ez = view_proj[2] * (box.max.z - box.min.z);
+    for (int c = 0; c < 8; ++c) {
+        const glm::vec4 clip = base + (c & 1 ? ex : glm::vec4(0.0f)) + (c & 2 ? ey : glm::vec4(0.0f)) +
+                               (c & 4 ? ez : glm::vec4(0.0f));
+        // Written so that NaN (from a NaN or infinite corner) lands on the visible side.
+        if (!(clip.w > near_plane) || !(clip.z >= -clip.w)) return false;
+        const float inv_w = 1.0f / clip.w;
+        const float x = (clip.x * inv_w * 0.5f + 0.5f) * w0;
+        const float y = (clip.y * inv_w * 0.5f + 0.5f) * h0;
+        const float z = clip.z * inv_w * 0.5f + 0.5f;
+        // An infinite coordinate can still give a NaN here.
+        if (x != x || y != y || z != z) return false;
+        // Plain comparisons: g++ calls libm for fminf/fmaxf, which took a fifth of the time.
+        xmin = x < xmin ? x : xmin;
+        xmax = x > xmax ? x : xmax;
+        ymin = y < ymin ? y : ymin;
+        ymax = y > ymax ? y : ymax;
+        z_min = z < z_min ? z : z_min;
+    }
+    if (!(xmax >= 0.0f && xmin < w0 && ymax >= 0.0f && ymin < h0)) return false;
+    // Clamp in float before converting: the bounds may be far outside the int range.
+    image.x0 = uint32_t(floorf(xmin > 0.0f ? xmin : 0.0f));
+    image.x1 = uint32_t(floorf(xmax < w0 - 1.0f ? xmax : w0 - 1.0f));
+    image.y0 = uint32_t(floorf(ymin > 0.0f ? ymin : 0.0f));
+    image.y1 = uint32_t(floorf(ymax < h0 - 1.0f ? ymax : h0 - 1.0f));
+    image.z_min = z_min;
+    return true;
+}
+
 struct HzmOcclusion {
     const ObjectInfo* objects;
     const uint32_t* ids;
@@ -25,40 +72,11 @@ struct HzmOcclusion {
 
     OCC_HD uint8_t operator()(uint32_t j) const {
         if (hzm.level_count == 0) return 0;
-        const Aabb box = objects[ids[j]].aabb;
         const float w0 = float(hzm.width[0]), h0 = float(hzm.height[0]);
-        float xmin = FLT_MAX, ymin = FLT_MAX, xmax = -FLT_MAX, ymax = -FLT_MAX, z_min = FLT_MAX;
-        // The projection is linear, so corner c is the min corner's image plus the images of the
-        // box edges selected by its bits: 3 vector adds per corner instead of a matrix product
-        // (half the time of the whole test; the rounding differs by a few ulps of the terms).
-        const glm::vec4 base = view_proj * glm::vec4(box.min, 1.0f);
-        const glm::vec4 ex = view_proj[0] * (box.max.x - box.min.x);
-        const glm::vec4 ey = view_proj[1] * (box.max.y - box.min.y);
-        const glm::vec4 ez = view_proj[2] * (box.max.z - box.min.z);
-        for (int c = 0; c < 8; ++c) {
-            const glm::vec4 clip = base + (c & 1 ? ex : glm::vec4(0.0f)) + (c & 2 ? ey : glm::vec4(0.0f)) +
-                                   (c & 4 ? ez : glm::vec4(0.0f));
-            // Written so that NaN (from a NaN or infinite corner) lands on the visible side.
-            if (!(clip.w > near_plane) || !(clip.z >= -clip.w)) return 0;
-            const float inv_w = 1.0f / clip.w;
-            const float x = (clip.x * inv_w * 0.5f + 0.5f) * w0;
-            const float y = (clip.y * inv_w * 0.5f + 0.5f) * h0;
-            const float z = clip.z * inv_w * 0.5f + 0.5f;
-            // An infinite coordinate can still give a NaN here.
-            if (x != x || y != y || z != z) return 0;
-            // Plain comparisons: g++ calls libm for fminf/fmaxf, which took a fifth of the time.
-            xmin = x < xmin ? x : xmin;
-            xmax = x > xmax ? x : xmax;
-            ymin = y < ymin ? y : ymin;
-            ymax = y > ymax ? y : ymax;
-            z_min = z < z_min ? z : z_min;
-        }
-        if (!(xmax >= 0.0f && xmin < w0 && ymax >= 0.0f && ymin < h0)) return 0;
-        // Clamp in float before converting: the bounds may be far outside the int range.
-        const auto x0 = uint32_t(floorf(xmin > 0.0f ? xmin : 0.0f));
-        const auto x1 = uint32_t(floorf(xmax < w0 - 1.0f ? xmax : w0 - 1.0f));
-        const auto y0 = uint32_t(floorf(ymin > 0.0f ? ymin : 0.0f));
-        const auto y1 = uint32_t(floorf(ymax < h0 - 1.0f ? ymax : h0 - 1.0f));
+        BoxImage image;
+        if (!boxImage(objects[ids[j]].aabb, view_proj, near_plane, w0, h0, image)) return 0;
+        const uint32_t x0 = image.x0, x1 = image.x1, y0 = image.y0, y1 = image.y1;
+        const float z_min = image.z_min;
 
         // n pixels span at most 2 texels from level ceil(log2(n)) on, and at least 3 below level
         // ceil(log2(n)) - 1, so the finest level with at most 2x2 texels is one of those two.
@@ -130,30 +148,11 @@ struct VisibleShare {
 
     OCC_HD float operator()(uint32_t j) const {
         if (hzm.level_count == 0) return 1.0f;
-        const Aabb box = objects[ids[j]].aabb;
-        const float w0 = float(hzm.width[0]), h0 = float(hzm.height[0]);
-        float xmin = FLT_MAX, ymin = FLT_MAX, xmax = -FLT_MAX, ymax = -FLT_MAX, z_min = FLT_MAX;
-        for (int c = 0; c < 8; ++c) {
-            const glm::vec3 corner((c & 1) ? box.max.x : box.min.x, (c & 2) ? box.max.y : box.min.y,
-                                   (c & 4) ? box.max.z : box.min.z);
-            const glm::vec4 clip = view_proj * glm::vec4(corner, 1.0f);
-            if (!(clip.w > near_plane) || !(clip.z >= -clip.w)) return 1.0f;
-            const float inv_w = 1.0f / clip.w;
-            const float x = (clip.x * inv_w * 0.5f + 0.5f) * w0;
-            const float y = (clip.y * inv_w * 0.5f + 0.5f) * h0;
-            const float z = clip.z * inv_w * 0.5f + 0.5f;
-            if (x != x || y != y || z != z) return 1.0f;
-            xmin = x < xmin ? x : xmin;
-            xmax = x > xmax ? x : xmax;
-            ymin = y < ymin ? y : ymin;
-            ymax = y > ymax ? y : ymax;
-            z_min = z < z_min ? z : z_min;
-        }
-        if (!(xmax >= 0.0f && xmin < w0 && ymax >= 0.0f && ymin < h0)) return 1.0f;
-        const auto x0 = uint32_t(floorf(xmin > 0.0f ? xmin : 0.0f));
-        const auto x1 = uint32_t(floorf(xmax < w0 - 1.0f ? xmax : w0 - 1.0f));
-        const auto y0 = uint32_t(floorf(ymin > 0.0f ? ymin : 0.0f));
-        const auto y1 = uint32_t(floorf(ymax < h0 - 1.0f ? ymax : h0 - 1.0f));
+        BoxImage image;
+        if (!boxImage(objects[ids[j]].aabb, view_proj, near_plane, float(hzm.width[0]), float(hzm.height[0]), image))
+            return 1.0f;
+        const uint32_t x0 = image.x0, x1 = image.x1, y0 = image.y0, y1 = image.y1;
+        const float z_min = image.z_min;
         uint32_t level = 0;
         while (level + 1 < hzm.level_count && ((x1 >> level) - (x0 >> level) > 7 || (y1 >> level) - (y0 >> level) > 7))
             ++level;

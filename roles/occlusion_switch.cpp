@@ -88,6 +88,17 @@ std::string netRow(const NetColumns& c) {
     return b;
 }
 
+// A row's message columns: what the transport counted since the last row, with what the
+// frame's culling or display recorded about it (hash, delta entries, latency, partition).
+NetColumns rowColumns(const NetColumns& counted, NetColumns frame) {
+    std::copy(std::begin(counted.bytes), std::end(counted.bytes), frame.bytes);
+    std::copy(std::begin(counted.messages), std::end(counted.messages), frame.messages);
+    frame.ms_wait = counted.ms_wait;
+    frame.composite_bytes = counted.composite_bytes;
+    frame.ms_composite = counted.ms_composite;
+    return frame;
+}
+
 VisibleSet visibleSetOf(const Pipeline& p) {
     const auto ids = p.visibleObjects();
     const auto counts = p.visibleLodVertices();
@@ -607,10 +618,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 net.latency_ms = shown.latency_ms;
                 net.latency_frames = shown.latency_frames;
                 net.partition = shown.partition;
-                const NetColumns counted = window.take();
-                std::copy(std::begin(counted.bytes), std::end(counted.bytes), net.bytes);
-                std::copy(std::begin(counted.messages), std::end(counted.messages), net.messages);
-                net.ms_wait = counted.ms_wait;
+                net = rowColumns(window.take(), net);
                 bus.take(s);
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
                 addToTotals(totals, s, net);
@@ -637,12 +645,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 FrameStats s;
                 NetColumns shown;
                 const std::string drawn = display.display(f, f, s, shown, !more);
-                NetColumns net = window.take();
-                net.latency_ms = shown.latency_ms;
-                net.latency_frames = shown.latency_frames;
-                net.visible_hash = shown.visible_hash;
-                net.added = shown.added, net.removed = shown.removed, net.changed = shown.changed;
-                net.partition = shown.partition;
+                const NetColumns net = rowColumns(window.take(), shown);
                 bus.take(s);
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
                 addToTotals(totals, s, net);
@@ -661,12 +664,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 FrameStats s;
                 NetColumns shown;
                 const std::string drawn = display.display(f, f, s, shown, !run.live && f + 1 == frames);
-                NetColumns net = window.take();
-                net.latency_ms = shown.latency_ms;
-                net.latency_frames = shown.latency_frames;
-                net.visible_hash = shown.visible_hash;
-                net.added = shown.added, net.removed = shown.removed, net.changed = shown.changed;
-                net.partition = shown.partition;
+                const NetColumns net = rowColumns(window.take(), shown);
                 bus.take(s);
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
                 addToTotals(totals, s, net);
@@ -680,10 +678,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 NetColumns sent;
                 FrameStats s = culler.cull(f, sent);
                 bus.take(s);
-                NetColumns net = window.take();
-                net.full_pvs_bytes = sent.full_pvs_bytes;
-                net.visible_hash = sent.visible_hash;
-                net.added = sent.added, net.removed = sent.removed, net.changed = sent.changed;
+                const NetColumns net = rowColumns(window.take(), sent);
                 rows.push_back(row(rank, layout.roleOf(rank), s, net, no_draw));
                 addToTotals(totals, s, net);
                 more = f + step < frames && culler.occluders(f + step);

@@ -6,6 +6,8 @@
 # display the window fails with one error line and exit status 1.
 set -u
 export TESTS_DIR; TESTS_DIR=$(cd "$(dirname "$0")" && pwd)
+# shellcheck source=window_support.sh
+. "$TESTS_DIR/window_support.sh"
 exe=$1
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
@@ -31,17 +33,6 @@ drive() {
   "$exe" render "$dir/p.oss" --out "$dir/out" --size 320x240 >"$dir/stdout" 2>"$dir/stderr" &
   pid=$!
   trap 'kill -9 $pid 2>/dev/null' EXIT
-  # Waits up to $2 seconds for a stdout line matching $1 while the window runs.
-  await() {
-    for ((i = 0; i < $2 * 20; ++i)); do
-      grep -q -- "$1" "$dir/stdout" && return 0
-      kill -0 $pid 2>/dev/null || break
-      sleep 0.05
-    done
-    grep -q -- "$1" "$dir/stdout" && return 0
-    echo "no stdout line '$1' after $2 s"
-    return 1
-  }
   win=$(timeout 20 xdotool search --sync --name '^occswitch' | head -n 1)
   [ -n "$win" ] || { echo "no occswitch window after 20 s"; return 1; }
   await "^window: 320x240" 20 || return 1
@@ -58,17 +49,9 @@ drive() {
   xdotool key p && await "^window: screenshot .*screenshot_1.png$" 10 || return 1
   xdotool key f && await "^window: culling live$" 10 || return 1
   xdotool key p && await "^window: screenshot .*screenshot_2.png$" 10 || return 1
-  xdotool key Escape
-  for ((i = 0; i < 200; ++i)); do
-    kill -0 $pid 2>/dev/null || break
-    sleep 0.05
-  done
-  kill -0 $pid 2>/dev/null && { echo "still running 10 s after Escape"; return 1; }
-  wait $pid
-  status=$?
-  echo "exit $status"
+  quit_window
 }
-timeout 90 xvfb-run -a -s "-screen 0 1024x768x24" bash -c "$(declare -f drive); drive \"\$@\"" drive "$exe" "$dir" \
+timeout 90 xvfb-run -a -s "-screen 0 1024x768x24" bash -c "$(declare -f drive await quit_window); drive \"\$@\"" drive "$exe" "$dir" \
   >"$dir/drive" 2>&1
 status=$?
 [ $status -eq 0 ] && [ "$(tail -n 1 "$dir/drive")" = "exit 0" ] ||

@@ -11,6 +11,8 @@
 # display rank 0 fails and the culling ranks stop at once.
 set -u
 export TESTS_DIR; TESTS_DIR=$(cd "$(dirname "$0")" && pwd)
+# shellcheck source=window_support.sh
+. "$TESTS_DIR/window_support.sh"
 exe=$1
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
@@ -37,16 +39,6 @@ drive() {
     >"$dir/stdout" 2>"$dir/stderr" &
   pid=$!
   trap 'kill -9 $pid 2>/dev/null' EXIT
-  await() {
-    for ((i = 0; i < ${2%.*} * 20 + 10; ++i)); do
-      grep -q -- "$1" "$dir/stdout" && return 0
-      kill -0 $pid 2>/dev/null || break
-      sleep 0.05
-    done
-    grep -q -- "$1" "$dir/stdout" && return 0
-    echo "no stdout line '$1' after $2 s"
-    return 1
-  }
   await "^window: 320x240, .*$n ranks" 60 || return 1
   win=$(timeout 20 xdotool search --sync --name '^occswitch' | head -n 1)
   [ -n "$win" ] || { echo "no occswitch window after 20 s"; return 1; }
@@ -83,15 +75,7 @@ drive() {
   sleep 0.5
   kill -CONT "$culler"
   sleep 0.5
-  xdotool key Escape
-  for ((i = 0; i < 200; ++i)); do
-    kill -0 $pid 2>/dev/null || break
-    sleep 0.05
-  done
-  kill -0 $pid 2>/dev/null && { echo "still running 10 s after Escape"; return 1; }
-  wait $pid
-  status=$?
-  echo "exit $status"
+  quit_window
 }
 drive_kill() {
   local exe=$1 dir=$2 pid victim i status
@@ -119,7 +103,7 @@ grep -q "^error: rank 2: " "$dir/kstderr" || fail "window, rank 2 killed: rank 0
 
 for n in 3 5; do
   rm -rf "$dir/out" "$dir/s.csv"
-  timeout 150 xvfb-run -a -s "-screen 0 1024x768x24" bash -c "$(declare -f drive); drive \"\$@\"" drive "$exe" "$dir" $n \
+  timeout 150 xvfb-run -a -s "-screen 0 1024x768x24" bash -c "$(declare -f drive await quit_window); drive \"\$@\"" drive "$exe" "$dir" $n \
     >"$dir/drive" 2>&1
   status=$?
   [ $status -eq 0 ] && [ "$(tail -n 1 "$dir/drive")" = "exit 0" ] ||
