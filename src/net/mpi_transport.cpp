@@ -419,7 +419,7 @@ bool MpiTransport::poll(int source, MessageKind kind) {
 }
 
 void MpiTransport::composite(const std::vector<int>& group, std::vector<DepthPixel>& pixels,
-                             std::chrono::milliseconds timeout) {
+                             std::chrono::milliseconds timeout, const std::function<void()>& idle) {
     Impl& m = *impl_;
     m.checkUsable("composite");
     const auto start = Clock::now();
@@ -477,7 +477,12 @@ void MpiTransport::composite(const std::vector<int>& group, std::vector<DepthPix
                 m.raise(late, std::string("composite (") + what + ") not done within " + formatDuration(timeout) +
                                   (silent.empty() ? ": a rank of the group did not come" : ": the rank died or stopped answering"));
             }
-            backoff.pause();
+            if (idle) {
+                idle();
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            } else {
+                backoff.pause();
+            }
         }
     };
     try {

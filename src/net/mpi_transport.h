@@ -44,7 +44,7 @@ public:
     std::vector<uint8_t> receive(int source, MessageKind kind, std::chrono::milliseconds timeout) override;
     bool poll(int source, MessageKind kind) override;
     void composite(const std::vector<int>& group, std::vector<DepthPixel>& pixels,
-                   std::chrono::milliseconds timeout) override;
+                   std::chrono::milliseconds timeout, const std::function<void()>& idle) override;
     void finish(std::chrono::milliseconds timeout) override;
     void fail(int culprit, const std::string& detail) noexcept override;
 

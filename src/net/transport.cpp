@@ -158,7 +158,7 @@ public:
     // The group's first rank gathers every member's image and composes them; the others hand
     // theirs over (threads of one process: no bytes need to move twice).
     void composite(const std::vector<int>& group, std::vector<DepthPixel>& pixels,
-                   std::chrono::milliseconds timeout) override {
+                   std::chrono::milliseconds timeout, const std::function<void()>& idle) override {
         const auto start = std::chrono::steady_clock::now();
         checkGroup(group);
         const int root = group.front();
@@ -176,8 +176,22 @@ public:
         for (size_t m = 1; m < group.size(); ++m) {
             std::unique_lock lock(state_->mutex);
             auto& queue = state_->images[{rank_, group[m]}];
-            const bool arrived = state_->changed.wait_until(lock, start + timeout,
-                                                            [&] { return state_->fault || !queue.empty(); });
+            const auto ready = [&] { return state_->fault || !queue.empty(); };
+            const auto deadline = start + timeout;
+            bool arrived = false;
+            if (!idle) {
+                arrived = state_->changed.wait_until(lock, deadline, ready);
+            } else {
+                // In slices of a millisecond, calling `idle` unlocked in between.
+                for (;;) {
+                    const auto slice = std::min(deadline, std::chrono::steady_clock::now() + std::chrono::milliseconds(1));
+                    arrived = state_->changed.wait_until(lock, slice, ready);
+                    if (arrived || std::chrono::steady_clock::now() >= deadline) break;
+                    lock.unlock();
+                    idle();
+                    lock.lock();
+                }
+            }
             if (state_->fault) state_->throwFault(rank_);
             if (!arrived)
                 state_->raise(rank_, group[m], "no image to composite for " + formatDuration(timeout) +

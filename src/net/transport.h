@@ -11,6 +11,7 @@
 #include <array>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -110,9 +111,11 @@ public:
     // within `timeout` is a RankError where the transport can tell (in-process); MPI's
     // collectives cannot time out, and a dead member ends the job through mpirun instead.
     // MPI: MPI_Reduce_scatter_block with a user-defined compositing MPI_Op, then MPI_Gather to
-    // group[0], both on a communicator of the group, through host memory.
+    // group[0], both on a communicator of the group, through host memory. While it waits for
+    // the others it calls `idle` (when given) every millisecond or so, e.g. so that a window
+    // keeps answering; `idle` must not call this transport.
     virtual void composite(const std::vector<int>& group, std::vector<DepthPixel>& pixels,
-                           std::chrono::milliseconds timeout) = 0;
+                           std::chrono::milliseconds timeout, const std::function<void()>& idle) = 0;
 
     TransportCounters counters() const { return counters_; }
 

@@ -3,7 +3,7 @@
 
 namespace occ::render {
 
-const std::vector<uint8_t>* SortLastCompositor::composite(FrameDisplay& display) {
+const std::vector<uint8_t>* SortLastCompositor::composite(FrameDisplay& display, const std::function<void()>& idle) {
     display.target().readDepth(depth_);
     display.target().readItems(items_);
     const std::vector<uint8_t>& own = display.picture();
@@ -11,7 +11,7 @@ const std::vector<uint8_t>* SortLastCompositor::composite(FrameDisplay& display)
     for (size_t i = 0; i < depth_.size(); ++i)
         pixels_[i] = {depth_[i], items_[i],
                       uint32_t(own[3 * i]) | uint32_t(own[3 * i + 1]) << 8 | uint32_t(own[3 * i + 2]) << 16};
-    transport_.composite(group_, pixels_, timeout_);
+    transport_.composite(group_, pixels_, timeout_, idle);
     if (transport_.rank() != group_.front()) return nullptr;
     rgb_.resize(3 * pixels_.size());
     for (size_t i = 0; i < pixels_.size(); ++i)

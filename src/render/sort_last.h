@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace occ::render {
@@ -21,7 +22,8 @@ public:
 
     // Composites `display`'s last frame with the other display ranks' of the same frame. Returns
     // the picture (3 * W * H bytes, bottom row first) on the group's first rank, nullptr on the others.
-    const std::vector<uint8_t>* composite(FrameDisplay& display);
+    // While the others are not there yet it calls `idle` (when given; Transport::composite).
+    const std::vector<uint8_t>* composite(FrameDisplay& display, const std::function<void()>& idle = {});
 
 private:
     Transport& transport_;

@@ -370,6 +370,15 @@ std::string runWindowRanks(Transport& transport, const OssFile& file, const Pipe
         return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
     };
     Clock::time_point presented = Clock::now();
+    // While a culling rank (or, sort-last, another display rank) works: the window answers, and
+    // shows the newest complete frame about 60 times a second.
+    const auto answer = [&] {
+        session.pump();
+        if (!display || (compositor && !composite) || Clock::now() - presented < std::chrono::milliseconds(16)) return;
+        if (session.frozen() && shown) display->drawCullingView(*shown, session.camera(session.flyPose()));
+        show();
+        presented = Clock::now();
+    };
 
     run.live = true;
     run.next_camera = [&](uint64_t f, CameraPose& pose) {
@@ -390,7 +399,7 @@ std::string runWindowRanks(Transport& transport, const OssFile& file, const Pipe
         shown = &pipeline;
         if (session.frozen()) display->drawCullingView(pipeline, session.camera(view));
         else display->display(pipeline, pose);
-        if (compositor) composite = compositor->composite(*display);
+        if (compositor) composite = compositor->composite(*display, answer);
         show();
         presented = Clock::now();
         // The camera of frame f + 1 (or later) was taken before frame f is drawn.
@@ -406,15 +415,9 @@ std::string runWindowRanks(Transport& transport, const OssFile& file, const Pipe
         });
         return std::string();
     };
-    // While a culling rank works: the window answers, and shows the newest complete frame
-    // (about 60 times a second, sleeping in between so that the culling ranks get the CPU).
+    // Sleeping in between, so that the culling ranks get the CPU.
     run.idle = [&] {
-        session.pump();
-        if (display && Clock::now() - presented >= std::chrono::milliseconds(16)) {
-            if (session.frozen() && shown) display->drawCullingView(*shown, session.camera(session.flyPose()));
-            show();
-            presented = Clock::now();
-        }
+        answer();
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
     };
     session.printStart(", " + std::to_string(ranks) + " ranks (rank 0 displays)");

@@ -257,14 +257,37 @@ TEST(SortLast, InProcessCompositeKeepsTheNearestAndTheLowerObjectOnTies) {
     };
     std::vector<std::thread> threads;
     for (size_t m = 1; m < group.size(); ++m)
-        threads.emplace_back([&, m] { ends[size_t(group[m])]->composite(group, images[m], std::chrono::seconds(5)); });
-    ends[0]->composite(group, images[0], std::chrono::seconds(5));
+        threads.emplace_back([&, m] { ends[size_t(group[m])]->composite(group, images[m], std::chrono::seconds(5), {}); });
+    ends[0]->composite(group, images[0], std::chrono::seconds(5), {});
     for (std::thread& t : threads) t.join();
     EXPECT_EQ(images[0][0].item, 3u);
     EXPECT_EQ(images[0][1].item, 6u);
     EXPECT_EQ(images[0][2].item, 4u);  // a tie at 0.3: the lower object
     EXPECT_GT(ends[2]->counters().composite_bytes_sent, 0u);
     threads.clear();
+    for (auto& e : ends) threads.emplace_back([&e] { e->finish(std::chrono::seconds(5)); });
+    for (std::thread& t : threads) t.join();
+}
+
+// A member that comes late: the first rank's wait calls `idle` meanwhile (a window keeps
+// answering) and still gets the composite.
+TEST(SortLast, TheWaitForALateMemberCallsIdle) {
+    InProcessHub hub(2);
+    std::vector<std::unique_ptr<Transport>> ends;
+    for (int r = 0; r < 2; ++r) ends.push_back(hub.connect(r));
+    const std::vector<int> group{0, 1};
+    std::vector<DepthPixel> first = {{0.5f, 7, 1}, {0.2f, 2, 1}}, second = {{0.4f, 3, 2}, {0.9f, 4, 2}};
+    std::thread late([&] {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        ends[1]->composite(group, second, std::chrono::seconds(5), {});
+    });
+    int idles = 0;
+    ends[0]->composite(group, first, std::chrono::seconds(5), [&] { ++idles; });
+    late.join();
+    EXPECT_GE(idles, 10);
+    EXPECT_EQ(first[0].item, 3u);
+    EXPECT_EQ(first[1].item, 2u);
+    std::vector<std::thread> threads;
     for (auto& e : ends) threads.emplace_back([&e] { e->finish(std::chrono::seconds(5)); });
     for (std::thread& t : threads) t.join();
 }
