@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -26,12 +27,21 @@ nlohmann::json vec3Json(const glm::vec3& v) { return {v.x, v.y, v.z}; }
 // Summary of a preprocessed scene: counts, occluders, how much can simplify, section sizes.
 int runOssInfo(const std::string& path) {
     const OssFile file = OssFile::open(path);
-    uint64_t q_sum = 0, n_sum = 0, refused = 0, instanced_triangles = 0;
+    // The objects' meshes come first, the hierarchy's HLODs after them.
+    uint32_t object_meshes = file.meshCount();
+    uint32_t levels = 0, inner = 0;
+    for (const oss::NodeDisk& n : file.nodes()) {
+        levels = std::max(levels, n.depth + 1);
+        if (n.child_count > 0) object_meshes = std::min(object_meshes, n.mesh), ++inner;
+    }
+    uint64_t q_sum = 0, n_sum = 0, refused = 0, instanced_triangles = 0, vertices = 0, triangles = 0;
     float error_min = INFINITY, error_max = 0.0f;
-    for (uint32_t m = 0; m < file.meshCount(); ++m) {
+    for (uint32_t m = 0; m < object_meshes; ++m) {
         const OssFile::MeshView mesh = file.mesh(m);
         q_sum += mesh.q;
         n_sum += mesh.vertexCount();
+        vertices += mesh.vertexCount();
+        triangles += mesh.triangleCount();
         refused += mesh.refused_faces;
         for (uint32_t v = mesh.q; v < mesh.vertexCount(); ++v) {
             error_min = std::min(error_min, mesh.error[v]);
@@ -50,15 +60,23 @@ int runOssInfo(const std::string& path) {
     j["file"] = path;
     j["format_bytes"] = file.fileSize();
     j["objects"] = file.objectCount();
-    j["meshes"] = file.meshCount();
-    j["vertices"] = file.vertexCount();
-    j["triangles"] = file.triangleCount();
+    j["meshes"] = object_meshes;
+    j["vertices"] = vertices;
+    j["triangles"] = triangles;
     j["triangles_with_instances"] = instanced_triangles;
     j["cos"] = file.cos().size();
     j["ct"] = file.ct();
     j["boundary_vertex_share"] = n_sum ? double(q_sum) / double(n_sum) : 0.0;
     j["refused_faces"] = refused;
     j["bounds"] = {{"min", vec3Json(bounds.min)}, {"max", vec3Json(bounds.max)}};
+    if (file.nodeCount() > 0)
+        j["hierarchy"] = {{"nodes", file.nodeCount()},
+                          {"levels", levels},
+                          {"inner_nodes", inner},
+                          {"hlod_meshes", file.meshCount() - object_meshes},
+                          {"hlod_triangles", file.triangleCount() - triangles}};
+    else
+        j["hierarchy"] = nullptr;
     if (error_min <= error_max)
         j["simplification_error"] = {{"min", error_min}, {"max", error_max},
                                      {"max_relative_to_diagonal", diagonal > 0 ? error_max / diagonal : 0.0f}};

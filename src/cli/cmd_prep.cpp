@@ -4,6 +4,7 @@
 #include "cli/model_cache.h"
 #include "cli/progress.h"
 #include "import/import.h"
+#include "prep/hierarchy.h"
 #include "prep/prepare.h"
 #include "scene/errors.h"
 #include "scene/oss_file.h"
@@ -12,6 +13,8 @@
 #include <filesystem>
 #include <iostream>
 #include <thread>
+
+#include <unistd.h>
 
 namespace occ::cli {
 
@@ -29,12 +32,51 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
     const double read_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     PrepProgress progress;
     PrepSummary s;
+    // With a hierarchy the flat scene goes to a temporary beside the output first: its HLODs are
+    // built from the mapped file, then both go to the output.
+    const std::string flat = prep.hierarchy ? output + ".flat." + std::to_string(::getpid()) + ".tmp" : output;
+    struct RemoveFlat {
+        std::string path;
+        ~RemoveFlat() {
+            std::error_code ec;
+            if (!path.empty()) std::filesystem::remove(path, ec);
+        }
+    } remove_flat{prep.hierarchy ? flat : std::string()};
     {
         ProgressBar bar("prep", "meshes", "tri", [&progress] {
             return ProgressBar::Sample{double(progress.meshes_done), double(progress.meshes_total),
                                        double(progress.triangles_done)};
         });
-        s = prepareToFile(*source, output, prep, &progress);
+        s = prepareToFile(*source, flat, prep, &progress);
+    }
+    const double flat_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::string hierarchy = "; no hierarchy";
+    if (prep.hierarchy) {
+        const uint64_t flat_bytes = std::filesystem::file_size(flat);
+        HlodProgress built;
+        HlodOptions hlod;
+        hlod.node_triangles = prep.node_triangles;
+        hlod.threads = prep.threads;
+        ObjectHierarchy h;
+        {
+            ProgressBar bar("prep: HLODs", "nodes", "nodes", [&built] {
+                return ProgressBar::Sample{double(built.done), double(built.total), double(built.done)};
+            });
+            h = writeWithHierarchy(OssFile::open(flat), output, prep.fanout, hlod, &built);
+        }
+        uint64_t hlod_triangles = 0;
+        const OssFile written = OssFile::open(output);
+        for (const SceneNode& n : h.nodes)
+            if (n.child_count > 0) hlod_triangles += written.meshRecords()[n.mesh].triangle_count;
+        const double hlod_seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() - flat_seconds;
+        char b[256];
+        std::snprintf(b, sizeof b, "; hierarchy: %zu nodes in %u levels (fanout %u), %llu inner with %llu HLOD triangles, "
+                      "%.2f s, +%llu bytes",
+                      h.nodes.size(), h.levels, prep.fanout, (unsigned long long)built.total,
+                      (unsigned long long)hlod_triangles, hlod_seconds,
+                      (unsigned long long)(std::filesystem::file_size(output) - flat_bytes));
+        hierarchy = b;
     }
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const unsigned threads = prep.threads ? prep.threads : std::max(1u, std::thread::hardware_concurrency());
@@ -49,12 +91,12 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
     std::fprintf(stderr,
                  "prep: %s -> %s: %llu objects, %llu progressive meshes (%llu triangles, %llu with instances; "
                  "%llu repeated-corner triangles dropped%s), |COS| = %llu at CT %.2f, %.2f s on %u threads "
-                 "(%.2f M unique triangles/s; %s, %.2f s to open), %llu bytes\n",
+                 "(%.2f M unique triangles/s; %s, %.2f s to open), %llu bytes%s\n",
                  input.c_str(), output.c_str(), (unsigned long long)s.objects, (unsigned long long)s.meshes,
                  (unsigned long long)s.unique_triangles, (unsigned long long)s.instanced_triangles,
                  (unsigned long long)s.dropped_triangles, skipped.c_str(), (unsigned long long)s.cos,
-                 double(prep.ct), seconds, threads, s.unique_triangles / seconds / 1e6, source->how(), read_seconds,
-                 (unsigned long long)std::filesystem::file_size(output));
+                 double(prep.ct), seconds, threads, s.unique_triangles / flat_seconds / 1e6, source->how(), read_seconds,
+                 (unsigned long long)std::filesystem::file_size(output), hierarchy.c_str());
 }
 
 namespace {
@@ -64,6 +106,7 @@ struct PrepCommandOptions {
     PrepOptions prep;
     std::string collapser = "fast";
     std::string stream = "auto";
+    std::string hierarchy = "on";
     ImportOptions import;
 };
 
@@ -76,6 +119,11 @@ int runPrep(PrepCommandOptions o) {
         throw UsageError("-o " + o.output + ": folder " + dir.string() + " does not exist");
     if (o.prep.threads > 1024) throw UsageError("--threads " + std::to_string(o.prep.threads) + " is not a sensible thread count");
     o.prep.collapser = o.collapser == "openmesh" ? Collapser::OpenMesh : Collapser::Fast;
+    o.prep.hierarchy = o.hierarchy == "on";
+    if (o.prep.fanout < 2 || o.prep.fanout > 64)
+        throw UsageError("--fanout " + std::to_string(o.prep.fanout) + ": must be in [2, 64]");
+    if (o.prep.node_triangles < 16)
+        throw UsageError("--node-triangles " + std::to_string(o.prep.node_triangles) + ": must be at least 16");
 
     prepareModel(o.input, o.output, o.import, o.prep,
                  o.stream == "always" ? ReadMode::Stream : o.stream == "never" ? ReadMode::Whole : ReadMode::Auto);
@@ -87,10 +135,11 @@ int runVerify(const std::string& path) {
     const OssFile file = OssFile::open(path);
     file.verifyLodPrefix();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::printf("ok: %s: %u objects, %u meshes, %llu vertices, %llu triangles; header, sections, checksums, "
-                "indices and LOD prefixes verified in %.2f s\n",
+    const std::string nodes = file.nodeCount() ? ", " + std::to_string(file.nodeCount()) + " hierarchy nodes" : ", no hierarchy";
+    std::printf("ok: %s: %u objects, %u meshes, %llu vertices, %llu triangles%s; header, sections, checksums, "
+                "indices, the hierarchy and LOD prefixes verified in %.2f s\n",
                 path.c_str(), file.objectCount(), file.meshCount(), (unsigned long long)file.vertexCount(),
-                (unsigned long long)file.triangleCount(), seconds);
+                (unsigned long long)file.triangleCount(), nodes.c_str(), seconds);
     return 0;
 }
 
@@ -115,6 +164,16 @@ Command addPrepCommand(CLI::App& app) {
         ->capture_default_str();
     sub->add_option("--collapser", o->collapser, "fast (ours) or openmesh (reference Decimater)")
         ->check(CLI::IsMember({"fast", "openmesh"}))
+        ->capture_default_str();
+    sub->add_option("--hierarchy", o->hierarchy,
+                    "on: also a spatial hierarchy over the objects and, per inner node, an HLOD (the merged\n"
+                    "subtree simplified into a progressive mesh of its own); off: the flat scene only")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
+    sub->add_option("--fanout", o->prep.fanout, "hierarchy: children per node at most, in [2, 64]")->capture_default_str();
+    sub->add_option("--node-triangles", o->prep.node_triangles,
+                    "hierarchy: about how many triangles an HLOD starts from, halved (its merged input is\n"
+                    "twice this; the progressive mesh then reaches every size below)")
         ->capture_default_str();
     return {sub, [o] { return runPrep(*o); }};
 }

@@ -3,10 +3,15 @@
 
 #include "prep/prepare.h"
 
+#include <glm/gtc/type_ptr.hpp>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cstring>
 #include <numeric>
 #include <stdexcept>
+#include <thread>
 
 namespace occ {
 
@@ -51,8 +56,9 @@ ObjectHierarchy buildObjectHierarchy(std::span<const k::Aabb> boxes, std::span<c
     h.nodes.emplace_back();
     for (size_t n = 0; n < h.nodes.size(); ++n) {
         const Pending r = ranges[n];
-        HierarchyNode& node = h.nodes[n];
-        node.box = {glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+        SceneNode& node = h.nodes[n];
+        node.box.min = glm::vec3(INFINITY);
+        node.box.max = glm::vec3(-INFINITY);
         for (size_t j = r.b; j < r.e; ++j) {
             node.box.min = glm::min(node.box.min, boxes[order[j]].min);
             node.box.max = glm::max(node.box.max, boxes[order[j]].max);
@@ -73,7 +79,7 @@ ObjectHierarchy buildObjectHierarchy(std::span<const k::Aabb> boxes, std::span<c
         h.nodes[n].first_child = uint32_t(h.nodes.size());
         h.nodes[n].child_count = uint32_t(groups.size());
         for (const auto& [b, e] : groups) {
-            HierarchyNode child;
+            SceneNode child;
             child.depth = depth + 1;
             h.nodes.push_back(child);
             ranges.push_back({b, e});
@@ -110,33 +116,126 @@ uint32_t levelWithTriangles(std::span<const uint32_t> map, uint32_t q, uint64_t 
     return lo;
 }
 
-std::vector<ProgressiveMesh> buildHlods(const OssFile& file, const ObjectHierarchy& h, const HlodOptions& options) {
-    std::vector<ProgressiveMesh> hlod(h.nodes.size());
+namespace {
+
+// A level of a built HLOD that its parent merges (world space).
+struct KeptLevel {
+    std::vector<glm::vec3> positions;
+    std::vector<uint32_t> triangles;
+    float error = 0;  // of the level against the subtree at full detail
+};
+
+// The largest collapse error undone by the level with k vertices (0 at full detail).
+float levelError(std::span<const float> error, uint32_t k) {
+    float e = 0.0f;
+    for (size_t v = k; v < error.size(); ++v) e = std::max(e, error[v]);
+    return e;
+}
+
+}  // namespace
+
+void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& options,
+                const std::function<uint32_t(ProgressiveMesh&&)>& add_mesh, HlodProgress* progress) {
     const auto objects = file.objects();
-    // Children before parents: breadth-first order backwards.
-    for (size_t n = h.nodes.size(); n-- > 0;) {
-        const HierarchyNode& node = h.nodes[n];
-        if (node.child_count == 0) continue;
-        const uint64_t want = std::max<uint64_t>(1, 2ull * options.node_triangles / node.child_count);
-        Mesh merged;
-        for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) {
-            const HierarchyNode& child = h.nodes[c];
-            if (child.child_count == 0) {
-                const oss::ObjectDisk& o = objects[child.object];
-                const OssFile::MeshView m = file.mesh(o.mesh);
-                glm::mat4 world;
-                std::memcpy(&world, o.world, sizeof world);
-                appendLevel(m.positions, m.ecol, m.triangles, m.map, levelWithTriangles(m.map, m.q, want), world,
-                            merged.positions, merged.indices);
-            } else {
-                const ProgressiveMesh& p = hlod[c];
-                appendLevel(p.positions, p.ecol, p.triangles, p.map, levelWithTriangles(p.map, p.q, want),
-                            glm::mat4(1.0f), merged.positions, merged.indices);
-            }
-        }
-        hlod[n] = buildProgressiveMesh(merged, Collapser::Fast);
+    const size_t count = h.nodes.size();
+    std::vector<uint32_t> parent(count, UINT32_MAX);
+    std::vector<uint32_t> level_first(h.levels + 1, uint32_t(count));
+    for (uint32_t n = uint32_t(count); n-- > 0;) {
+        const SceneNode& node = h.nodes[n];
+        level_first[node.depth] = n;
+        for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) parent[c] = n;
     }
-    return hlod;
+    // What each child of node n contributes to n's merged input.
+    const auto wanted = [&](uint32_t n) {
+        return std::max<uint64_t>(1, 2ull * options.node_triangles / std::max(1u, h.nodes[n].child_count));
+    };
+    if (progress) {
+        progress->total = 0;
+        for (const SceneNode& node : h.nodes) progress->total += node.child_count > 0;
+    }
+    std::vector<KeptLevel> kept(count);
+    const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+    tbb::task_arena arena{int(threads)};
+    const size_t batch = 8 * size_t(threads);
+    std::vector<uint32_t> inner;
+    std::vector<ProgressiveMesh> built;
+    for (uint32_t depth = h.levels; depth-- > 0;) {
+        inner.clear();
+        for (uint32_t n = level_first[depth]; n < level_first[depth + 1]; ++n)
+            if (h.nodes[n].child_count > 0) inner.push_back(n);
+        for (size_t b = 0; b < inner.size(); b += batch) {
+            const size_t e = std::min(inner.size(), b + batch);
+            built.assign(e - b, ProgressiveMesh{});
+            arena.execute([&] {
+                tbb::parallel_for(size_t(b), e, [&](size_t j) {
+                    const uint32_t n = inner[j];
+                    const SceneNode& node = h.nodes[n];
+                    const uint64_t want = wanted(n);
+                    Mesh merged;
+                    float error = 0.0f;
+                    for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) {
+                        const SceneNode& child = h.nodes[c];
+                        if (child.child_count == 0) {
+                            const oss::ObjectDisk& o = objects[child.object];
+                            const OssFile::MeshView m = file.mesh(o.mesh);
+                            glm::mat4 world;
+                            std::memcpy(&world, o.world, sizeof world);
+                            const uint32_t level = levelWithTriangles(m.map, m.q, want);
+                            appendLevel(m.positions, m.ecol, m.triangles, m.map, level, world, merged.positions,
+                                        merged.indices);
+                            const float scale = std::max({glm::length(glm::vec3(world[0])), glm::length(glm::vec3(world[1])),
+                                                          glm::length(glm::vec3(world[2]))});
+                            error = std::max(error, scale * levelError(m.error, level));
+                        } else {
+                            KeptLevel& k = kept[c];
+                            error = std::max(error, k.error);
+                            const uint32_t base = uint32_t(merged.positions.size());
+                            merged.positions.insert(merged.positions.end(), k.positions.begin(), k.positions.end());
+                            for (uint32_t v : k.triangles) merged.indices.push_back(base + v);
+                            k = KeptLevel{};
+                        }
+                    }
+                    ProgressiveMesh& p = built[j - b];
+                    p = buildProgressiveMesh(merged, Collapser::Fast);
+                    h.nodes[n].error = error;
+                    if (parent[n] != UINT32_MAX) {
+                        KeptLevel& k = kept[n];
+                        const uint32_t level = levelWithTriangles(p.map, p.q, wanted(parent[n]));
+                        appendLevel(p.positions, p.ecol, p.triangles, p.map, level, glm::mat4(1.0f), k.positions,
+                                    k.triangles);
+                        k.error = error + levelError(p.error, level);
+                    }
+                    if (progress) ++progress->done;
+                });
+            });
+            for (size_t j = b; j < e; ++j) h.nodes[inner[j]].mesh = add_mesh(std::move(built[j - b]));
+        }
+    }
+}
+
+ObjectHierarchy buildObjectHierarchy(const OssFile& file, uint32_t fanout) {
+    std::vector<k::Aabb> boxes;
+    std::vector<uint64_t> triangles;
+    boxes.reserve(file.objectCount());
+    triangles.reserve(file.objectCount());
+    for (const oss::ObjectDisk& o : file.objects()) {
+        boxes.push_back({glm::make_vec3(o.aabb_min), glm::make_vec3(o.aabb_max)});
+        triangles.push_back(file.meshRecords()[o.mesh].triangle_count);
+    }
+    return buildObjectHierarchy(boxes, triangles, fanout);
+}
+
+ObjectHierarchy writeWithHierarchy(const OssFile& file, const std::string& path, uint32_t fanout,
+                                   const HlodOptions& options, HlodProgress* progress) {
+    ObjectHierarchy h = buildObjectHierarchy(file, fanout);
+    OssStreamWriter writer(path);
+    for (uint32_t m = 0; m < file.meshCount(); ++m) writer.addMesh(file.progressiveMesh(m));
+    buildHlods(file, h, options, [&writer](ProgressiveMesh&& p) { return writer.addMesh(p); }, progress);
+    std::vector<ObjectRecord> objects;
+    objects.reserve(file.objectCount());
+    for (const oss::ObjectDisk& d : file.objects()) objects.push_back(oss::fromDisk(d));
+    writer.finish(objects, file.cos(), file.ct(), h.nodes);
+    return h;
 }
 
 }  // namespace occ

@@ -10,24 +10,20 @@
 #include "prep/progressive_mesh.h"
 #include "scene/oss_file.h"
 
+#include <atomic>
 #include <cstdint>
+#include <functional>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace occ {
 
-struct HierarchyNode {
-    k::Aabb box{};                          // world space, the union of its subtree's boxes
-    uint32_t first_child = 0, child_count = 0;  // inner nodes: children nodes[first_child ..]
-    uint32_t object = UINT32_MAX;           // leaves: the object (child_count = 0)
-    uint32_t depth = 0;                     // 0 at the root
-    uint64_t triangles = 0;                 // full-detail triangles of the subtree's objects
-};
-
-// Nodes in breadth-first order: nodes[0] is the root, a node's children are contiguous and come
-// after it, every level after the one above. One leaf per object.
+// Nodes in breadth-first order (SceneNode): nodes[0] is the root, a node's children are
+// contiguous and come after it, every level after the one above. One leaf per object; the
+// inner nodes' meshes are set by buildHlods.
 struct ObjectHierarchy {
-    std::vector<HierarchyNode> nodes;
+    std::vector<SceneNode> nodes;
     uint32_t levels = 0;  // depth of the deepest leaf + 1
 };
 
@@ -55,12 +51,30 @@ struct HlodOptions {
     // about 2 x node_triangles / c triangles (objects at their own LOD, inner children at their
     // HLOD), so an HLOD starts from about twice node_triangles and is simplified from there.
     uint32_t node_triangles = 2048;
+    unsigned threads = 0;  // 0: all hardware threads
 };
 
-// One progressive mesh per inner node (in node order; leaves get none: their objects' meshes
-// are theirs), world space, built bottom-up. objects' meshes come from `file`, whose object
-// count the hierarchy was built for.
-std::vector<ProgressiveMesh> buildHlods(const OssFile& file, const ObjectHierarchy& hierarchy,
-                                        const HlodOptions& options);
+// One progressive mesh per inner node (leaves get none: their objects' meshes are theirs),
+// world space, built bottom-up, level by level from the deepest, in parallel within a level
+// (options.threads) and handed to add_mesh in node order within a level, as each batch is done;
+// add_mesh returns the mesh index, which goes to the node's `mesh`. Only the levels a parent
+// draws from its children are kept, so memory stays a batch of HLODs plus small meshes per
+// node of the level below. The objects' meshes come from `file`, whose objects the hierarchy
+// was built for. `done` (if given) counts inner nodes built.
+struct HlodProgress {
+    std::atomic<uint64_t> done{0};
+    uint64_t total = 0;
+};
+void buildHlods(const OssFile& file, ObjectHierarchy& hierarchy, const HlodOptions& options,
+                const std::function<uint32_t(ProgressiveMesh&&)>& add_mesh, HlodProgress* progress = nullptr);
+
+// The hierarchy of a prepared scene's objects (their boxes and triangle counts).
+ObjectHierarchy buildObjectHierarchy(const OssFile& file, uint32_t fanout);
+
+// Writes `file`'s scene with a hierarchy and its HLODs to `path` (atomically, OssStreamWriter):
+// the same meshes, then one HLOD mesh per inner node, the same objects and COS, and the nodes.
+// Returns the hierarchy written.
+ObjectHierarchy writeWithHierarchy(const OssFile& file, const std::string& path, uint32_t fanout,
+                                   const HlodOptions& options, HlodProgress* progress = nullptr);
 
 }  // namespace occ

@@ -21,6 +21,11 @@ struct PrepOptions {
     unsigned threads = 0;       // 0: all hardware threads
     Collapser collapser = Collapser::Fast;
     int compactness_resolution = 64;  // raster size of Eq. 2's projections, longer side
+    // The object hierarchy and its HLODs (prep/hierarchy.h; written by the command line's prep,
+    // not by prepareScene / prepareToFile, which make the flat scene it starts from).
+    bool hierarchy = true;
+    uint32_t fanout = 8;              // children per node at most
+    uint32_t node_triangles = 2048;   // HlodOptions::node_triangles
 };
 
 // Counters that prepareScene advances while it works, readable from another thread.

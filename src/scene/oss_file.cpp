@@ -46,7 +46,7 @@ struct SectionKind {
 constexpr SectionKind kKinds[kSectionCount] = {
     {"MESHES", sizeof(MeshRecord)}, {"POSITIONS", 3 * sizeof(float)}, {"ECOL", sizeof(int32_t)},
     {"ERROR", sizeof(float)},        {"TRIANGLES", 3 * sizeof(uint32_t)}, {"MAP", sizeof(uint32_t)},
-    {"OBJECTS", sizeof(ObjectDisk)}, {"COS", sizeof(uint32_t)},
+    {"OBJECTS", sizeof(ObjectDisk)}, {"COS", sizeof(uint32_t)},          {"NODES", sizeof(NodeDisk)},
 };
 
 }  // namespace
@@ -84,6 +84,34 @@ ObjectRecord fromDisk(const ObjectDisk& d) {
     o.occluder_normal = glm::make_vec3(d.occluder_normal);
     o.compactness = d.compactness;
     return o;
+}
+
+NodeDisk toDisk(const SceneNode& n) {
+    NodeDisk d{};
+    std::memcpy(d.box_min, glm::value_ptr(n.box.min), sizeof d.box_min);
+    std::memcpy(d.box_max, glm::value_ptr(n.box.max), sizeof d.box_max);
+    d.first_child = n.first_child;
+    d.child_count = n.child_count;
+    d.object = n.object;
+    d.mesh = n.mesh;
+    d.depth = n.depth;
+    d.error = n.error;
+    d.triangles = n.triangles;
+    return d;
+}
+
+SceneNode fromDisk(const NodeDisk& d) {
+    SceneNode n;
+    n.box.min = glm::make_vec3(d.box_min);
+    n.box.max = glm::make_vec3(d.box_max);
+    n.first_child = d.first_child;
+    n.child_count = d.child_count;
+    n.object = d.object;
+    n.mesh = d.mesh;
+    n.depth = d.depth;
+    n.error = d.error;
+    n.triangles = d.triangles;
+    return n;
 }
 
 }  // namespace oss
@@ -405,11 +433,13 @@ uint32_t OssStreamWriter::meshCount() const { return uint32_t(impl_->records.siz
 uint64_t OssStreamWriter::vertexCount() const { return impl_->vertex_count; }
 uint64_t OssStreamWriter::triangleCount() const { return impl_->triangle_count; }
 
-void OssStreamWriter::finish(std::span<const ObjectRecord> objects, std::span<const uint32_t> cos, float ct) {
+void OssStreamWriter::finish(std::span<const ObjectRecord> objects, std::span<const uint32_t> cos, float ct,
+                             std::span<const SceneNode> nodes) {
     Impl& s = *impl_;
     constexpr uint64_t kMax32 = std::numeric_limits<uint32_t>::max();
     if (objects.size() > kMax32) throw std::invalid_argument("writeOss: " + str(uint64_t(objects.size())) + " objects do not fit in 32 bits");
     if (cos.size() > kMax32) throw std::invalid_argument("writeOss: " + str(uint64_t(cos.size())) + " COS entries do not fit in 32 bits");
+    if (nodes.size() >= kMax32) throw std::invalid_argument("writeOss: " + str(uint64_t(nodes.size())) + " nodes do not fit in 32 bits");
     TempFileWriter& w = s.file;
     Header h{};
     w.zeros(sizeof h);  // placeholder; the header is written last, once the checksums are known
@@ -436,6 +466,12 @@ void OssStreamWriter::finish(std::span<const ObjectRecord> objects, std::span<co
     w.beginSection();
     w.put(cos.data(), cos.size() * sizeof(uint32_t));
     h.sections[7] = w.endSection(SectionId::cos);
+    w.beginSection();
+    for (const SceneNode& n : nodes) {
+        const NodeDisk d = toDisk(n);
+        w.put(&d, sizeof d);
+    }
+    h.sections[8] = w.endSection(SectionId::nodes);
     w.padToAlignment();
 
     std::memcpy(h.magic, kMagic, sizeof h.magic);
@@ -449,6 +485,7 @@ void OssStreamWriter::finish(std::span<const ObjectRecord> objects, std::span<co
     h.vertex_count = s.vertex_count;
     h.triangle_count = s.triangle_count;
     h.ct = ct;
+    h.node_count = uint32_t(nodes.size());
     h.header_checksum = XXH3_64bits(&h, kHeaderChecksummedBytes);
     w.commit(h);
 }
@@ -461,7 +498,7 @@ void writeOss(const std::string& path, const PreparedScene& scene) {
     for (size_t i = 0; i < scene.meshes.size(); ++i) requireMeshLayout(scene.meshes[i], i);
     OssStreamWriter writer(path);
     for (const ProgressiveMesh& m : scene.meshes) writer.addMesh(m);
-    writer.finish(scene.objects, scene.cos, scene.ct);
+    writer.finish(scene.objects, scene.cos, scene.ct, scene.nodes);
 }
 
 
@@ -542,7 +579,8 @@ void OssFile::validate() const {
     if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0) fail("HEADER", 0, "bad magic, not an .oss file");
     if (h.version != kVersion)
         fail("HEADER", offsetof(Header, version),
-             "format version " + str(h.version) + ", this build reads version " + str(kVersion));
+             "format version " + str(h.version) + ", this build reads version " + str(kVersion) +
+                 (h.version < kVersion ? " (prepare the model again: occswitch prep)" : ""));
     if (XXH3_64bits(base_, kHeaderChecksummedBytes) != h.header_checksum)
         fail("HEADER", offsetof(Header, header_checksum), "header checksum mismatch (corrupt header)");
     if (h.header_size != sizeof(Header))
@@ -562,7 +600,6 @@ void OssFile::validate() const {
              "COS has " + str(h.cos_count) + " entries but there are only " + str(h.object_count) + " objects");
     if (!(h.ct >= 0.0f && h.ct <= 1.0f))
         fail("HEADER", offsetof(Header, ct), "compactness threshold ct = " + str(h.ct) + " is not in [0, 1]");
-    if (h.reserved0 != 0) fail("HEADER", offsetof(Header, reserved0), "reserved field is not 0");
     for (uint64_t i = 0; i < sizeof h.reserved1; ++i)
         if (h.reserved1[i] != 0) fail("HEADER", offsetof(Header, reserved1) + i, "reserved byte is not 0");
 
@@ -574,7 +611,8 @@ void OssFile::validate() const {
     if (__builtin_add_overflow(h.vertex_count, uint64_t(h.mesh_count), &map_count))
         fail("HEADER", offsetof(Header, vertex_count), "vertex count " + str(h.vertex_count) + " overflows");
     const uint64_t counts[kSectionCount] = {h.mesh_count, h.vertex_count, h.vertex_count,  h.vertex_count,
-                                            h.triangle_count, map_count,  h.object_count, h.cos_count};
+                                            h.triangle_count, map_count,  h.object_count, h.cos_count,
+                                            h.node_count};
     auto requireZeros = [&](const char* section, uint64_t from, uint64_t to, const char* where) {
         for (uint64_t o = from; o < to; ++o)
             if (base_[o] != std::byte{0})
@@ -776,6 +814,92 @@ void OssFile::validate() const {
             fail("COS", at, entry() + " has compactness " + str(c) + " > " + str(objs[cos_ids[j - 1]].compactness) +
                                 " of cos[" + str(j - 1) + "] (must be sorted highest first)");
     }
+    validateNodes();
+}
+
+void OssFile::validateNodes() const {
+    const Header& h = header();
+    if (h.node_count == 0) return;
+    const NodeDisk* nodes = sectionData<NodeDisk>(SectionId::nodes);
+    const ObjectDisk* objs = sectionData<ObjectDisk>(SectionId::objects);
+    const MeshRecord* meshes = sectionData<MeshRecord>(SectionId::meshes);
+    const uint64_t nodes_at = h.sections[uint32_t(SectionId::nodes) - 1].offset;
+    const auto at = [&](uint32_t i, size_t field) { return nodes_at + uint64_t(i) * sizeof(NodeDisk) + field; };
+    const auto fail = [&](uint32_t i, size_t field, const std::string& what) {
+        raise(path_, {"NODES", at(i, field), "node " + str(i) + ": " + what});
+    };
+    // One pass in node order: breadth-first, so every node's parent comes before it and the
+    // children of consecutive inner nodes follow each other from node 1 on. That makes the
+    // nodes one tree; each object must then be exactly one leaf.
+    std::vector<uint32_t> parent(h.node_count, UINT32_MAX);
+    std::vector<bool> leaf_of(h.object_count, false);
+    uint64_t next_child = 1, leaves = 0;
+    for (uint32_t i = 0; i < h.node_count; ++i) {
+        const NodeDisk& n = nodes[i];
+        for (int a = 0; a < 3; ++a) {
+            if (!std::isfinite(n.box_min[a]) || !std::isfinite(n.box_max[a]))
+                fail(i, offsetof(NodeDisk, box_min), "box is not finite");
+            if (n.box_min[a] > n.box_max[a])
+                fail(i, offsetof(NodeDisk, box_min) + 4 * size_t(a),
+                     "box_min[" + str(uint32_t(a)) + "] = " + str(n.box_min[a]) + " > box_max = " + str(n.box_max[a]));
+        }
+        if (i > 0 && parent[i] == UINT32_MAX)
+            fail(i, 0, "no node has it as a child (the tree reaches only " + str(next_child) + " nodes)");
+        if (i == 0 && n.child_count == 0) fail(i, offsetof(NodeDisk, child_count), "the root has no children");
+        const uint32_t depth = i == 0 ? 0 : nodes[parent[i]].depth + 1;
+        if (n.depth != depth) fail(i, offsetof(NodeDisk, depth), "depth " + str(n.depth) + ", expected " + str(depth));
+        if (!(n.error >= 0.0f && n.error < INFINITY))  // also NaN
+            fail(i, offsetof(NodeDisk, error), "error " + str(n.error) + " is not a finite number >= 0");
+        if (n.child_count == 0 && n.error != 0.0f) fail(i, offsetof(NodeDisk, error), "a leaf with error " + str(n.error));
+        if (n.child_count == 0) {
+            if (n.first_child != 0) fail(i, offsetof(NodeDisk, first_child), "a leaf with first_child " + str(n.first_child));
+            if (n.object >= h.object_count)
+                fail(i, offsetof(NodeDisk, object), "leaf object " + str(n.object) + " is not < object count " + str(h.object_count));
+            if (leaf_of[n.object]) fail(i, offsetof(NodeDisk, object), "object " + str(n.object) + " is a second leaf");
+            leaf_of[n.object] = true;
+            ++leaves;
+            if (n.mesh != UINT32_MAX) fail(i, offsetof(NodeDisk, mesh), "a leaf with an HLOD mesh " + str(n.mesh));
+            const ObjectDisk& o = objs[n.object];
+            for (int a = 0; a < 3; ++a)
+                if (o.aabb_min[a] < n.box_min[a] || o.aabb_max[a] > n.box_max[a])
+                    fail(i, offsetof(NodeDisk, box_min), "box does not hold object " + str(n.object) + "'s box");
+            if (n.triangles != meshes[o.mesh].triangle_count)
+                fail(i, offsetof(NodeDisk, triangles),
+                     str(n.triangles) + " triangles, object " + str(n.object) + "'s mesh has " + str(meshes[o.mesh].triangle_count));
+            continue;
+        }
+        if (n.first_child != next_child)
+            fail(i, offsetof(NodeDisk, first_child),
+                 "first_child " + str(n.first_child) + ", expected " + str(next_child) +
+                     " (children follow in breadth-first order)");
+        if (n.child_count > h.node_count - next_child)
+            fail(i, offsetof(NodeDisk, child_count),
+                 str(n.child_count) + " children from node " + str(next_child) + " pass the " + str(h.node_count) + " nodes");
+        if (n.object != UINT32_MAX) fail(i, offsetof(NodeDisk, object), "an inner node with object " + str(n.object));
+        if (n.mesh >= h.mesh_count)
+            fail(i, offsetof(NodeDisk, mesh), "HLOD mesh " + str(n.mesh) + " is not < mesh count " + str(h.mesh_count));
+        for (uint32_t c = n.first_child; c < n.first_child + n.child_count; ++c) parent[c] = i;
+        next_child += n.child_count;
+    }
+    if (next_child != h.node_count)
+        fail(0, 0, "the tree reaches " + str(next_child) + " of the " + str(h.node_count) + " nodes");
+    if (leaves != h.object_count)
+        fail(0, 0, str(leaves) + " leaves for " + str(h.object_count) + " objects (one leaf per object)");
+    // Bottom-up: a node holds its children's boxes and triangles.
+    std::vector<uint64_t> sums(h.node_count, 0);
+    for (uint32_t i = h.node_count; i-- > 1;) {
+        const NodeDisk& n = nodes[i];
+        const NodeDisk& p = nodes[parent[i]];
+        for (int a = 0; a < 3; ++a)
+            if (n.box_min[a] < p.box_min[a] || n.box_max[a] > p.box_max[a])
+                fail(parent[i], offsetof(NodeDisk, box_min), "box does not hold child " + str(i) + "'s box");
+        if (__builtin_add_overflow(sums[parent[i]], n.triangles, &sums[parent[i]]))
+            fail(parent[i], offsetof(NodeDisk, triangles), "the children's triangles overflow 64 bits");
+    }
+    for (uint32_t i = 0; i < h.node_count; ++i)
+        if (nodes[i].child_count > 0 && nodes[i].triangles != sums[i])
+            fail(i, offsetof(NodeDisk, triangles),
+                 str(nodes[i].triangles) + " triangles, its children have " + str(sums[i]));
 }
 
 OssFile::MeshView OssFile::mesh(uint32_t i) const {
@@ -821,6 +945,7 @@ std::span<const uint32_t> OssFile::allMaps() const {
 }
 
 std::span<const uint32_t> OssFile::cos() const { return {sectionData<uint32_t>(SectionId::cos), header().cos_count}; }
+std::span<const NodeDisk> OssFile::nodes() const { return {sectionData<NodeDisk>(SectionId::nodes), nodeCount()}; }
 
 std::vector<OssFile::SectionInfo> OssFile::sections() const {
     std::vector<SectionInfo> out;
@@ -847,27 +972,32 @@ void OssFile::verifyLodPrefix() const {
     if (failure) raise(path_, *failure);
 }
 
+ProgressiveMesh OssFile::progressiveMesh(uint32_t i) const {
+    const MeshView v = mesh(i);
+    ProgressiveMesh m;
+    m.positions.assign(v.positions.begin(), v.positions.end());
+    m.ecol.assign(v.ecol.begin(), v.ecol.end());
+    m.error.assign(v.error.begin(), v.error.end());
+    m.triangles.assign(v.triangles.begin(), v.triangles.end());
+    m.map.assign(v.map.begin(), v.map.end());
+    m.q = v.q;
+    m.refused_faces = v.refused_faces;
+    m.source_vertices = v.source_vertices;
+    m.dropped_triangles = v.dropped_triangles;
+    return m;
+}
+
 PreparedScene OssFile::toPreparedScene() const {
     PreparedScene scene;
     scene.ct = ct();
-    scene.meshes.resize(meshCount());
-    for (uint32_t i = 0; i < meshCount(); ++i) {
-        const MeshView v = mesh(i);
-        ProgressiveMesh& m = scene.meshes[i];
-        m.positions.assign(v.positions.begin(), v.positions.end());
-        m.ecol.assign(v.ecol.begin(), v.ecol.end());
-        m.error.assign(v.error.begin(), v.error.end());
-        m.triangles.assign(v.triangles.begin(), v.triangles.end());
-        m.map.assign(v.map.begin(), v.map.end());
-        m.q = v.q;
-        m.refused_faces = v.refused_faces;
-        m.source_vertices = v.source_vertices;
-        m.dropped_triangles = v.dropped_triangles;
-    }
+    scene.meshes.reserve(meshCount());
+    for (uint32_t i = 0; i < meshCount(); ++i) scene.meshes.push_back(progressiveMesh(i));
     scene.objects.reserve(objectCount());
     for (const ObjectDisk& d : objects()) scene.objects.push_back(fromDisk(d));
     const std::span<const uint32_t> c = cos();
     scene.cos.assign(c.begin(), c.end());
+    scene.nodes.reserve(nodeCount());
+    for (const NodeDisk& d : nodes()) scene.nodes.push_back(fromDisk(d));
     return scene;
 }
 

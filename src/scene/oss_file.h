@@ -24,7 +24,7 @@ static_assert(std::endian::native == std::endian::little,
 namespace oss {
 
 inline constexpr char kMagic[8] = {'O', 'C', 'C', 'S', 'W', 'O', 'S', 'S'};
-inline constexpr uint32_t kVersion = 1;
+inline constexpr uint32_t kVersion = 2;  // 2: the NODES section (the hierarchy)
 inline constexpr uint64_t kAlignment = 64;  // of every section, so any element type can be mapped
 
 // Section ids, also their order in the header's table and in the file.
@@ -37,8 +37,9 @@ enum class SectionId : uint32_t {
     map = 6,        // uint32 per (vertex_count + 1) per mesh
     objects = 7,    // ObjectDisk per object
     cos = 8,        // uint32 object id per candidate occluder
+    nodes = 9,      // NodeDisk per hierarchy node; empty without a hierarchy
 };
-inline constexpr uint32_t kSectionCount = 8;
+inline constexpr uint32_t kSectionCount = 9;
 const char* sectionName(SectionId id);  // "MESHES", "POSITIONS", ...
 
 // One row of the header's section table.
@@ -64,16 +65,16 @@ struct Header {
     uint64_t vertex_count;      // over all meshes
     uint64_t triangle_count;    // over all meshes
     float ct;                   // compactness threshold the COS was built with, in [0, 1]
-    uint32_t reserved0;         // 0
+    uint32_t node_count;        // hierarchy nodes, 0 (none) or 1 + objects' leaves and more
     SectionEntry sections[kSectionCount];
-    uint8_t reserved1[56];      // 0
+    uint8_t reserved1[24];      // 0
     uint64_t header_checksum;   // XXH3_64bits (seed 0) of the bytes before it
 };
 static_assert(sizeof(Header) == 384 && sizeof(Header) % kAlignment == 0);
 static_assert(offsetof(Header, version) == 8 && offsetof(Header, file_size) == 16);
 static_assert(offsetof(Header, section_count) == 24 && offsetof(Header, vertex_count) == 40);
-static_assert(offsetof(Header, ct) == 56 && offsetof(Header, sections) == 64);
-static_assert(offsetof(Header, reserved1) == 320 && offsetof(Header, header_checksum) == 376);
+static_assert(offsetof(Header, ct) == 56 && offsetof(Header, node_count) == 60 && offsetof(Header, sections) == 64);
+static_assert(offsetof(Header, reserved1) == 352 && offsetof(Header, header_checksum) == 376);
 
 // Where one mesh's elements start in the shared per-vertex / per-triangle / map sections. The
 // ranges of consecutive meshes are contiguous (first[i+1] = first[i] + count[i]), from 0.
@@ -111,6 +112,24 @@ static_assert(sizeof(glm::vec3) == 12 && alignof(glm::vec3) <= 4, "positions are
 ObjectDisk toDisk(const ObjectRecord& o);
 ObjectRecord fromDisk(const ObjectDisk& d);
 
+// SceneNode with fixed-width fields: box finite and min <= max, children in breadth-first
+// order, leaves naming their object, inner nodes their HLOD mesh (docs/oss_format.md).
+struct NodeDisk {
+    float box_min[3];
+    float box_max[3];
+    uint32_t first_child;        // inner nodes; 0 for leaves
+    uint32_t child_count;        // 0: a leaf
+    uint32_t object;             // leaves: < object_count; inner nodes: UINT32_MAX
+    uint32_t mesh;               // inner nodes: < mesh_count; leaves: UINT32_MAX
+    uint32_t depth;              // the parent's + 1; 0 at the root
+    float error;                 // SceneNode::error: finite, >= 0; 0 for leaves
+    uint64_t triangles;          // the subtree's full-detail triangles
+};
+static_assert(sizeof(NodeDisk) == 56 && offsetof(NodeDisk, first_child) == 24 && offsetof(NodeDisk, triangles) == 48);
+
+NodeDisk toDisk(const SceneNode& n);
+SceneNode fromDisk(const NodeDisk& d);
+
 }  // namespace oss
 
 // Writes `scene` to `path` atomically: the bytes go to a new temporary file next to `path`
@@ -140,7 +159,8 @@ public:
     uint32_t meshCount() const;
     uint64_t vertexCount() const;
     uint64_t triangleCount() const;
-    void finish(std::span<const ObjectRecord> objects, std::span<const uint32_t> cos, float ct);
+    void finish(std::span<const ObjectRecord> objects, std::span<const uint32_t> cos, float ct,
+                std::span<const SceneNode> nodes = {});
 
 private:
     struct Impl;
@@ -189,6 +209,7 @@ public:
         uint32_t triangleCount() const { return uint32_t(triangles.size() / 3); }
     };
     MeshView mesh(uint32_t i) const;  // throws std::out_of_range if i >= meshCount()
+    ProgressiveMesh progressiveMesh(uint32_t i) const;  // a copy of mesh(i)
 
     std::span<const oss::ObjectDisk> objects() const;  // zero-copy, objectCount() records
     std::span<const oss::MeshRecord> meshRecords() const;  // where each mesh's arrays start
@@ -200,6 +221,9 @@ public:
     std::span<const uint32_t> allMaps() const;
     ObjectRecord object(uint32_t i) const;             // throws std::out_of_range if i >= objectCount()
     std::span<const uint32_t> cos() const;             // sorted by compactness, highest first
+    // The hierarchy (empty without one), breadth-first; inner nodes' HLODs are meshes.
+    std::span<const oss::NodeDisk> nodes() const;
+    uint32_t nodeCount() const { return header().node_count; }
 
     struct SectionInfo {
         std::string name;
@@ -224,6 +248,7 @@ private:
     template <typename T>
     const T* sectionData(oss::SectionId id) const;
     void validate() const;
+    void validateNodes() const;
     void unmap() noexcept;
 
     std::string path_;

@@ -27,6 +27,25 @@ struct ObjectRecord {
     float compactness = 0.0f;             // Eq. 2, in [0, 1]
 };
 
+// A node of the object hierarchy (issue 16; Erikson et al. 2001's HLODs): a leaf stands for one
+// object, an inner node for its subtree, drawn at once through its HLOD, a progressive mesh in
+// world space of the subtree's merged and simplified geometry. Nodes are in breadth-first
+// order: nodes[0] is the root, a node's children are contiguous and come after it, every level
+// after the one above.
+struct SceneNode {
+    Bounds box;                              // world space, the union of its subtree's boxes
+    uint32_t first_child = 0, child_count = 0;  // inner nodes: children nodes[first_child ..]
+    uint32_t object = UINT32_MAX;            // leaves (child_count = 0): the object
+    uint32_t mesh = UINT32_MAX;              // inner nodes: the HLOD, an index into the meshes
+    uint32_t depth = 0;                      // 0 at the root
+    uint64_t triangles = 0;                  // full-detail triangles of the subtree's objects
+    // Inner nodes: how far the HLOD at full detail is from the subtree at full detail, world
+    // units: the largest, over the children, of the error of the level merged (the largest
+    // collapse error it undid, scaled by the object's world matrix) plus the child's own. The
+    // collapse errors are the collapser's distance estimates, not bounds. Leaves: 0.
+    float error = 0.0f;
+};
+
 // The content of a .oss file.
 struct PreparedScene {
     std::vector<ProgressiveMesh> meshes;  // one per unique input mesh (instances share)
@@ -34,6 +53,8 @@ struct PreparedScene {
     std::vector<uint32_t> cos;            // candidate occluder set: ids with compactness >= ct,
                                           // sorted by compactness, highest first
     float ct = 0.55f;                     // compactness threshold CT used to build cos
+    std::vector<SceneNode> nodes;         // the hierarchy; empty: none (the HLODs are meshes
+                                          // after the objects' own)
 };
 
 }  // namespace occ

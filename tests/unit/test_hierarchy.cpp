@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// The object hierarchy and its HLODs (issue 16, first step: built in memory, not yet in the .oss).
+// The object hierarchy and its HLODs (issue 16), in memory and in the .oss.
 #include "import/plant.h"
 #include "prep/hierarchy.h"
 #include "prep/lod_prefix.h"
@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <memory>
 #include <set>
 
@@ -34,7 +35,8 @@ const HierarchyFixture& fixture() {
     return f;
 }
 
-bool contains(const k::Aabb& outer, const k::Aabb& inner) {
+template <typename A, typename B>
+bool contains(const A& outer, const B& inner) {
     return glm::all(glm::lessThanEqual(outer.min, inner.min)) && glm::all(glm::greaterThanEqual(outer.max, inner.max));
 }
 
@@ -47,7 +49,7 @@ TEST(Hierarchy, EveryObjectIsOneLeafAndNodesBoundTheirChildrenBreadthFirst) {
         for (uint64_t t : f.triangles) root_triangles += t;
         EXPECT_EQ(h.nodes[0].triangles, root_triangles);
         for (size_t n = 0; n < h.nodes.size(); ++n) {
-            const HierarchyNode& node = h.nodes[n];
+            const SceneNode& node = h.nodes[n];
             if (node.child_count == 0) {
                 ASSERT_LT(node.object, f.boxes.size());
                 EXPECT_TRUE(leaves.insert(node.object).second) << "object " << node.object << " twice";
@@ -80,15 +82,29 @@ TEST(Hierarchy, EveryObjectIsOneLeafAndNodesBoundTheirChildrenBreadthFirst) {
 // covering most of it, from a merged input of about twice node_triangles.
 TEST(Hierarchy, HlodsAreProgressiveMeshesOfTheirSubtrees) {
     const HierarchyFixture& f = fixture();
-    const ObjectHierarchy h = buildObjectHierarchy(f.boxes, f.triangles, 8);
+    ObjectHierarchy h = buildObjectHierarchy(f.boxes, f.triangles, 8);
     HlodOptions options;
     options.node_triangles = 600;
-    const std::vector<ProgressiveMesh> hlods = buildHlods(*f.file, h, options);
-    ASSERT_EQ(hlods.size(), h.nodes.size());
+    std::vector<ProgressiveMesh> made;
+    HlodProgress progress;
+    buildHlods(*f.file, h, options, [&](ProgressiveMesh&& p) {
+        made.push_back(std::move(p));
+        return uint32_t(made.size() - 1);
+    }, &progress);
+    EXPECT_EQ(progress.done, progress.total);
+    std::vector<ProgressiveMesh> hlods(h.nodes.size());
+    for (size_t n = 0; n < h.nodes.size(); ++n)
+        if (h.nodes[n].child_count > 0) {
+            ASSERT_LT(h.nodes[n].mesh, made.size());
+            hlods[n] = made[h.nodes[n].mesh];
+        } else {
+            EXPECT_EQ(h.nodes[n].mesh, UINT32_MAX);
+        }
+    EXPECT_EQ(made.size(), progress.total);
     LodPrefixScratch scratch;
     uint32_t inner = 0;
     for (size_t n = 0; n < h.nodes.size(); ++n) {
-        const HierarchyNode& node = h.nodes[n];
+        const SceneNode& node = h.nodes[n];
         const ProgressiveMesh& p = hlods[n];
         if (node.child_count == 0) {
             EXPECT_EQ(p.vertexCount(), 0u);
@@ -100,13 +116,57 @@ TEST(Hierarchy, HlodsAreProgressiveMeshesOfTheirSubtrees) {
         // A little over 2 x node_triangles at most (children round up to a level), and never
         // more than the subtree has.
         EXPECT_LE(p.triangleCount(), std::min<uint64_t>(node.triangles, 3 * options.node_triangles)) << "node " << n;
-        k::Aabb b{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+        Bounds b;
         for (const glm::vec3& v : p.positions) b.min = glm::min(b.min, v), b.max = glm::max(b.max, v);
         const glm::vec3 slack = 1e-4f * (node.box.max - node.box.min) + glm::vec3(1e-5f);
-        EXPECT_TRUE(contains({node.box.min - slack, node.box.max + slack}, b)) << "node " << n;
+        EXPECT_TRUE(contains(k::Aabb{node.box.min - slack, node.box.max + slack}, b)) << "node " << n;
         EXPECT_GE(glm::length(b.max - b.min), 0.5f * glm::length(node.box.max - node.box.min)) << "node " << n;
     }
     EXPECT_GT(inner, 8u);
+}
+
+// prep's file: the flat scene's meshes, objects and COS unchanged, then one HLOD mesh per inner
+// node, and the nodes, which verify accepts; the result does not depend on the thread count.
+TEST(Hierarchy, TheFileCarriesTheHierarchyAndItsHlods) {
+    const HierarchyFixture& f = fixture();
+    HlodOptions options;
+    options.node_triangles = 300;
+    const std::string one = (test::scratchDir() / "hierarchy_1.oss").string(), two = (test::scratchDir() / "hierarchy_2.oss").string();
+    options.threads = 1;
+    const ObjectHierarchy h = writeWithHierarchy(*f.file, one, 4, options);
+    options.threads = 2;
+    writeWithHierarchy(*f.file, two, 4, options);
+    EXPECT_EQ(test::readBytes(one), test::readBytes(two));
+    const OssFile file = OssFile::open(one);
+    file.verifyLodPrefix();
+    ASSERT_EQ(file.nodeCount(), h.nodes.size());
+    EXPECT_EQ(file.objectCount(), f.file->objectCount());
+    const uint32_t flat_meshes = f.file->meshCount();
+    uint32_t inner = 0;
+    std::set<uint32_t> hlods;
+    for (size_t n = 0; n < h.nodes.size(); ++n) {
+        const oss::NodeDisk& d = file.nodes()[n];
+        EXPECT_EQ(d.child_count, h.nodes[n].child_count);
+        EXPECT_EQ(d.triangles, h.nodes[n].triangles);
+        EXPECT_EQ(d.error, h.nodes[n].error);
+        if (d.child_count > 0) {
+            ++inner;
+            EXPECT_GE(d.mesh, flat_meshes) << "HLODs come after the objects' meshes";
+            EXPECT_TRUE(hlods.insert(d.mesh).second);
+            // Errors add up the tree: a parent merges a child's level, no finer than the child.
+            for (uint32_t c = d.first_child; c < d.first_child + d.child_count; ++c)
+                EXPECT_GE(d.error, file.nodes()[c].error) << "node " << n << ", child " << c;
+        }
+    }
+    EXPECT_GT(file.nodes()[0].error, 0.0f);
+    EXPECT_EQ(file.meshCount(), flat_meshes + inner);
+    for (uint32_t m = 0; m < flat_meshes; ++m) EXPECT_EQ(file.mesh(m).triangleCount(), f.file->mesh(m).triangleCount());
+    for (uint32_t i = 0; i < file.objectCount(); ++i)
+        EXPECT_EQ(std::memcmp(&file.objects()[i], &f.file->objects()[i], sizeof(oss::ObjectDisk)), 0);
+    EXPECT_TRUE(std::equal(file.cos().begin(), file.cos().end(), f.file->cos().begin(), f.file->cos().end()));
+    const PreparedScene scene = file.toPreparedScene();
+    ASSERT_EQ(scene.nodes.size(), h.nodes.size());
+    EXPECT_EQ(scene.nodes.back().object, h.nodes.back().object);
 }
 
 TEST(Hierarchy, LevelWithTrianglesFindsTheSmallestLevelThatHasThem) {

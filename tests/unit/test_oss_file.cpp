@@ -10,6 +10,7 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <set>
 #include <string>
 #include <vector>
@@ -73,12 +74,33 @@ ObjectRecord object(uint32_t mesh, float compactness, float shift) {
     return o;
 }
 
+SceneNode node(const Bounds& box, uint32_t depth, uint64_t triangles) {
+    SceneNode n;
+    n.box = box;
+    n.depth = depth;
+    n.triangles = triangles;
+    return n;
+}
+
+// With a hierarchy: root (0) -> inner 1 (objects 0 and 1, nodes 3 and 4) and leaf 2 (object 2);
+// mesh 1 stands in for the HLODs.
 PreparedScene smallScene() {
     PreparedScene s;
     s.meshes = {tetrahedron(), rectangle()};
     s.objects = {object(0, 0.9f, 1.0f), object(1, 0.3f, 2.0f), object(1, 0.7f, 3.0f)};
     s.cos = {0, 2};
     s.ct = 0.55f;
+    Bounds all, first_two;
+    for (int i = 0; i < 3; ++i) {
+        all.extend(s.objects[size_t(i)].aabb.min), all.extend(s.objects[size_t(i)].aabb.max);
+        if (i < 2) first_two.extend(s.objects[size_t(i)].aabb.min), first_two.extend(s.objects[size_t(i)].aabb.max);
+    }
+    s.nodes = {node(all, 0, 16), node(first_two, 1, 10), node(s.objects[2].aabb, 1, 6), node(s.objects[0].aabb, 2, 4),
+               node(s.objects[1].aabb, 2, 6)};
+    s.nodes[0].first_child = 1, s.nodes[0].child_count = 2, s.nodes[0].mesh = 1;
+    s.nodes[1].first_child = 3, s.nodes[1].child_count = 2, s.nodes[1].mesh = 1;
+    s.nodes[2].object = 2, s.nodes[3].object = 0, s.nodes[4].object = 1;
+    s.nodes[0].error = 0.5f, s.nodes[1].error = 0.25f;
     return s;
 }
 
@@ -120,6 +142,17 @@ PreparedScene grownScene(uint32_t meshes, uint32_t max_vertices, uint32_t object
     std::stable_sort(s.cos.begin(), s.cos.end(), [&](uint32_t a, uint32_t b) {
         return s.objects[a].compactness > s.objects[b].compactness;
     });
+    // A root over one leaf per object.
+    SceneNode root;
+    root.first_child = 1, root.child_count = objects, root.mesh = 0, root.error = 1.0f;
+    for (uint32_t i = 0; i < objects; ++i) {
+        SceneNode leaf;
+        leaf.box = s.objects[i].aabb, leaf.object = i, leaf.depth = 1;
+        leaf.triangles = s.meshes[s.objects[i].mesh].triangleCount();
+        root.box.extend(leaf.box.min), root.box.extend(leaf.box.max), root.triangles += leaf.triangles;
+        s.nodes.push_back(leaf);
+    }
+    s.nodes.insert(s.nodes.begin(), root);
     return s;
 }
 
@@ -188,6 +221,18 @@ void expectSameScene(const PreparedScene& a, const PreparedScene& b) {
     for (size_t i = 0; i < a.objects.size(); ++i) expectSameObject(a.objects[i], b.objects[i]);
     EXPECT_EQ(a.cos, b.cos);
     EXPECT_EQ(a.ct, b.ct);
+    ASSERT_EQ(a.nodes.size(), b.nodes.size());
+    for (size_t i = 0; i < a.nodes.size(); ++i) {
+        EXPECT_EQ(a.nodes[i].box.min, b.nodes[i].box.min);
+        EXPECT_EQ(a.nodes[i].box.max, b.nodes[i].box.max);
+        EXPECT_EQ(a.nodes[i].first_child, b.nodes[i].first_child);
+        EXPECT_EQ(a.nodes[i].child_count, b.nodes[i].child_count);
+        EXPECT_EQ(a.nodes[i].object, b.nodes[i].object);
+        EXPECT_EQ(a.nodes[i].mesh, b.nodes[i].mesh);
+        EXPECT_EQ(a.nodes[i].depth, b.nodes[i].depth);
+        EXPECT_EQ(a.nodes[i].triangles, b.nodes[i].triangles);
+        EXPECT_EQ(a.nodes[i].error, b.nodes[i].error);
+    }
 }
 
 TEST(OssFile, RoundTripKeepsEveryField) {
@@ -202,7 +247,15 @@ TEST(OssFile, RoundTripKeepsEveryField) {
     EXPECT_EQ(f.ct(), 0.55f);
     expectSameScene(f.toPreparedScene(), scene);
     expectSameObject(f.object(2), scene.objects[2]);
+    EXPECT_EQ(f.nodeCount(), 5u);
     f.verifyLodPrefix();
+    // Without a hierarchy: an empty NODES section.
+    PreparedScene flat = scene;
+    flat.nodes.clear();
+    writeOss(path, flat);
+    const OssFile g = OssFile::open(path);
+    EXPECT_EQ(g.nodeCount(), 0u);
+    expectSameScene(g.toPreparedScene(), flat);
 }
 
 TEST(OssFile, MeshViewsPointIntoTheMapping) {
@@ -231,7 +284,7 @@ TEST(OssFile, SectionsAreAlignedInOrderAndCoverTheFile) {
     const OssFile f = OssFile::open(path);
     const std::vector<OssFile::SectionInfo> s = f.sections();
     const std::vector<std::string> names = {"HEADER",    "MESHES", "POSITIONS", "ECOL", "ERROR",
-                                            "TRIANGLES", "MAP",    "OBJECTS",   "COS"};
+                                            "TRIANGLES", "MAP",    "OBJECTS",   "COS",  "NODES"};
     ASSERT_EQ(s.size(), names.size());
     for (size_t i = 0; i < s.size(); ++i) {
         EXPECT_EQ(s[i].name, names[i]);
@@ -243,6 +296,7 @@ TEST(OssFile, SectionsAreAlignedInOrderAndCoverTheFile) {
     EXPECT_EQ(s[2].count, 10u);  // positions
     EXPECT_EQ(s[6].count, 12u);  // map: 5 + 7
     EXPECT_EQ(s[7].size, 3 * sizeof(oss::ObjectDisk));
+    EXPECT_EQ(s[9].size, 5 * sizeof(oss::NodeDisk));
     EXPECT_EQ(f.fileSize() % 64, 0u);
     EXPECT_EQ(f.fileSize(), fs::file_size(path));
 }
@@ -330,9 +384,13 @@ TEST(OssFile, FutureVersionIsNamed) {
     const std::string good = scratch("version_source.oss"), path = scratch("version.oss");
     writeOss(good, smallScene());
     std::vector<char> bytes = readBytes(good);
-    bytes[8] = 2;
+    bytes[8] = 3;
     writeBytes(path, bytes, bytes.size());
-    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 2, this build reads version 1");
+    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 3, this build reads version 2");
+    bytes[8] = 1;  // a file of an older build: prepared again
+    writeBytes(path, bytes, bytes.size());
+    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 1, this build reads version 2 "
+                                      "(prepare the model again: occswitch prep)");
     bytes[0] = 'X';
     writeBytes(path, bytes, bytes.size());
     EXPECT_EQ(openError(path), path + ": section HEADER at offset 0: bad magic, not an .oss file");
@@ -450,6 +508,52 @@ TEST(OssFile, CosEntriesMustBeQualifiedDistinctObjects) {
     EXPECT_NE(errorOfWritten(scene).find("cos[1] = 0 appears twice"), std::string::npos);
     scene.cos = {0, 2, 0, 2};
     EXPECT_NE(errorOfWritten(scene).find("COS has 4 entries but there are only 3 objects"), std::string::npos);
+}
+
+// The hierarchy, written with valid checksums: one tree in breadth-first order, every object
+// one leaf, boxes and triangle counts that hold their children's, HLOD meshes that exist.
+TEST(OssFile, ABrokenHierarchyIsRejected) {
+    const uint64_t nodes = sectionOffsetOf(smallScene(), "NODES");
+    const auto at = [&](uint32_t n, size_t field) { return "section NODES at offset " + std::to_string(nodes + n * 56 + field) + ": node " + std::to_string(n) + ": "; };
+    const auto broken = [](const std::function<void(PreparedScene&)>& change) {
+        PreparedScene scene = smallScene();
+        change(scene);
+        return errorOfWritten(scene);
+    };
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].first_child = 2; }),
+              at(1, 24) + "first_child 2, expected 3 (children follow in breadth-first order)");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].child_count = 3; }),
+              at(1, 28) + "3 children from node 3 pass the 5 nodes");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[4].object = 0; }), at(4, 32) + "object 0 is a second leaf");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[4].object = 3; }), at(4, 32) + "leaf object 3 is not < object count 3");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].mesh = 2; }), at(1, 36) + "HLOD mesh 2 is not < mesh count 2");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[3].mesh = 0; }), at(3, 36) + "a leaf with an HLOD mesh 0");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[3].depth = 1; }), at(3, 40) + "depth 1, expected 2");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[3].triangles = 5; }),
+              at(3, 48) + "5 triangles, object 0's mesh has 4");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[0].triangles = 17; }), at(0, 48) + "17 triangles, its children have 16");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[3].box.max.x += 5.0f; }),
+              at(1, 0) + "box does not hold child 3's box");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[2].box.max.y -= 0.5f; }),
+              at(2, 0) + "box does not hold object 2's box");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[2].box.min.z = std::numeric_limits<float>::infinity(); }),
+              at(2, 0) + "box is not finite");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[3].error = 1.0f; }), at(3, 44) + "a leaf with error 1");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].error = std::numeric_limits<float>::quiet_NaN(); }),
+              at(1, 44) + "error nan is not a finite number >= 0");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[0].child_count = 0, s.nodes[0].first_child = 0; }),
+              at(0, 28) + "the root has no children");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes.pop_back(); }),
+              at(1, 28) + "2 children from node 3 pass the 4 nodes");
+    EXPECT_EQ(broken([](PreparedScene& s) {
+                  s.nodes[1].child_count = 1, s.nodes[1].triangles = 4, s.nodes[0].triangles = 10;
+              }),
+              at(4, 0) + "no node has it as a child (the tree reaches only 4 nodes)");
+    EXPECT_EQ(broken([](PreparedScene& s) {
+                  s.nodes = {s.nodes[0], s.nodes[3], s.nodes[4]};  // object 2 has no leaf
+                  s.nodes[1].depth = s.nodes[2].depth = 1, s.nodes[0].triangles = 10;
+              }),
+              "section NODES at offset " + std::to_string(nodes) + ": node 0: 2 leaves for 3 objects (one leaf per object)");
 }
 
 TEST(OssFile, EmptySceneIsRejected) {
