@@ -102,8 +102,9 @@ struct PvsOccluderKey {
 
     OCC_HD uint64_t operator()(uint32_t j) const {
         const uint32_t id = candidates[j];
-        if (!in_frustum[id]) return ~uint64_t(0);  // dropped after the sort
         const ObjectInfo& o = objects[id];
+        // Dropped after the sort: out of the frustum, or no occluder at all (an HLOD).
+        if (!in_frustum[id] || o.compactness < 0.0f) return ~uint64_t(0);
         const glm::vec3 nearest = glm::clamp(eye, o.aabb.min, o.aabb.max);
         const float length = glm::length(nearest - eye);
         const float distance = length > near_plane ? length : near_plane;

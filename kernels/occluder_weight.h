@@ -46,7 +46,8 @@ struct PvsOccluderScratch {
 
 // Beyond the papers, the two-pass idea of occlusion-switches and GPU-driven renderers: what was
 // visible in an earlier frame is likely to occlude now. Of candidates[0, count) (object ids; one
-// listed twice is taken once), those in the frustum (in_frustum as frustumCull writes it) are ranked by most
+// listed twice is taken once), those in the frustum (in_frustum as frustumCull writes it) and
+// with compactness >= 0 (an HLOD has -1: not the real surface, never an occluder) are ranked by most
 // screen per rastered triangle first: (|aabb diagonal| / D)^2 x compactness / max(1, triangles),
 // D the distance from the eye to the box, at least camera.near_plane; equal scores by
 // increasing id. Then, in that order and skipping ids of exclude[0, exclude_count) (the AOS),

@@ -112,9 +112,9 @@ VisibleSet visibleSetOf(const Pipeline& p) {
 class Culler {
 public:
     // `partition`: each object's display partition (2 + P ranks), empty with one display.
-    Culler(Transport& t, Pipeline& pipeline, const OssFile& file, const RankLayout& layout, const RunOptions& run,
+    Culler(Transport& t, Pipeline& pipeline, const RankLayout& layout, const RunOptions& run,
            const std::vector<uint16_t>& partition)
-        : t_(t), pipeline_(pipeline), objects_(file.objectCount()), layout_(layout), run_(run), partition_(partition) {}
+        : t_(t), pipeline_(pipeline), objects_(pipeline.itemCount()), layout_(layout), run_(run), partition_(partition) {}
 
     // OR of frame f: its camera from the display, then the occluders (Eq. 3's AOS plus the
     // largest objects of the last PVS this rank computed) rastered into this rank's HZM.
@@ -279,9 +279,9 @@ private:
 // and draws it, and tells the culling ranks the frame is done.
 class Display {
 public:
-    Display(Transport& t, Pipeline& pipeline, const OssFile& file, const PipelineOptions& options,
+    Display(Transport& t, Pipeline& pipeline, const PipelineOptions& options,
             const RankLayout& layout, const RunOptions& run)
-        : t_(t), pipeline_(pipeline), objects_(file.objectCount()), options_(options), layout_(layout), run_(run) {}
+        : t_(t), pipeline_(pipeline), objects_(pipeline.itemCount()), options_(options), layout_(layout), run_(run) {}
 
     // Sends frame f's camera (f = every earlier frame's + 1).
     void sendCamera(uint64_t f, uint64_t step, const CameraPose& pose) {
@@ -581,6 +581,9 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             throw OptionError("pvs_occluder_lag", std::to_string(o.pvs_occluder_lag) + " with " +
                              std::to_string(layout.size()) + " ranks: the switch's occluder rank has the PVS of " +
                              std::to_string(layout.occluderLag()) + " frames back at the newest");
+        if (o.hierarchy && layout.displays() > 1)
+            throw OptionError("hierarchy", "on with " + std::to_string(layout.size()) +
+                                               " ranks: sort-last partitions are of objects; the hierarchy runs on 1 to 3 ranks");
         const std::vector<uint16_t> partition =
             layout.displays() > 1 ? partitionObjects(file, layout.displays(), run.sort_last_cells)
                                   : std::vector<uint16_t>();
@@ -603,8 +606,8 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             return run.next_camera(f, pose);
         };
         if (layout.size() == 1) {
-            Culler culler(transport, pipeline, file, layout, run, partition);
-            Display display(transport, pipeline, file, o, layout, run);
+            Culler culler(transport, pipeline, layout, run, partition);
+            Display display(transport, pipeline, o, layout, run);
             CameraPose pose;
             bool more = camera(0, pose);
             for (uint64_t f = 0; more; ++f) {
@@ -631,7 +634,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             if (run.live) culler.endLive(frames);
             culler.drainEndOfFrames();
         } else if (rank == 0) {
-            Display display(transport, pipeline, file, o, layout, run);
+            Display display(transport, pipeline, o, layout, run);
             // The camera of frame f + 1 leaves before frame f is displayed: the switch works on it
             // meanwhile. A live run asks the user's newest pose each time.
             CameraPose pose;
@@ -655,7 +658,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             if (run.live) display.sendStop(frames);
         } else if (layout.partitionOf(rank) > 0) {
             // A sort-last display rank: rank 0's cameras, its partition's deltas from the switch.
-            Display display(transport, pipeline, file, o, layout, run);
+            Display display(transport, pipeline, o, layout, run);
             for (uint64_t f = 0; run.live || f < frames; ++f) {
                 if (!display.receiveCamera(f)) {
                     frames = f;
@@ -670,7 +673,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 addToTotals(totals, s, net);
             }
         } else {
-            Culler culler(transport, pipeline, file, layout, run, partition);
+            Culler culler(transport, pipeline, layout, run, partition);
             const uint64_t first = layout.size() >= 3 ? uint64_t(rank - 1) : 0;
             const uint64_t step = layout.size() >= 3 ? 2 : 1;
             bool more = first < frames && culler.occluders(first);
@@ -701,7 +704,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 const uint64_t expected =
                     layout.size() >= 3 && layout.partitionOf(r) < 0 ? (frames + (r == 1 ? 1 : 0)) / 2 : frames;
                 const Report report =
-                    decodeReport(transport.receive(r, MessageKind::Report, run.timeout), {r, expected, file.objectCount()});
+                    decodeReport(transport.receive(r, MessageKind::Report, run.timeout), {r, expected, pipeline.itemCount()});
                 if (report.totals.partition != layout.partitionOf(r))
                     throw RankError(r, "report: partition " + std::to_string(report.totals.partition) + ", expected " +
                                            std::to_string(layout.partitionOf(r)));

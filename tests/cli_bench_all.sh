@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: MIT
 # occswitch bench all --size tiny end to end: prepares its scenes, runs every experiment (with
-# 3 MPI ranks when mpirun is there), writes the CSVs, summary.md and seven PNG plots whose
+# 3 MPI ranks when mpirun is there), writes the CSVs, summary.md and eight PNG plots whose
 # numbers hold the invariants (0 false culls, 1 frame of switch latency, deltas smaller than
 # full sets); a second run reuses the scenes and prepares a corrupted one again; --no-mpi
 # measures the layouts on 1 rank; impossible
@@ -19,24 +19,31 @@ csv_field() {  # csv_field FILE ROW COLUMN: the value in data row ROW (1 = first
 
 "$exe" bench all --size tiny --out "$out" >"$dir/stdout" 2>"$dir/stderr" || { cat "$dir/stderr"; fail "bench all"; }
 [ "$(cat "$dir/stdout")" = "$out/summary.md" ] || fail "stdout is not the summary's path: $(cat "$dir/stdout")"
-for k in 1 2 3 4 5 6 7; do
-  grep -q "^bench all \[$k/7\] " "$dir/stderr" || fail "no progress line for experiment $k"
+for k in 1 2 3 4 5 6 7 8; do
+  grep -q "^bench all \[$k/8\] " "$dir/stderr" || fail "no progress line for experiment $k"
 done
-for f in breakdown accuracy accuracy_frames streaming bytes bytes_frames latency fps_frames scaling; do
+for f in breakdown accuracy accuracy_frames streaming bytes bytes_frames latency fps_frames scaling hierarchy; do
   [ "$(wc -l <"$out/$f.csv")" -ge 2 ] || fail "$f.csv has no rows"
 done
-for p in breakdown accuracy streaming bytes latency fps scaling; do
+for p in breakdown accuracy streaming bytes latency fps scaling hierarchy; do
   [ -s "$out/plots/$p.gp" ] || fail "no plots/$p.gp"
   [ "$(head -c 8 "$out/plots/$p.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] || fail "plots/$p.png is not a PNG"
   [ "$(stat -c %s "$out/plots/$p.png")" -gt 10000 ] || fail "plots/$p.png is nearly empty"
 done
 for heading in "## 1. Frame time per stage" "## 2. Culling accuracy" "## 3. Streaming" "## 4. Visible-set bytes" \
-               "## 5. Camera-to-display latency" "## 6. Frames per second" "## 7. Scaling"; do
+               "## 5. Camera-to-display latency" "## 6. Frames per second" "## 7. Scaling" "## 8. The hierarchy"; do
   grep -q "^$heading" "$out/summary.md" || fail "summary.md lacks '$heading'"
 done
 
 # The numbers: 3 modes x 2 scenes; conservative culling; deltas smaller; the switch's one frame.
 [ "$(tail -n +2 "$out/breakdown.csv" | wc -l)" -eq 6 ] || fail "breakdown.csv: not 6 rows"
+# The hierarchy: 2 scenes x (orbit flat / hierarchy, walk flat / hierarchy / visibility-weighted), each
+# with a PSNR against full detail.
+[ "$(tail -n +2 "$out/hierarchy.csv" | wc -l)" -eq 10 ] || fail "hierarchy.csv: not 10 rows"
+for row in 1 2 3 4 5 6 7 8 9 10; do
+  awk -v p="$(csv_field "$out/hierarchy.csv" $row psnr_db)" 'BEGIN { exit !(p > 15 && p <= 100) }' ||
+    fail "hierarchy.csv row $row: PSNR out of (15, 100]"
+done
 for row in 1 2; do
   [ "$(csv_field "$out/accuracy.csv" $row false_culls)" = 0 ] || fail "false culls in accuracy.csv row $row"
   awk -v a="$(csv_field "$out/accuracy.csv" $row accuracy_ratio_of_sums)" 'BEGIN { exit !(a > 50 && a <= 100) }' ||
@@ -68,8 +75,8 @@ grep -q "plant_400.oss does not verify; preparing it again" "$dir/stderr2" || fa
 # Without MPI every experiment still runs, the layouts on 1 rank, and the summary says so.
 "$exe" bench all --size tiny --no-mpi --scenes "$out/scenes" --out "$dir/nompi" >/dev/null 2>"$dir/stderr3" ||
   { cat "$dir/stderr3"; fail "--no-mpi run"; }
-for k in 1 2 3 4 5 6 7; do
-  grep -q "^bench all \[$k/7\] " "$dir/stderr3" || fail "--no-mpi: no progress line for experiment $k"
+for k in 1 2 3 4 5 6 7 8; do
+  grep -q "^bench all \[$k/8\] " "$dir/stderr3" || fail "--no-mpi: no progress line for experiment $k"
 done
 [ "$(tail -n +2 "$dir/nompi/latency.csv" | wc -l)" -eq 1 ] || fail "--no-mpi: not 1 layout"
 grep -q "^- note: --no-mpi: the layouts were measured with 1 rank only" "$dir/nompi/summary.md" || fail "--no-mpi: no note"

@@ -42,7 +42,7 @@ constexpr double kWindowOccluderMs = 10.0;
 
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto", budget = "auto";
-    std::string pace = "fast", lod = "budget", visibility_weighted = "off";
+    std::string pace = "fast", lod = "budget", visibility_weighted = "off", hierarchy = "off";
     double path_fps = 60;
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
     double occluder_ms = -1;  // -1: the default of the mode (on in a window)
@@ -165,6 +165,9 @@ int runRender(RenderOptions o) {
     if (o.visibility_weighted != "on" && o.visibility_weighted != "off")
         throw UsageError("--visibility-weighted " + o.visibility_weighted + ": expected on or off");
     o.pipeline.visibility_weighted = o.visibility_weighted == "on";
+    if (o.hierarchy != "on" && o.hierarchy != "off")
+        throw UsageError("--hierarchy " + o.hierarchy + ": expected on or off");
+    o.pipeline.hierarchy = o.hierarchy == "on";
     o.pipeline.stream = parseStreamMode(o.stream);
     if (o.pipeline.pvs_occluder_lag > 2) throw UsageError("render: --pvs-occluder-lag must be 1 or 2");
     if (o.occluder_ms >= 0) o.pipeline.occluder_ms = o.occluder_ms;
@@ -506,11 +509,17 @@ Command addRenderCommand(CLI::App& app) {
                     "budget: Eq. 1 shares the vertex budget (--budget, --alpha); error: each object at the\n"
                     "coarsest level whose simplification error projects to at most --tau pixels (no budget)")
         ->capture_default_str();
-    sub->add_option("--tau", o->pipeline.tau, "--lod error: pixels of simplification error allowed")
+    sub->add_option("--tau", o->pipeline.tau,
+                    "--lod error: pixels of simplification error allowed; --hierarchy on: also where the cut stops")
         ->capture_default_str();
     sub->add_option("--visibility-weighted", o->visibility_weighted,
                     "on: weigh each object by the share of its image the occluders leave visible (HZM), in Eq. 1\n"
                     "and in --lod error's bound (Charalambos 2006); off: the projected area (oc+lod only)")
+        ->capture_default_str();
+    sub->add_option("--hierarchy", o->hierarchy,
+                    "on: refine the scene's object hierarchy (prep --hierarchy on) each frame into a cut of\n"
+                    "nodes, an inner node drawn as its HLOD where its error projects to at most --tau pixels\n"
+                    "(tested against the frustum and the HZM level by level); off: every object on its own")
         ->capture_default_str();
     sub->add_option("--lod-hysteresis", o->pipeline.lod_hysteresis,
                     "keep an object's last vertex count while Eq. 1's is within this fraction of it (0 = off)")

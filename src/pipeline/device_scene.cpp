@@ -3,8 +3,11 @@
 
 #include "depth_raster.h"
 
+#include <glm/gtc/type_ptr.hpp>
+
 #include <algorithm>
 #include <cstring>
+#include <stdexcept>
 #include <execution>
 #include <numeric>
 
@@ -33,11 +36,14 @@ uint32_t DeviceScene::lodTriangles(uint32_t mesh, uint32_t vertices) const {
     return vertices ? file->allMaps()[host_map_first[mesh] + vertices] : 0u;
 }
 
-DeviceScene DeviceScene::upload(const OssFile& file) {
+DeviceScene DeviceScene::upload(const OssFile& file, bool hierarchy) {
     DeviceScene d;
     d.file = &file;
-    d.object_count = file.objectCount();
+    d.nodes = hierarchy;
+    d.object_count = hierarchy ? file.nodeCount() : file.objectCount();
     d.mesh_count = file.meshCount();
+    if (hierarchy && file.nodeCount() == 0)
+        throw std::invalid_argument("DeviceScene::upload: " + file.path() + " has no hierarchy");
 
     const std::span<const oss::MeshRecord> meshes = file.meshRecords();
     d.host_vertex_first.resize(d.mesh_count);
@@ -54,8 +60,45 @@ DeviceScene DeviceScene::upload(const OssFile& file) {
     const std::span<const oss::ObjectDisk> objects = file.objects();
     d.host_objects.resize(d.object_count);
     d.host_world.resize(d.object_count);
-    for (uint32_t i = 0; i < d.object_count; ++i) {
-        const oss::ObjectDisk& o = objects[i];
+    std::vector<uint32_t> item_of_object;  // with nodes: each object's leaf
+    if (hierarchy) {
+        const std::span<const oss::NodeDisk> nodes = file.nodes();
+        d.host_nodes.resize(d.object_count);
+        item_of_object.resize(file.objectCount());
+        // Bottom-up (children come after their parent): an HLOD shows the colour of its
+        // subtree's object with the most triangles.
+        std::vector<uint64_t> colour_triangles(d.object_count, 0);
+        for (uint32_t i = d.object_count; i-- > 0;) {
+            const oss::NodeDisk& n = nodes[i];
+            NodeLinks& links = d.host_nodes[i];
+            links.first_child = n.first_child;
+            links.child_count = n.child_count;
+            links.error = n.error;
+            if (n.child_count == 0) {
+                links.object = n.object;
+                colour_triangles[i] = meshes[objects[n.object].mesh].triangle_count;
+                item_of_object[n.object] = i;
+                continue;
+            }
+            for (uint32_t c = n.first_child; c < n.first_child + n.child_count; ++c)
+                if (c == n.first_child || colour_triangles[c] > colour_triangles[i])
+                    colour_triangles[i] = colour_triangles[c], links.object = d.host_nodes[c].object;
+            const oss::MeshRecord& m = meshes[n.mesh];
+            k::ObjectInfo& info = d.host_objects[i];
+            info.aabb.min = glm::make_vec3(n.box_min);
+            info.aabb.max = glm::make_vec3(n.box_max);
+            info.occluder_normal = glm::vec3(0, 0, 1);
+            info.compactness = -1.0f;  // an HLOD is never an occluder: it is not the real surface
+            info.mesh = n.mesh;
+            info.vertex_count = m.vertex_count;
+            info.q = m.q;
+            info.triangle_count = m.triangle_count;
+            d.host_world[i] = glm::mat4(1.0f);
+        }
+    }
+    for (uint32_t object = 0; object < file.objectCount(); ++object) {
+        const uint32_t i = hierarchy ? item_of_object[object] : object;
+        const oss::ObjectDisk& o = objects[object];
         const oss::MeshRecord& m = meshes[o.mesh];
         k::ObjectInfo& info = d.host_objects[i];
         info.aabb.min = glm::vec3(o.aabb_min[0], o.aabb_min[1], o.aabb_min[2]);
@@ -91,7 +134,13 @@ DeviceScene DeviceScene::upload(const OssFile& file) {
     };
     d.ecol = place(d.ecol_copy, file.allEcol());
     d.maps = place(d.maps_copy, file.allMaps());
-    copyUp(d.cos, file.cos());
+    if (hierarchy) {
+        std::vector<uint32_t> cos(file.cos().begin(), file.cos().end());
+        for (uint32_t& c : cos) c = item_of_object[c];
+        copyUp(d.cos, cos);
+    } else {
+        copyUp(d.cos, file.cos());
+    }
     d.cos_count = uint32_t(file.cos().size());
     d.positions = place(d.positions_copy, file.allPositions());
     d.triangles = place(d.triangles_copy, triangles);

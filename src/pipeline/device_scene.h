@@ -15,13 +15,28 @@ namespace occ {
 // The full-detail meshes are resident too, for the occluder raster (each instanced mesh once).
 // Streaming reads the mapped file's positions and triangles on the host: only the parts a frame
 // needs cross to the active arrays.
+//
+// The per-object arrays are per item: the objects, or with a hierarchy (upload's `hierarchy`)
+// the file's nodes: a leaf is its object (mesh, world matrix, box, occluder data), an inner
+// node its HLOD (world space: the identity matrix; compactness -1, so never an occluder). The
+// visible set, the LODs, the streaming and the drawing then work on node ids unchanged.
 struct DeviceScene {
     const OssFile* file = nullptr;
-    uint32_t object_count = 0, mesh_count = 0, cos_count = 0;
+    uint32_t object_count = 0, mesh_count = 0, cos_count = 0;  // object_count: items
+    bool nodes = false;  // the items are the hierarchy's nodes
 
     // Host memory.
-    std::vector<k::ObjectInfo> host_objects;      // per object
-    std::vector<glm::mat4> host_world;            // per object, local -> world
+    std::vector<k::ObjectInfo> host_objects;      // per item
+    std::vector<glm::mat4> host_world;            // per item, local -> world
+    // Per item, with nodes: the node's children (child_count 0: a leaf), its error
+    // (SceneNode::error) and the object it is (a leaf) or whose colour it shows (an HLOD: its
+    // subtree's object of most triangles). Without nodes: empty.
+    struct NodeLinks {
+        uint32_t first_child = 0, child_count = 0;
+        float error = 0.0f;
+        uint32_t object = 0;
+    };
+    std::vector<NodeLinks> host_nodes;
     std::vector<uint64_t> host_vertex_first;      // per mesh, into the file's positions and ecol
     std::vector<uint64_t> host_triangle_first;    // per mesh, in triangles
     std::vector<uint64_t> host_map_first;         // per mesh, into the file's maps
@@ -57,8 +72,12 @@ struct DeviceScene {
     // from the mapped file.
     uint32_t lodTriangles(uint32_t mesh, uint32_t vertices) const;
 
+    // The object an item shows (its colour): itself without nodes.
+    uint32_t colourObject(uint32_t item) const { return nodes ? host_nodes[item].object : item; }
+
     // file must outlive the DeviceScene. Throws std::bad_alloc when the device has no room.
-    static DeviceScene upload(const OssFile& file);
+    // hierarchy: items are the file's nodes (the file must have them).
+    static DeviceScene upload(const OssFile& file, bool hierarchy = false);
 };
 
 }  // namespace occ

@@ -70,7 +70,10 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     if (!(options.tau > 0.0f && std::isfinite(options.tau)))
         throw OptionError("tau", OptionError::value(options.tau) + ": must be a positive number of pixels");
 
-    scene_ = DeviceScene::upload(file);
+    if (options.hierarchy && file.nodeCount() == 0)
+        throw OptionError("hierarchy", "on: " + file.path() +
+                                           " has no hierarchy (prepare it with occswitch prep --hierarchy on)");
+    scene_ = DeviceScene::upload(file, options.hierarchy);
     if (options.lod == LodRule::Error) {
         // The error of the level with k vertices is the largest error of the collapses it has
         // undone, those of vertices k .. n - 1: a suffix maximum, 0 at full detail.
@@ -86,6 +89,8 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
         for (uint32_t i = 0; i < scene_.object_count; ++i) {
             const glm::mat4& w = scene_.host_world[i];
             scale[i] = std::max({glm::length(glm::vec3(w[0])), glm::length(glm::vec3(w[1])), glm::length(glm::vec3(w[2]))});
+            // An HLOD's level gets the rest of tau after its node's own error (kNodeErrorShare).
+            if (scene_.nodes && scene_.host_nodes[i].child_count > 0) scale[i] /= 1.0f - PipelineOptions::kNodeErrorShare;
         }
         lod_error_.resize(lod_error.size());
         k::copyToDevice(lod_error_.ptr(), lod_error.data(), lod_error.size());
@@ -210,6 +215,64 @@ uint32_t Pipeline::hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out) 
     return k::compactSelected(frustum_ids_.ptr(), occluded_.ptr(), frustum_count_, 0, out);
 }
 
+uint32_t Pipeline::refineCut(const k::Camera& camera, bool occlusion, k::DevicePtr<uint32_t> out) {
+    const uint32_t n = scene_.object_count;
+    cut_in_frustum_.resize(n);
+    k::copyToHost(cut_in_frustum_.data(), in_frustum_.ptr(), n);
+    const bool weighted = occlusion && options_.visibility_weighted;
+    // Pixels per world unit at distance 1 along the view; a node's error e at distance d
+    // projects to e * pixels_per_unit / d pixels.
+    const float pixels_per_unit = float(options_.height) / (2.0f * std::tan(0.5f * camera.fovy));
+    const float tau = options_.tau * (options_.lod == LodRule::Error ? PipelineOptions::kNodeErrorShare : 1.0f);
+    cut_.clear();
+    cut_level_.clear();
+    nodes_tested_ = 0;
+    if (cut_in_frustum_[0]) cut_level_.push_back(0);
+    while (!cut_level_.empty()) {
+        const uint32_t count = uint32_t(cut_level_.size());
+        nodes_tested_ += count;
+        if (occlusion) {
+            cut_level_device_.growTo(count);
+            k::copyToDevice(cut_level_device_.ptr(), cut_level_.data(), count);
+            occluded_.growTo(count);
+            k::hzmTest(scene_.objects.ptr(), cut_level_device_.ptr(), count, camera, hzmLevels(), occluded_.ptr());
+            cut_hidden_.resize(count);
+            k::copyToHost(cut_hidden_.data(), occluded_.ptr(), count);
+            if (weighted) {
+                cut_share_device_.growTo(count);
+                k::hzmVisibleShare(scene_.objects.ptr(), cut_level_device_.ptr(), count, camera, hzmLevels(),
+                                   cut_share_device_.ptr());
+                cut_share_.resize(count);
+                k::copyToHost(cut_share_.data(), cut_share_device_.ptr(), count);
+            }
+        }
+        cut_next_.clear();
+        for (uint32_t j = 0; j < count; ++j) {
+            const uint32_t id = cut_level_[j];
+            if (occlusion && cut_hidden_[j]) continue;
+            const DeviceScene::NodeLinks& node = scene_.host_nodes[id];
+            bool stop = node.child_count == 0;
+            if (!stop && options_.mode != CullMode::Full) {
+                const k::Aabb& box = scene_.host_objects[id].aabb;
+                const float distance = std::max(glm::length(glm::clamp(camera.eye, box.min, box.max) - camera.eye),
+                                                camera.near_plane);
+                const float error = node.error * (weighted ? cut_share_[j] : 1.0f);
+                stop = error * pixels_per_unit / distance <= tau;
+            }
+            if (stop) {
+                cut_.push_back(id);
+                continue;
+            }
+            for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c)
+                if (cut_in_frustum_[c]) cut_next_.push_back(c);
+        }
+        std::swap(cut_level_, cut_next_);
+    }
+    std::sort(cut_.begin(), cut_.end());
+    k::copyToDevice(out, cut_.data(), cut_.size());
+    return uint32_t(cut_.size());
+}
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -240,6 +303,7 @@ void Pipeline::frustumPass(const CameraPose& pose, FrameStats& stats) {
     const uint32_t n = scene_.object_count;
     const k::Frustum frustum = k::frustumFromViewProj(camera.view_proj);
     frustum_count_ = k::frustumCull(scene_.objects.ptr(), n, frustum, in_frustum_.ptr(), frustum_ids_.ptr());
+    if (scene_.nodes) frustum_count_ = refineCut(camera, false, frustum_ids_.ptr());
     frustum_pose_ = pose;
     has_frustum_pose_ = true;
     clock.lap(Stage::FrustumCull);
@@ -314,12 +378,12 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     uint32_t count = in_count;
     k::DevicePtr<const uint32_t> pvs = frustum_ids_.ptr();
     if (options_.mode == CullMode::OcLod) {
-        count = hzmCull(camera, pvs_device_.ptr());
+        count = scene_.nodes ? refineCut(camera, true, pvs_device_.ptr()) : hzmCull(camera, pvs_device_.ptr());
         pvs = pvs_device_.ptr();
         clock.lap(Stage::HzmTest);
     }
     stats.objects_visible = count;
-    stats.objects_occluded = in_count - count;
+    stats.objects_occluded = in_count - std::min(in_count, count);
     // The visible set comes back to the host, for the network and the history; it stays on the
     // device for the layout.
     if (options_.mode != CullMode::OcLod) {

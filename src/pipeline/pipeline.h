@@ -94,6 +94,16 @@ struct PipelineOptions {
     // (k::hzmVisibleShare): Eq. 1 spends on what shows, the error rule allows tau / share
     // (Charalambos 2006's eps q / alpha). Off: the projected area, as Peng & Cao.
     bool visibility_weighted = false;
+    // Refine the file's object hierarchy (prep --hierarchy on) instead of testing every object:
+    // each frame a cut of nodes, breadth-first from the root, a node tested against the frustum
+    // (and in oc+lod the HZM) level by level, stopping where its HLOD's error projects to at
+    // most tau pixels (with the visible share: error x q / alpha). Items are then nodes: the
+    // visible set, LODs, streaming and drawing work on node ids (DeviceScene). Mode full
+    // refines to the leaves. The error rule gives the node's own error and the HLOD's level
+    // half of tau each.
+    bool hierarchy = false;
+    // The share of tau a node's own error may take when the error rule also chooses its level.
+    static constexpr float kNodeErrorShare = 0.5f;
 };
 
 LodRule parseLodRule(const std::string& s);  // "budget" or "error"; OptionError("lod") otherwise
@@ -176,8 +186,13 @@ public:
     k::DevicePtr<const float> occluderDepth() const { return hzm_.ptr(); }  // W x H, level 0 of the HZM
     // Every level of the HZM (meaningful after an oc+lod frame).
     k::HzmLevels hzmLevels() const;
-    // Objects in the frustum, ascending ids, frustumCount() of them.
+    // Objects in the frustum, ascending ids, frustumCount() of them (with the hierarchy: the
+    // nodes of the cut refined without occlusion).
     k::DevicePtr<const uint32_t> frustumIds() const { return frustum_ids_.ptr(); }
+    // Items the visible set, the deltas and the layout are over: objects, or nodes.
+    uint32_t itemCount() const { return scene_.object_count; }
+    // The last cut's nodes tested (all levels), with the hierarchy; 0 without.
+    uint64_t nodesTested() const { return nodes_tested_; }
     // From now on the active vertex array's two buffers and the index buffer live in the
     // lender's slots kActiveVertexSlot + 0 / 1 and kIndexSlot (the display's GL buffers), which
     // streamPass brackets with its write calls; what they hold is copied over once. The lender
@@ -195,6 +210,9 @@ private:
     // The frustum objects the HZM does not prove hidden, into out (ascending); returns how many.
     void adaptOccluderBudget(const FrameStats& stats);
     uint32_t hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out);
+    // With the hierarchy: the cut, into out (ascending node ids); returns its size. Needs
+    // in_frustum_ for this camera; occlusion: also the HZM test, level by level.
+    uint32_t refineCut(const k::Camera& camera, bool occlusion, k::DevicePtr<uint32_t> out);
     // options_.visibility_weighted in oc+lod: the PVS entries' visible shares; else null.
     k::DevicePtr<const float> visibleShares(const k::Camera& camera, k::DevicePtr<const uint32_t> pvs, uint32_t count);
 
@@ -229,6 +247,13 @@ private:
     k::LodHysteresisScratch hysteresis_scratch_;
     CameraPose frustum_pose_{};
     bool has_frustum_pose_ = false;
+    // refineCut's level by level work: host lists and flags, the level's ids on the device.
+    std::vector<uint8_t> cut_in_frustum_, cut_hidden_;
+    std::vector<float> cut_share_;
+    std::vector<uint32_t> cut_level_, cut_next_, cut_;
+    k::DeviceArray<uint32_t> cut_level_device_;
+    k::DeviceArray<float> cut_share_device_;
+    uint64_t nodes_tested_ = 0;
 
     // Host memory: the visible set, as the network sends it.
     std::vector<uint32_t> drawn_pvs_;  // the visible set streamPass last laid out, for the churn

@@ -146,8 +146,12 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
         for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) parent[c] = n;
     }
     // What each child of node n contributes to n's merged input.
-    const auto wanted = [&](uint32_t n) {
-        return std::max<uint64_t>(1, 2ull * options.node_triangles / std::max(1u, h.nodes[n].child_count));
+    // What child c of node n contributes to n's merged input: its share of twice
+    // node_triangles, and at most 1 / reduction of its subtree, so that HLODs stay a fraction
+    // of the scene however small its objects.
+    const auto wanted = [&](uint32_t n, uint32_t c) {
+        const uint64_t share = 2ull * options.node_triangles / std::max(1u, h.nodes[n].child_count);
+        return std::max<uint64_t>(1, std::min<uint64_t>(share, h.nodes[c].triangles / std::max(1u, options.reduction)));
     };
     if (progress) {
         progress->total = 0;
@@ -170,7 +174,6 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                 tbb::parallel_for(size_t(b), e, [&](size_t j) {
                     const uint32_t n = inner[j];
                     const SceneNode& node = h.nodes[n];
-                    const uint64_t want = wanted(n);
                     Mesh merged;
                     float error = 0.0f;
                     for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) {
@@ -180,7 +183,7 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                             const OssFile::MeshView m = file.mesh(o.mesh);
                             glm::mat4 world;
                             std::memcpy(&world, o.world, sizeof world);
-                            const uint32_t level = levelWithTriangles(m.map, m.q, want);
+                            const uint32_t level = levelWithTriangles(m.map, m.q, wanted(n, c));
                             appendLevel(m.positions, m.ecol, m.triangles, m.map, level, world, merged.positions,
                                         merged.indices);
                             const float scale = std::max({glm::length(glm::vec3(world[0])), glm::length(glm::vec3(world[1])),
@@ -200,7 +203,7 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                     h.nodes[n].error = error;
                     if (parent[n] != UINT32_MAX) {
                         KeptLevel& k = kept[n];
-                        const uint32_t level = levelWithTriangles(p.map, p.q, wanted(parent[n]));
+                        const uint32_t level = levelWithTriangles(p.map, p.q, wanted(parent[n], n));
                         appendLevel(p.positions, p.ecol, p.triangles, p.map, level, glm::mat4(1.0f), k.positions,
                                     k.triangles);
                         k.error = error + levelError(p.error, level);

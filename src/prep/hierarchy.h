@@ -51,6 +51,10 @@ struct HlodOptions {
     // about 2 x node_triangles / c triangles (objects at their own LOD, inner children at their
     // HLOD), so an HLOD starts from about twice node_triangles and is simplified from there.
     uint32_t node_triangles = 2048;
+    // ... and at most 1 / reduction of the child's subtree's full-detail triangles, so that the
+    // HLODs of a level hold about 1 / reduction of the level below (all of them about
+    // 1 / (reduction - 1) of the scene), however small the objects are.
+    uint32_t reduction = 4;
     unsigned threads = 0;  // 0: all hardware threads
 };
 

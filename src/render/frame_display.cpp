@@ -138,10 +138,14 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
     // What follows measures the frame; it is not part of it.
     const k::BusMeasurementScope measuring;
     start = Clock::now();
-    const uint32_t n = pipeline.scene().object_count;
+    const DeviceScene& scene = pipeline.scene();
+    const uint32_t n = scene.object_count;
     candidates_.clear();
+    // The full-detail picture draws the objects (with a hierarchy: the leaves, never an HLOD).
     for (uint32_t i = 0; i < n; ++i)
-        if (boxMayHavePixels(pipeline.scene().host_objects[i].aabb, camera.view_proj)) candidates_.push_back(i);
+        if ((!scene.nodes || scene.host_nodes[i].child_count == 0) &&
+            boxMayHavePixels(scene.host_objects[i].aabb, camera.view_proj))
+            candidates_.push_back(i);
     full_->begin(true);
     renderer_.drawFullDetail(candidates_.data(), candidates_.size(), camera);
     const uint64_t pixels = uint64_t(width_) * height_;
@@ -151,6 +155,11 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
         s.exact_visible = markSeenObjects(items_.data(), pixels, n, seen_);
         in_pvs_.assign(n, 0);
         for (uint32_t id : pipeline.visibleObjects()) in_pvs_[id] = 1;
+        // A leaf is drawn when it or a node above it is in the visible set: parents come first.
+        if (scene.nodes)
+            for (uint32_t i = 0; i < n; ++i)
+                for (uint32_t c = scene.host_nodes[i].first_child; in_pvs_[i] && c < scene.host_nodes[i].first_child + scene.host_nodes[i].child_count; ++c)
+                    in_pvs_[c] = 1;
         for (uint32_t i = 0; i < n; ++i) s.false_culls += seen_[i] && !in_pvs_[i];
         exact_now_.clear();
         for (uint32_t i = 0; i < n; ++i)

@@ -121,7 +121,9 @@ SceneRenderer::SceneRenderer(const DeviceScene& scene) : scene_(scene) {
     colour_buffer_ = makeBuffer();
     box_buffer_ = makeBuffer();
     std::vector<glm::vec4> colours(n);
-    for (uint32_t i = 0; i < n; ++i) colours[i] = glm::vec4(objectColour(i), 1.0f);
+    // Per item: an object's colour (a hierarchy's leaf shows its object's, an HLOD its
+    // subtree's largest object's), so that pictures with and without the hierarchy compare.
+    for (uint32_t i = 0; i < n; ++i) colours[i] = glm::vec4(objectColour(scene.colourObject(i)), 1.0f);
     OCC_GL_CHECK(glNamedBufferStorage(world_buffer_, GLsizeiptr(std::max<size_t>(1, n) * sizeof(glm::mat4)),
                                       n ? scene.host_world.data() : nullptr, n ? 0 : GL_DYNAMIC_STORAGE_BIT));
     OCC_GL_CHECK(glNamedBufferStorage(colour_buffer_, GLsizeiptr(std::max<size_t>(1, n) * sizeof(glm::vec4)),
