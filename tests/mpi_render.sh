@@ -118,7 +118,7 @@ rankPid() {
 
 # --pace recorded: the path in real time. Far faster than the frames (4000 poses/s), frames skip
 # poses, on 3 ranks as on 1, and the frames shown plus the poses skipped are the path; slower than
-# the frames (40 poses/s), every pose is shown and the run lasts the path's time.
+# the frames (20 poses/s), every pose is shown and the run lasts the path's time.
 check_pace() {  # name, output file, poses; prints the frames shown
   local line
   line=$(grep "^pace: recorded" "$2") || fail "$1: no pace line: $(cat "$2")"
@@ -141,12 +141,23 @@ PY
 "$exe" "${render[@]}" --pace recorded --path-fps 4000 >"$dir/pace1" 2>"$dir/err" || fail "1 rank --pace recorded"
 skipped=$(check_pace "1 rank, 4000 poses/s" "$dir/pace1" 60) || { echo "$skipped"; exit 1; }
 [ "$skipped" -gt 0 ] || fail "1 rank at 4000 poses/s skipped no pose: $(cat "$dir/pace1")"
+# Slower than the frames: at 20 poses/s a pose comes every 50 ms. A frame on a loaded machine (or
+# under the sanitizers) may still take longer than that, so the poses skipped are held to what the
+# run's own mean frame time forces: a run that keeps up skips none (three for stray slow frames),
+# a slower one shows at least 80 % of the frames its time allows. Queued poses would make the run
+# last longer than the path; skipped ones that need not be would show fewer frames.
 start=$(date +%s.%N)
-"$exe" "${render[@]}" --pace recorded --path-fps 40 >"$dir/pace1" 2>"$dir/err" || fail "1 rank --pace recorded 40"
+"$exe" "${render[@]}" --pace recorded --path-fps 20 >"$dir/pace1" 2>"$dir/err" || fail "1 rank --pace recorded 20"
 took=$(awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN { print b - a }')
-skipped=$(check_pace "1 rank, 40 poses/s" "$dir/pace1" 60) || { echo "$skipped"; exit 1; }
-[ "$skipped" -eq 0 ] || fail "1 rank at 40 poses/s skipped $skipped poses: $(cat "$dir/pace1")"
-awk -v t="$took" 'BEGIN { exit !(t >= 1.45) }' || fail "60 poses at 40 per second took $took s, not >= 1.475"
+skipped=$(check_pace "1 rank, 20 poses/s" "$dir/pace1" 60) || { echo "$skipped"; exit 1; }
+mean_ms=$(grep -o 'mean [0-9.]* ms/frame' "$dir/pace1" | grep -o '[0-9.]*' | head -1)
+[ -n "$mean_ms" ] || fail "no mean frame time: $(cat "$dir/pace1")"
+awk -v m="$mean_ms" -v s="$skipped" 'BEGIN {
+  if (m <= 30) exit !(s <= 3)
+  allow = 3.0 / (m / 1000); if (allow > 60) allow = 60
+  exit !(60 - s >= 0.8 * allow)
+}' || fail "1 rank at 20 poses/s, $mean_ms ms a frame, skipped $skipped poses: $(cat "$dir/pace1")"
+awk -v t="$took" 'BEGIN { exit !(t >= 2.95) }' || fail "60 poses at 20 per second took $took s, not >= 2.95"
 
 # A rank killed mid-run: the others name it and everything ends within 10 s.
 "$exe" path walk "$dir/p.oss" --frames 20000 -o "$dir/long.cam" 2>/dev/null || fail "long path"

@@ -56,6 +56,7 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
         HlodProgress built;
         HlodOptions hlod;
         hlod.node_triangles = prep.node_triangles;
+        hlod.cluster = prep.hlod_cluster;
         hlod.threads = prep.threads;
         ObjectHierarchy h;
         {
@@ -107,6 +108,7 @@ struct PrepCommandOptions {
     std::string collapser = "fast";
     std::string stream = "auto";
     std::string hierarchy = "on";
+    std::string hlod_cluster = "on";
     ImportOptions import;
 };
 
@@ -120,6 +122,7 @@ int runPrep(PrepCommandOptions o) {
     if (o.prep.threads > 1024) throw UsageError("--threads " + std::to_string(o.prep.threads) + " is not a sensible thread count");
     o.prep.collapser = o.collapser == "openmesh" ? Collapser::OpenMesh : Collapser::Fast;
     o.prep.hierarchy = o.hierarchy == "on";
+    o.prep.hlod_cluster = o.hlod_cluster == "on";
     if (o.prep.fanout < 2 || o.prep.fanout > 64)
         throw UsageError("--fanout " + std::to_string(o.prep.fanout) + ": must be in [2, 64]");
     if (o.prep.node_triangles < 16)
@@ -174,6 +177,12 @@ Command addPrepCommand(CLI::App& app) {
     sub->add_option("--node-triangles", o->prep.node_triangles,
                     "hierarchy: about how many triangles an HLOD starts from, halved (its merged input is\n"
                     "twice this; the progressive mesh then reaches every size below)")
+        ->capture_default_str();
+    sub->add_option("--hlod-cluster", o->hlod_cluster,
+                    "hierarchy: on: an HLOD's edge collapses go on as vertex clustering (a grid whose cell\n"
+                    "doubles), so small objects vanish and neighbours join; off: edge collapses only, which\n"
+                    "keep every object's floor")
+        ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
     return {sub, [o] { return runPrep(*o); }};
 }

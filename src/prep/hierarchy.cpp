@@ -199,7 +199,7 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                         }
                     }
                     ProgressiveMesh& p = built[j - b];
-                    p = buildProgressiveMesh(merged, Collapser::Fast);
+                    p = options.cluster ? buildClusteredProgressiveMesh(merged) : buildProgressiveMesh(merged, Collapser::Fast);
                     h.nodes[n].error = error;
                     if (parent[n] != UINT32_MAX) {
                         KeptLevel& k = kept[n];

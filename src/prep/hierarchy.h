@@ -55,6 +55,9 @@ struct HlodOptions {
     // HLODs of a level hold about 1 / reduction of the level below (all of them about
     // 1 / (reduction - 1) of the scene), however small the objects are.
     uint32_t reduction = 4;
+    // Continue each HLOD's edge collapses with vertex clustering (cluster_collapse.h), so that
+    // the objects' floors vanish and neighbours join; off: edge collapses only.
+    bool cluster = true;
     unsigned threads = 0;  // 0: all hardware threads
 };
 

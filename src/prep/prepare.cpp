@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "prep/prepare.h"
 
+#include "prep/cluster_collapse.h"
+
 #include "prep/collapse_recorder.h"
 #include "prep/fast_collapser.h"
 #include "prep/occluder.h"
@@ -23,6 +25,18 @@ ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser) {
     const CollapseSequence sequence = collapser == Collapser::Fast
                                           ? fastCollapseSequence(welded.positions, welded.triangles)
                                           : openMeshCollapseSequence(welded.positions, welded.triangles);
+    const CollapseArrays arrays = recordCollapseArrays(uint32_t(welded.positions.size()),
+                                                       uint32_t(welded.triangles.size() / 3), sequence);
+    ProgressiveMesh pm = rearrange(welded.positions, welded.triangles, sequence, arrays);
+    pm.source_vertices = uint32_t(mesh.positions.size());
+    pm.dropped_triangles = welded.dropped_triangles;
+    return pm;
+}
+
+ProgressiveMesh buildClusteredProgressiveMesh(const Mesh& mesh) {
+    const WeldedMesh welded = weldPositions(mesh.positions, mesh.indices);
+    const CollapseSequence sequence = clusterAfterCollapses(
+        welded.positions, welded.triangles, fastCollapseSequence(welded.positions, welded.triangles));
     const CollapseArrays arrays = recordCollapseArrays(uint32_t(welded.positions.size()),
                                                        uint32_t(welded.triangles.size() / 3), sequence);
     ProgressiveMesh pm = rearrange(welded.positions, welded.triangles, sequence, arrays);

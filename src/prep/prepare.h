@@ -26,6 +26,7 @@ struct PrepOptions {
     bool hierarchy = true;
     uint32_t fanout = 8;              // children per node at most
     uint32_t node_triangles = 2048;   // HlodOptions::node_triangles
+    bool hlod_cluster = true;         // HlodOptions::cluster
 };
 
 // Counters that prepareScene advances while it works, readable from another thread.
@@ -36,6 +37,9 @@ struct PrepProgress {
 
 // Weld + collapse sequence + §4.2 arrays + Algorithm 1 for one mesh (local space).
 ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser);
+// The same with the fast collapser's sequence continued by vertex clustering
+// (cluster_collapse.h), for HLODs: components may vanish and join.
+ProgressiveMesh buildClusteredProgressiveMesh(const Mesh& mesh);
 
 // What a preparation made, for its summary line.
 struct PrepSummary {

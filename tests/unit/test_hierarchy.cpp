@@ -1,6 +1,9 @@
 // SPDX-License-Identifier: MIT
 // The object hierarchy and its HLODs (issue 16), in memory and in the .oss.
 #include "import/plant.h"
+#include "prep/cluster_collapse.h"
+#include "prep/fast_collapser.h"
+#include "prep/rearrange.h"
 #include "prep/hierarchy.h"
 #include "prep/lod_prefix.h"
 #include "prep/prepare.h"
@@ -123,6 +126,50 @@ TEST(Hierarchy, HlodsAreProgressiveMeshesOfTheirSubtrees) {
         EXPECT_GE(glm::length(b.max - b.min), 0.5f * glm::length(node.box.max - node.box.min)) << "node " << n;
     }
     EXPECT_GT(inner, 8u);
+}
+
+// A cloud of 512 small closed tetrahedra: edge collapses cannot go below the 4 triangles each
+// (2 048 in all); clustering after them can, and what it makes is still a progressive mesh whose
+// every level moves no input vertex farther than that level's error.
+TEST(Hierarchy, ClusteringRemovesTheFloorsEdgeCollapsesKeep) {
+    std::vector<glm::vec3> positions;
+    std::vector<uint32_t> triangles;
+    for (int x = 0; x < 8; ++x)
+        for (int y = 0; y < 8; ++y)
+            for (int z = 0; z < 8; ++z) {
+                const uint32_t b = uint32_t(positions.size());
+                const glm::vec3 o{float(x), float(y), float(z)};
+                positions.insert(positions.end(), {o, o + glm::vec3(0.3f, 0, 0), o + glm::vec3(0, 0.3f, 0), o + glm::vec3(0, 0, 0.3f)});
+                triangles.insert(triangles.end(), {b, b + 2, b + 1, b, b + 1, b + 3, b, b + 3, b + 2, b + 1, b + 2, b + 3});
+            }
+    const CollapseSequence edges = fastCollapseSequence(positions, triangles);
+    EXPECT_EQ(edges.triangles.size(), 0u) << "a tetrahedron has no legal edge collapse";
+    EXPECT_THROW(clusterAfterCollapses(positions, triangles, edges, {0.5f, 0.25f}), std::invalid_argument);
+    const CollapseSequence clustered = clusterAfterCollapses(positions, triangles, edges);
+    const CollapseArrays arrays = recordCollapseArrays(uint32_t(positions.size()), uint32_t(triangles.size() / 3), clustered);
+    const ProgressiveMesh p = rearrange(positions, triangles, clustered, arrays);
+    LodPrefixScratch scratch;
+    const auto bad = checkLodPrefix(p.vertexCount(), p.ecol, p.triangles, p.map, p.q, scratch);
+    EXPECT_FALSE(bad.has_value()) << bad->what;
+    // The coarsest level: cells a quarter of the cloud's extent, 5 x 5 x 5 clusters at most.
+    EXPECT_LE(p.q, 125u);
+    EXPECT_LT(p.map[p.q], 2048u / 8);
+    // Every level: each input vertex, walked down to it, moved at most the level's error.
+    const float extent = 7.3f;
+    for (uint32_t k = p.vertexCount(); k >= p.q && k > 0; k -= std::max(1u, (p.vertexCount() - p.q) / 16)) {
+        float error = 0.0f;
+        for (uint32_t v = k; v < p.vertexCount(); ++v) error = std::max(error, p.error[v]);
+        for (uint32_t v = 0; v < p.vertexCount(); ++v) {
+            uint32_t w = v;
+            while (w >= k) w = uint32_t(p.ecol[w]);
+            EXPECT_LE(glm::length(p.positions[v] - p.positions[w]), error * 1.0001f + 1e-6f) << "level " << k;
+        }
+        EXPECT_LE(error, 0.25f * extent * std::sqrt(3.0f) * 1.01f) << "level " << k;
+        if (k - p.q < std::max(1u, (p.vertexCount() - p.q) / 16)) break;
+    }
+    // Clustering's first moves join each tetrahedron's corners (the first cells are smaller than
+    // the gaps between them), so the levels in between have triangles in between.
+    EXPECT_GT(p.map[(p.vertexCount() + p.q) / 2], p.map[p.q]);
 }
 
 // prep's file: the flat scene's meshes, objects and COS unchanged, then one HLOD mesh per inner
