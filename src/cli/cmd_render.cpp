@@ -42,7 +42,7 @@ constexpr double kWindowOccluderMs = 10.0;
 
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto", budget = "auto";
-    std::string pace = "fast", lod = "budget", visibility_weighted = "off", hierarchy = "off";
+    std::string pace = "fast", lod = "budget", visibility_weighted = "off", hierarchy = "off", colours = "object";
     double path_fps = 60;
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
     double occluder_ms = -1;  // -1: the default of the mode (on in a window)
@@ -274,6 +274,7 @@ int runRender(RenderOptions o) {
     render::DisplayOptions display_options;
     display_options.exact = o.exact;
     display_options.reference = o.reference;
+    display_options.uniform_colour = o.colours == "uniform";
     // Sort-last: every display rank draws its partition; the pictures are composited into rank 0's.
     const std::vector<int> display_ranks = layout.displayRanks();
     std::unique_ptr<render::SortLastCompositor> compositor;
@@ -520,6 +521,11 @@ Command addRenderCommand(CLI::App& app) {
                     "on: refine the scene's object hierarchy (prep --hierarchy on) each frame into a cut of\n"
                     "nodes, an inner node drawn as its HLOD where its error projects to at most --tau pixels\n"
                     "(tested against the frustum and the HZM level by level); off: every object on its own")
+        ->capture_default_str();
+    sub->add_option("--colours", o->colours,
+                    "headless pictures: object (each object its colour, an HLOD its objects' mean) or uniform\n"
+                    "(every item grey: --reference then compares geometry and shading only)")
+        ->check(CLI::IsMember({"object", "uniform"}))
         ->capture_default_str();
     sub->add_option("--lod-hysteresis", o->pipeline.lod_hysteresis,
                     "keep an object's last vertex count while Eq. 1's is within this fraction of it (0 = off)")

@@ -112,7 +112,7 @@ void FrameTarget::readDepth(std::vector<float>& depth) const {
         glReadPixels(0, 0, GLsizei(width_), GLsizei(height_), GL_DEPTH_COMPONENT, GL_FLOAT, depth.data()));
 }
 
-SceneRenderer::SceneRenderer(const DeviceScene& scene) : scene_(scene) {
+SceneRenderer::SceneRenderer(const DeviceScene& scene, bool uniform_colour) : scene_(scene) {
     shaded_program_ = compileProgram("shaded", shaders::kShadedVert, shaders::kShadedFrag);
     box_program_ = compileProgram("box", shaders::kBoxVert, shaders::kBoxFrag);
 
@@ -121,9 +121,25 @@ SceneRenderer::SceneRenderer(const DeviceScene& scene) : scene_(scene) {
     colour_buffer_ = makeBuffer();
     box_buffer_ = makeBuffer();
     std::vector<glm::vec4> colours(n);
-    // Per item: an object's colour (a hierarchy's leaf shows its object's, an HLOD its
-    // subtree's largest object's), so that pictures with and without the hierarchy compare.
+    // Per item: an object's colour; a hierarchy's leaf shows its object's, an HLOD (one colour
+    // for all it stands for) the mean of its subtree's objects' colours weighted by their boxes'
+    // surface areas, the single colour closest in squared error to the mix of objects it covers.
     for (uint32_t i = 0; i < n; ++i) colours[i] = glm::vec4(objectColour(scene.colourObject(i)), 1.0f);
+    if (scene.nodes) {
+        std::vector<glm::dvec4> sum(n, glm::dvec4(0.0));  // rgb x area, area
+        for (uint32_t i = n; i-- > 0;) {
+            const DeviceScene::NodeLinks& node = scene.host_nodes[i];
+            if (node.child_count == 0) {
+                const glm::vec3 e = scene.host_objects[i].aabb.max - scene.host_objects[i].aabb.min;
+                const double area = std::max(1e-12, 2.0 * (double(e.x) * e.y + double(e.y) * e.z + double(e.z) * e.x));
+                sum[i] = glm::dvec4(glm::dvec3(colours[i]) * area, area);
+                continue;
+            }
+            for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) sum[i] += sum[c];
+            if (sum[i].w > 0) colours[i] = glm::vec4(glm::vec3(glm::dvec3(sum[i]) / sum[i].w), 1.0f);
+        }
+    }
+    if (uniform_colour) std::fill(colours.begin(), colours.end(), glm::vec4(0.65f, 0.65f, 0.65f, 1.0f));
     OCC_GL_CHECK(glNamedBufferStorage(world_buffer_, GLsizeiptr(std::max<size_t>(1, n) * sizeof(glm::mat4)),
                                       n ? scene.host_world.data() : nullptr, n ? 0 : GL_DYNAMIC_STORAGE_BIT));
     OCC_GL_CHECK(glNamedBufferStorage(colour_buffer_, GLsizeiptr(std::max<size_t>(1, n) * sizeof(glm::vec4)),

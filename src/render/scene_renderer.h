@@ -63,7 +63,8 @@ struct DrawCounts {
 // CUDA-OpenGL interop, mapped for the device's writes.
 class SceneRenderer : public k::BufferProvider {
 public:
-    explicit SceneRenderer(const DeviceScene& scene);
+    // uniform_colour: every item grey (DisplayOptions::uniform_colour).
+    explicit SceneRenderer(const DeviceScene& scene, bool uniform_colour = false);
     ~SceneRenderer() override;
     SceneRenderer(const SceneRenderer&) = delete;
     SceneRenderer& operator=(const SceneRenderer&) = delete;
