@@ -75,6 +75,29 @@ column "$dir/full.csv" psnr_db | awk '$1 != 100 { bad = 1 } END { exit bad }' ||
 column "$dir/full.csv" changed_pixel_share | awk '$1 != 0 { bad = 1 } END { exit bad }' || fail "--mode full: pixels changed"
 column "$dir/full.csv" false_culls | awk '$1 != 0 { bad = 1 } END { exit bad }' || fail "--mode full: false culls"
 
+# --colours uniform: every item the same grey, so a frame's pixels are greys or the background
+# (0.08, 0.09, 0.11), and many shades of grey (the shading is unchanged); 100 dB against its own
+# reference.
+render --headless --mode full --reference --colours uniform --out "$dir/U" --stats "$dir/u.csv" \
+  >/dev/null 2>"$dir/err" || fail "render --colours uniform: $(cat "$dir/err")"
+column "$dir/u.csv" psnr_db | awk '$1 != 100 { bad = 1 } END { exit bad }' || fail "--colours uniform: PSNR is not 100"
+python3 - "$dir/U/frame_000020.png" <<'EOF' || fail "--colours uniform: $dir/U/frame_000020.png"
+import os, sys
+sys.path.insert(0, os.environ['TESTS_DIR'])
+from png_rgb import read_png_rgb
+w, h, rows = read_png_rgb(sys.argv[1])
+background = (20, 23, 28)
+greys, other = set(), 0
+for row in rows:
+    for i in range(0, len(row), 3):
+        p = row[i:i + 3]
+        if all(abs(p[c] - background[c]) <= 1 for c in range(3)): continue
+        if p[0] == p[1] == p[2]: greys.add(p[0])
+        else: other += 1
+assert other == 0, '%d pixels neither grey nor background' % other
+assert len(greys) > 10, 'only %d greys' % len(greys)
+EOF
+
 # Impossible options: exit 2, one error line, no stats file.
 : >"$dir/file"
 while read -r what options; do

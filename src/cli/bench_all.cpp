@@ -702,8 +702,10 @@ void Bench::hierarchy(std::ostringstream& md) {
        << "its own coarsest level within tau) and `--hierarchy on` (the cut of `prep`'s hierarchy: a node\n"
        << "whose error projects to at most tau / 2 pixels is drawn as its HLOD, itself within the other half);\n"
        << "on the walks also `--visibility-weighted on` (the error x the visible share q / alpha, Charalambos\n"
-       << "2006). Items drawn: objects, or nodes of the cut. PSNR against the full-detail unculled picture.\n"
-       << "Frame ms: every stage plus drawing.\n\n"
+       << "2006). Items drawn: objects, or nodes of the cut. PSNR against the full-detail unculled picture,\n"
+       << "both drawn `--colours uniform` (every item grey): an HLOD has one colour for all the objects it\n"
+       << "stands for, so with each object in its own colour the PSNR would measure that rather than the\n"
+       << "geometry (docs/results.md gives both). Frame ms: every stage plus drawing.\n\n"
        << "| scene | path | run | items drawn | triangles drawn | frame ms | PSNR dB |\n|---|---|---|---|---|---|---|\n";
     for (const PreparedScene* scene : {&grid_, &plant_}) {
         const fs::path orbit = scenes_ / (scene->key + "_orbit" + std::to_string(size_.frames) + ".cam");
@@ -725,7 +727,7 @@ void Bench::hierarchy(std::ostringstream& md) {
                 variants.push_back({"hlod_vw", "hierarchy, visibility-weighted", {"--hierarchy", "on", "--visibility-weighted", "on"}});
             for (const Variant& v : variants) {
                 const std::string name = "hierarchy_" + scene->key + "_" + path + "_" + v.key;
-                std::vector<std::string> flags{"--headless", "--reference", "--lod", "error", "--tau", "1"};
+                std::vector<std::string> flags{"--headless", "--reference", "--lod", "error", "--tau", "1", "--colours", "uniform"};
                 flags.insert(flags.end(), v.flags.begin(), v.flags.end());
                 const RunResult r = render(name, played, flags, 1);
                 const RenderStats st(raw_ / (name + ".csv"));
