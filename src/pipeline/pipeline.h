@@ -99,11 +99,15 @@ struct PipelineOptions {
     // (and in oc+lod the HZM) level by level, stopping where its HLOD's error projects to at
     // most tau pixels (with the visible share: error x q / alpha). Items are then nodes: the
     // visible set, LODs, streaming and drawing work on node ids (DeviceScene). Mode full
-    // refines to the leaves. The error rule gives the node's own error and the HLOD's level
-    // half of tau each.
+    // refines to the leaves. The error rule gives the node's own error a tenth of tau and the
+    // HLOD's level the rest.
     bool hierarchy = false;
     // The share of tau a node's own error may take when the error rule also chooses its level.
-    static constexpr float kNodeErrorShare = 0.5f;
+    // A node's own error (what its children gave up to make its input) is small next to what
+    // its coarse levels give up, so most of tau goes to the level: on the 10^5-object plant's
+    // orbit (docs/results.md) 0.1 drew 4.9x fewer triangles than every object on its own at
+    // -0.35 dB, 0.15 1.75x fewer at equal PSNR, 0.5 1.46x more.
+    static constexpr float kNodeErrorShare = 0.1f;
 };
 
 LodRule parseLodRule(const std::string& s);  // "budget" or "error"; OptionError("lod") otherwise
