@@ -36,6 +36,16 @@ timeout 120 "${mpirun[@]}" -np 1 "$exe" "${render[@]}" --stats "$dir/r1mpi.csv" 
 "$exe" "${render[@]}" --stats "$dir/r1lag2.csv" --pvs-occluder-lag 2 >/dev/null || fail "1 rank, lag 2"
 timeout 120 "${mpirun[@]}" -np 3 "$exe" "${render[@]}" --stats "$dir/r3full.csv" --no-deltas >/dev/null 2>"$dir/err" \
   || fail "mpirun -np 3 --no-deltas: $(tail -5 "$dir/err")"
+# An emulated link (2 ms, 100 Mb/s) between the ranks: the same answer and bytes, still one frame
+# of latency, and a camera's way to the display (display -> culler -> display) at least two hops.
+timeout 120 "${mpirun[@]}" -np 3 "$exe" "${render[@]}" --stats "$dir/r3link.csv" --link 2:100 >"$dir/outlink" 2>"$dir/err" \
+  || fail "mpirun -np 3 --link 2:100: $(tail -5 "$dir/err")"
+grep -q "^link: emulated between every pair of ranks: 2 ms, 100 Mb/s" "$dir/outlink" || fail "link line: $(cat "$dir/outlink")"
+grep -q "camera-to-display latency 1 frame," "$dir/outlink" || fail "--link latency: $(cat "$dir/outlink")"
+link_ms=$(grep -o 'latency 1 frame, [0-9.]* ms' "$dir/outlink" | grep -o '[0-9.]* ms' | grep -o '[0-9.]*')
+awk -v m="$link_ms" 'BEGIN { exit !(m >= 4.0) }' || fail "--link 2:100: camera-to-display $link_ms ms, not >= 4"
+[ "$(grep -o 'visible-set messages [0-9]* bytes/frame' "$dir/outlink")" = \
+  "$(grep -o 'visible-set messages [0-9]* bytes/frame' "$dir/out3")" ] || fail "--link changed the bytes: $(cat "$dir/outlink")"
 
 python3 - "$dir" <<'PY' || fail "frame-by-frame comparison"
 import csv, sys
@@ -53,6 +63,7 @@ same(rows('r1lag2.csv'), r3, '1 rank (lag 2) vs 3 ranks')
 same(rows('r1.csv'), rows('r2.csv'), '1 rank vs 2 ranks')
 same(rows('r1.csv'), rows('r1mpi.csv'), '1 rank vs mpirun -np 1')
 same(r3, r3full, 'deltas vs --no-deltas')
+same(r3, rows('r3link.csv'), 'no link vs --link 2:100')
 # Every frame has the display's row and its culler's row; ranks 1 and 2 alternate.
 all3 = list(csv.DictReader(open(f'{d}/r3.csv')))
 assert len(all3) == 120, f'{len(all3)} rows in the merged 3-rank CSV'

@@ -3,6 +3,7 @@
 #include "cli/progress.h"
 
 #include "device_memory.h"
+#include "net/emulated_link.h"
 #include "net/transport.h"
 #include "pipeline/pipeline.h"
 #include "roles/occlusion_switch.h"
@@ -47,6 +48,8 @@ struct RenderOptions {
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
     double occluder_ms = -1;  // -1: the default of the mode (on in a window)
     double rank_timeout = 5.0;
+    std::string link;  // --link LATENCY_MS[:MBPS[:JITTER_MS]]
+    LinkSpec link_spec;
     int sort_last_cells = 1;
     int device = -1;
     std::string out, debug_views;
@@ -200,6 +203,13 @@ int runRender(RenderOptions o) {
     const OssFile file = OssFile::open(preparedScene(o.scene));
     if (!(o.rank_timeout > 0 && o.rank_timeout <= 3600))
         throw UsageError("render: --rank-timeout must be in (0, 3600] seconds");
+    if (!o.link.empty()) {
+        try {
+            o.link_spec = parseLinkSpec(o.link);
+        } catch (const std::invalid_argument& e) {
+            throw UsageError(std::string("--link ") + e.what());
+        }
+    }
     // Under mpirun every rank runs this command; rank 0 displays, writes and prints.
     std::unique_ptr<InProcessHub> hub;
     std::unique_ptr<Transport> transport;
@@ -211,6 +221,7 @@ int runRender(RenderOptions o) {
         hub = std::make_unique<InProcessHub>(1);
         transport = hub->connect(0);
     }
+    if (o.link_spec.active()) transport = std::make_unique<EmulatedLink>(std::move(transport), o.link_spec);
 #ifdef OCC_HAVE_GL
     if (draws && !o.headless) return runInWindow(o, file, *transport, device.ordinal);
 #endif
@@ -349,6 +360,10 @@ int runRender(RenderOptions o) {
                 double(sum.bytes_camera) / frames, double(sum.bytes_eof) / frames, sum.latency_frames,
                 sum.latency_frames == 1 ? "" : "s", frames > 1 ? sum.latency_ms / (frames - 1) : 0.0,
                 sum.ms_wait / frames);
+    if (o.link_spec.active())
+        std::printf("link: emulated between every pair of ranks: %s (each message delayed by the latency, its bytes at "
+                    "the bandwidth, one queue per destination)\n",
+                    o.link_spec.describe().c_str());
     if (paced) {
         // The longest run of poses no frame showed.
         uint64_t longest = pose_of.empty() ? 0 : pose_of.front();
@@ -478,6 +493,10 @@ Command addRenderCommand(CLI::App& app) {
                     "each; more spreads each rank's objects so that every view is shared, docs/scaling.md)")
         ->check(CLI::Range(1, 1024))
         ->capture_default_str();
+    sub->add_option("--link", o->link,
+                    "LATENCY_MS[:MBPS[:JITTER_MS]]: emulate a network link between every pair of ranks, e.g. 1:100\n"
+                    "(1 ms, 100 Mb/s), 0.2:10000, 20:100:2 (seeded jitter); every rank must get the same")
+        ->type_name("SPEC");
     sub->add_option("--rank-timeout", o->rank_timeout,
                     "seconds a rank waits for a message before it declares the sender dead")
         ->capture_default_str();

@@ -117,7 +117,7 @@ public:
     virtual void composite(const std::vector<int>& group, std::vector<DepthPixel>& pixels,
                            std::chrono::milliseconds timeout, const std::function<void()>& idle) = 0;
 
-    TransportCounters counters() const { return counters_; }
+    virtual TransportCounters counters() const { return counters_; }
 
 protected:
     void countSent(MessageKind kind, size_t bytes);

@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: MIT
+#include "net/emulated_link.h"
 #include "net/transport.h"
 
 #include <gtest/gtest.h>
@@ -159,6 +160,72 @@ TEST(InProcessTransport, BadPeersAndDoubleConnectsAreUsageErrors) {
     EXPECT_THROW(t0->receive(-1, MessageKind::Delta, 1ms), std::invalid_argument);
     EXPECT_THROW(InProcessHub(0), std::invalid_argument);
     t0->fail(0, "test over");
+}
+
+// The emulated link (issue 17): a message is not handed over before latency + bytes / bandwidth
+// after it was sent (lower bounds only: a loaded machine may add, never take away), in order per
+// pair, and the counters hold the message bytes, not the link's stamps.
+TEST(EmulatedLinkTransport, DelaysEachMessageByLatencyAndBytesAtTheBandwidthInOrder) {
+    InProcessHub hub(2);
+    const LinkSpec spec = parseLinkSpec("30:8");  // 30 ms, 8 Mb/s: a byte takes 1 us
+    EmulatedLink a(hub.connect(0), spec), b(hub.connect(1), spec);
+    EXPECT_EQ(a.rank(), 0);
+    EXPECT_EQ(b.size(), 2);
+    const auto start = std::chrono::steady_clock::now();
+    a.send(1, MessageKind::Delta, std::vector<uint8_t>(10000, 5));  // 10 ms on the wire
+    a.send(1, MessageKind::Delta, {1, 2, 3});
+    a.send(1, MessageKind::Camera, {9});
+    EXPECT_FALSE(b.poll(0, MessageKind::Delta)) << "a message arrived before the link's latency";
+    EXPECT_EQ(b.receive(0, MessageKind::Delta, 2s), std::vector<uint8_t>(10000, 5));
+    EXPECT_GE(std::chrono::steady_clock::now() - start, 39ms);
+    EXPECT_EQ(b.receive(0, MessageKind::Delta, 2s), (std::vector<uint8_t>{1, 2, 3}));
+    EXPECT_EQ(b.receive(0, MessageKind::Camera, 2s), (std::vector<uint8_t>{9}));
+    // A rank to itself is no link.
+    const auto self = std::chrono::steady_clock::now();
+    b.send(1, MessageKind::EndOfFrame, {7});
+    EXPECT_TRUE(b.poll(1, MessageKind::EndOfFrame));
+    EXPECT_EQ(b.receive(1, MessageKind::EndOfFrame, 2s), (std::vector<uint8_t>{7}));
+    EXPECT_LT(std::chrono::steady_clock::now() - self, 25ms);
+    const TransportCounters sent = a.counters(), got = b.counters();
+    EXPECT_EQ(sent[MessageKind::Delta].bytes_sent, 10003u);
+    EXPECT_EQ(sent[MessageKind::Delta].messages_sent, 2u);
+    EXPECT_EQ(got[MessageKind::Delta].bytes_received, 10003u);
+    EXPECT_EQ(got[MessageKind::Camera].bytes_received, 1u);
+    EXPECT_GE(got[MessageKind::Delta].receive_wait_ns, 30'000'000) << "the wait for the link counts as waiting";
+    std::thread other([&] { a.finish(2s); });
+    b.finish(2s);
+    other.join();
+}
+
+TEST(EmulatedLinkTransport, LinkSpecsParseOrSayWhichPartIsWrong) {
+    const LinkSpec s = parseLinkSpec("20:100:2");
+    EXPECT_DOUBLE_EQ(s.latency_ms, 20.0);
+    EXPECT_DOUBLE_EQ(s.mbps, 100.0);
+    EXPECT_DOUBLE_EQ(s.jitter_ms, 2.0);
+    EXPECT_EQ(s.describe(), "20 ms, 100 Mb/s, jitter 2 ms");
+    EXPECT_EQ(parseLinkSpec("0.2:10000").describe(), "0.2 ms, 10 Gb/s");
+    EXPECT_EQ(parseLinkSpec("1").describe(), "1 ms, unlimited");
+    EXPECT_FALSE(parseLinkSpec("0").active());
+    for (const char* bad : {"", "x", "-1", "1:0", "1:-5", "1:100:-1", "1:100:2:3", "1::2", "nan", "inf", "1:1e400"})
+        EXPECT_THROW(parseLinkSpec(bad), std::invalid_argument) << bad;
+    try {
+        parseLinkSpec("5:fast");
+        FAIL();
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("bandwidth (Mb/s) 'fast'"), std::string::npos) << e.what();
+    }
+}
+
+// Jitter is seeded: the same seed delays the same messages alike, and never reorders a pair.
+TEST(EmulatedLinkTransport, JitterKeepsTheOrderOfAPair) {
+    InProcessHub hub(2);
+    LinkSpec spec = parseLinkSpec("1:1000:5");
+    EmulatedLink a(hub.connect(0), spec), b(hub.connect(1), spec);
+    for (uint8_t i = 0; i < 20; ++i) a.send(1, MessageKind::Delta, {i});
+    for (uint8_t i = 0; i < 20; ++i) EXPECT_EQ(b.receive(0, MessageKind::Delta, 2s), (std::vector<uint8_t>{i}));
+    std::thread other([&] { a.finish(2s); });
+    b.finish(2s);
+    other.join();
 }
 
 }  // namespace
