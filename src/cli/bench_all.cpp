@@ -700,7 +700,7 @@ void Bench::hierarchy(std::ostringstream& md) {
     md << "## 8. The hierarchy: HLOD cuts against every object on its own (issue 16)\n\n"
        << "`render --headless --reference --lod error --tau 1`, `oc+lod`, with `--hierarchy off` (every object\n"
        << "its own coarsest level within tau) and `--hierarchy on` (the cut of `prep`'s hierarchy: a node\n"
-       << "whose error projects to at most tau / 2 pixels is drawn as its HLOD, itself within the other half);\n"
+       << "whose own error projects to at most tau / 10 pixels is drawn as its HLOD, at a level within the rest);\n"
        << "on the walks also `--visibility-weighted on` (the error x the visible share q / alpha, Charalambos\n"
        << "2006). Items drawn: objects, or nodes of the cut. PSNR against the full-detail unculled picture,\n"
        << "both drawn `--colours uniform` (every item grey): an HLOD has one colour for all the objects it\n"
