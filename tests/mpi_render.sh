@@ -6,7 +6,8 @@
 # latency is exactly one frame with 2 and 3 ranks; --pace recorded skips poses a slow run cannot
 # show; 4 and 5 ranks (the switch and 2 or 3 sort-last display ranks) cull exactly what 3 ranks
 # cull and split it into partitions that together are the 3-rank display's set; a rank killed mid-run
-# makes the others exit non-zero within 10 s naming it.
+# makes the others exit non-zero within 10 s naming it; an emulated link (--link) and the TCP
+# transport change the timing, never the answer.
 set -u
 exe=$1
 dir=$(mktemp -d)
@@ -44,6 +45,14 @@ grep -q "^link: emulated between every pair of ranks: 2 ms, 100 Mb/s" "$dir/outl
 grep -q "camera-to-display latency 1 frame," "$dir/outlink" || fail "--link latency: $(cat "$dir/outlink")"
 link_ms=$(grep -o 'latency 1 frame, [0-9.]* ms' "$dir/outlink" | grep -o '[0-9.]* ms' | grep -o '[0-9.]*')
 awk -v m="$link_ms" 'BEGIN { exit !(m >= 4.0) }' || fail "--link 2:100: camera-to-display $link_ms ms, not >= 4"
+# Over Open MPI's TCP transport on 127.0.0.1 (shared memory off, as between nodes), with and
+# without the emulated link: the same answer.
+tcp=(--mca pml ob1 --mca btl tcp,self --mca btl_tcp_if_include lo)
+timeout 120 "${mpirun[@]}" "${tcp[@]}" -np 3 "$exe" "${render[@]}" --stats "$dir/r3tcp.csv" >"$dir/outtcp" 2>"$dir/err" \
+  || fail "mpirun -np 3 over TCP: $(tail -5 "$dir/err")"
+timeout 120 "${mpirun[@]}" "${tcp[@]}" -np 3 "$exe" "${render[@]}" --stats "$dir/r3tcplink.csv" --link 1:1000 \
+  >"$dir/outtcplink" 2>"$dir/err" || fail "mpirun -np 3 over TCP --link 1:1000: $(tail -5 "$dir/err")"
+grep -q "camera-to-display latency 1 frame," "$dir/outtcplink" || fail "TCP + link latency: $(cat "$dir/outtcplink")"
 [ "$(grep -o 'visible-set messages [0-9]* bytes/frame' "$dir/outlink")" = \
   "$(grep -o 'visible-set messages [0-9]* bytes/frame' "$dir/out3")" ] || fail "--link changed the bytes: $(cat "$dir/outlink")"
 
@@ -64,6 +73,8 @@ same(rows('r1.csv'), rows('r2.csv'), '1 rank vs 2 ranks')
 same(rows('r1.csv'), rows('r1mpi.csv'), '1 rank vs mpirun -np 1')
 same(r3, r3full, 'deltas vs --no-deltas')
 same(r3, rows('r3link.csv'), 'no link vs --link 2:100')
+same(r3, rows('r3tcp.csv'), 'shared memory vs TCP')
+same(r3, rows('r3tcplink.csv'), 'shared memory vs TCP with --link 1:1000')
 # Every frame has the display's row and its culler's row; ranks 1 and 2 alternate.
 all3 = list(csv.DictReader(open(f'{d}/r3.csv')))
 assert len(all3) == 120, f'{len(all3)} rows in the merged 3-rank CSV'
