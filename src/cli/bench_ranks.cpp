@@ -3,9 +3,11 @@
 
 #include "cli/bench_runner.h"
 #include "cli/commands.h"
+#include "net/messages.h"
 #include "scene/atomic_file.h"
 #include "scene/oss_file.h"
 
+#include <algorithm>
 #include <map>
 #include <set>
 
@@ -293,6 +295,216 @@ int runBenchRanks(const BenchRanksOptions& o) {
                      reference.ranks, (out / "ranks.md").c_str());
         return 1;
     }
+    return 0;
+}
+
+namespace {
+
+// One run of bench links: a layout over one link (or none).
+struct LinkRun {
+    int ranks = 0;
+    double latency_ms = 0, mbps = 0;  // mbps 0: no emulation (when latency is 0 too)
+    bool saturating = false;
+    Layout layout;
+    uint64_t shown = 0, skipped = 0, poses = 0;
+    double fps = 0;                       // frames shown per second of the path
+    double n = 0, delta_messages = 0;     // delta entries (added + removed + changed), messages, per frame
+    double busiest_rank_bytes = 0;        // the most a rank sent per frame
+    double display_wait = 0, max_wait = 0;  // ms per frame
+};
+
+std::string linkLabel(const LinkRun& r) {
+    if (r.latency_ms == 0 && r.mbps == 0) return "none";
+    return fixed(r.latency_ms, r.latency_ms < 1 && r.latency_ms > 0 ? 1 : 0) + " ms, " +
+           (r.mbps >= 1000 ? fixed(r.mbps / 1000, 0) + " Gb/s" : fixed(r.mbps, r.mbps < 10 ? 3 : 0) + " Mb/s");
+}
+
+// SWITCH's bytes per frame, Govindaraju et al. 2003: 8n + nh/b + 3(72 + h), n entries of the
+// visible set's change, h header bytes, b entries per packet (so nh/b = h per packet sent).
+double switchModelBytes(double n, double packets, double h) { return 8.0 * n + packets * h + 3.0 * (72.0 + h); }
+
+}  // namespace
+
+int runBenchLinks(const BenchLinksOptions& o) {
+    uint32_t width = 0, height = 0;
+    parseViewportSize("--size", o.size, width, height);
+    if (o.layouts.empty()) throw UsageError("bench links: --layouts needs at least one rank count");
+    for (int n : o.layouts)
+        if (n < 3 || n > 64) throw UsageError("bench links: --layouts " + std::to_string(n) + ": expected 3 to 64 (the switch, or 2 + P)");
+    for (double l : o.latencies_ms)
+        if (!(l >= 0 && l <= 10000)) throw UsageError("bench links: --latencies " + fixed(l, 3) + ": expected 0 to 10000 ms");
+    for (double b : o.mbps)
+        if (!(b > 0 && b <= 1e7)) throw UsageError("bench links: --mbps " + fixed(b, 3) + ": expected (0, 10^7] Mb/s");
+    if (o.frames < 10) throw UsageError("bench links: --frames must be at least 10");
+    if (!(o.path_fps > 0 && o.path_fps <= 1000)) throw UsageError("bench links: --path-fps must be in (0, 1000]");
+    if (!(o.saturate_fps >= 0 && o.saturate_fps < o.path_fps))
+        throw UsageError("bench links: --saturate-fps must be in [0, --path-fps)");
+    const std::string mpirun = findInPath("mpirun");
+    if (mpirun.empty()) throw SystemError("bench links: mpirun not found (run launch/setup)");
+    const InterruptHandlers interrupts;
+    const fs::path out(o.out);
+    makeOutputFolder(o.out);
+    for (const char* sub : {"scenes", "raw", "logs", "plots"}) fs::create_directories(out / sub);
+    Runner runner(out / "logs", o.run_timeout_s, "bench links");
+    const std::string exe = fs::read_symlink("/proc/self/exe").string();
+
+    fs::path scene = o.scene;
+    if (scene.empty()) {
+        scene = out / "scenes" / "grid_4x4x4.oss";
+        if (!fs::exists(scene)) {
+            const fs::path glb = out / "scenes" / "grid_4x4x4.glb";
+            runner.run("gen", {exe, "gen", "grid", "--nx", "4", "--ny", "4", "--nz", "4", "-o", glb.string()});
+            runner.run("prep", {exe, "prep", glb.string(), "-o", scene.string(), "--hierarchy", "off"});
+            fs::remove(glb);
+        }
+    }
+    const OssFile file = OssFile::open(scene.string());
+    const fs::path cam = out / "scenes" / ("walk" + std::to_string(o.frames) + ".cam");
+    runner.run("path", {exe, "path", "walk", scene.string(), "--frames", std::to_string(o.frames), "-o", cam.string()});
+    const double h = double(kMessageHeaderSize);
+
+    const auto play = [&](int ranks, double latency_ms, double mbps, bool saturating) {
+        LinkRun run;
+        run.ranks = ranks, run.latency_ms = latency_ms, run.mbps = mbps, run.saturating = saturating;
+        std::string name = "np" + std::to_string(ranks) + "_";
+        name += (latency_ms == 0 && mbps == 0) ? std::string("none") : fixed(latency_ms, 1) + "ms_" + fixed(mbps, 3) + "mbps";
+        const fs::path csv = out / "raw" / (name + ".csv");
+        std::vector<std::string> argv{mpirun, "-np", std::to_string(ranks), "--oversubscribe", "--mca",
+                                      "odls_base_sigkill_timeout", "3"};
+        if (::geteuid() == 0) argv.push_back("--allow-run-as-root");
+        for (const std::string& a : {exe, std::string("render"), scene.string(), std::string("--path"), cam.string(),
+                                     std::string("--headless"), std::string("--size"), o.size, std::string("--pace"),
+                                     std::string("recorded"), std::string("--path-fps"), fixed(o.path_fps, 3),
+                                     std::string("--stats"), csv.string()})
+            argv.push_back(a);
+        if (latency_ms > 0 || mbps > 0) {
+            argv.push_back("--link");
+            argv.push_back(fixed(latency_ms, 3) + (mbps > 0 ? ":" + fixed(mbps, 6) : std::string()));
+        }
+        const RunResult r = runner.run(name, argv);
+        run.layout = measure(ranks, csv);
+        const std::string log = readText(r.log);
+        const size_t at = log.find("pace: recorded");
+        unsigned long long shown = 0, skipped = 0;
+        if (at == std::string::npos) throw SystemError("bench links: " + name + ": no pace line (log: " + r.log.string() + ")");
+        const size_t frames_at = log.find("frames shown", at);
+        const size_t colon = log.rfind(':', frames_at);
+        if (frames_at == std::string::npos || colon == std::string::npos ||
+            std::sscanf(log.c_str() + colon + 1, " %llu frames shown, %llu poses skipped", &shown, &skipped) != 2)
+            throw SystemError("bench links: " + name + ": unreadable pace line (log: " + r.log.string() + ")");
+        run.shown = shown, run.skipped = skipped, run.poses = shown + skipped;
+        run.fps = double(shown) * o.path_fps / double(std::max<uint64_t>(1, run.poses));
+        // Per frame: the delta entries and messages, and the bytes each rank sent.
+        const CsvTable t = CsvTable::read(csv.string());
+        std::map<int, double> sent;
+        double rows0 = 0;
+        for (size_t i = 0; i < t.rows(); ++i) {
+            if (t.num(i, "frame") == 0) continue;
+            const int rank = int(t.num(i, "rank"));
+            run.n += num(t, i, "delta_added") + num(t, i, "delta_removed") + num(t, i, "delta_changed");
+            run.delta_messages += num(t, i, "msgs_delta");
+            sent[rank] += num(t, i, "bytes_camera") + num(t, i, "bytes_delta") + num(t, i, "bytes_eof") +
+                          num(t, i, "bytes_composite");
+            rows0 += rank == 0;
+        }
+        const double frames = std::max(1.0, rows0);
+        run.n /= frames, run.delta_messages /= frames;
+        for (const auto& [rank, bytes] : sent) run.busiest_rank_bytes = std::max(run.busiest_rank_bytes, bytes / frames);
+        for (const auto& [rank, k] : run.layout.per_rank) {
+            run.max_wait = std::max(run.max_wait, k.wait);
+            if (rank == 0) run.display_wait = k.wait;
+        }
+        std::fprintf(stderr, "bench links: %d ranks, link %s: %.1f fps shown, latency %.2f frames / %.1f ms, %llu of %llu "
+                             "poses skipped (%.1f s)\n",
+                     ranks, linkLabel(run).c_str(), run.fps, run.layout.latency_frames, run.layout.latency_ms, skipped,
+                     shown + skipped, r.seconds);
+        return run;
+    };
+
+    std::vector<LinkRun> runs;
+    for (int ranks : o.layouts) {
+        runs.push_back(play(ranks, 0, 0, false));
+        const LinkRun base = runs.back();
+        for (double mbps : o.mbps)
+            for (double latency : o.latencies_ms) runs.push_back(play(ranks, latency, mbps, false));
+        if (o.saturate_fps > 0 && base.busiest_rank_bytes > 0)
+            runs.push_back(play(ranks, 0, base.busiest_rank_bytes * 8.0 * o.saturate_fps / 1e6, true));
+    }
+
+    std::ostringstream md, csv;
+    csv << "ranks,link,latency_ms,mbps,saturating,frames_shown,poses_skipped,fps,latency_frames,display_latency_ms,"
+           "bytes_camera,bytes_delta,bytes_eof,bytes_total,delta_entries,delta_messages,switch_model_bytes,"
+           "busiest_rank_bytes,max_fps_link,display_wait_ms,max_wait_ms\n";
+    md << "# Emulated links (`occswitch bench links`)\n\n"
+       << "Scene " << scene.filename().string() << " (" << file.objectCount() << " objects), a " << o.frames
+       << "-camera walk played in real time (`--pace recorded --path-fps " << fixed(o.path_fps, 0)
+       << "`), `render --headless --size " << o.size << "` with deltas, through mpirun on this one machine,\n"
+       << "every link emulated in the transport (`render --link LATENCY_MS:MBPS`, between every pair of ranks).\n"
+       << "fps: frames shown per second of the path; latency: camera to display, in frames and ms; bytes: per\n"
+       << "frame after the first, every rank's; wait: ms per frame a rank was blocked on a message (the\n"
+       << "display's, and the most of any rank). SWITCH's model: 8n + nh/b + 3(72 + h) with n the measured\n"
+       << "delta entries, h = " << fixed(h, 0) << " (our header), n/b the delta messages. Max fps: what the busiest rank's bytes\n"
+       << "per frame (messages and sort-last pixels) allow on the link (all its destinations together, so a\n"
+       << "bound from below: each of its links carries only part of them). The narrow link is the one that bound puts at --saturate-fps\n"
+       << "for the run without emulation.\n\n"
+       << "| ranks | link | fps | latency frames | latency ms | skipped | camera B | delta B | eof B | SWITCH model B | "
+          "measured / model | max fps on the link | display wait ms | max wait ms |\n"
+       << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    for (const LinkRun& r : runs) {
+        const double total = r.layout.camera + r.layout.delta + r.layout.eof;
+        const double model = switchModelBytes(r.n, r.delta_messages, h);
+        const double max_fps = r.mbps > 0 && r.busiest_rank_bytes > 0 ? r.mbps * 1e6 / 8.0 / r.busiest_rank_bytes : 0;
+        std::string label = linkLabel(r);
+        std::replace(label.begin(), label.end(), ',', ';');  // a CSV field
+        csv << r.ranks << "," << label << "," << fixed(r.latency_ms, 3) << "," << fixed(r.mbps, 6) << ","
+            << (r.saturating ? 1 : 0) << "," << r.shown << "," << r.skipped << "," << fixed(r.fps, 2) << ","
+            << fixed(r.layout.latency_frames, 3) << "," << fixed(r.layout.latency_ms, 3) << "," << fixed(r.layout.camera, 1)
+            << "," << fixed(r.layout.delta, 1) << "," << fixed(r.layout.eof, 1) << "," << fixed(total, 1) << ","
+            << fixed(r.n, 2) << "," << fixed(r.delta_messages, 3) << "," << fixed(model, 1) << ","
+            << fixed(r.busiest_rank_bytes, 1) << "," << fixed(max_fps, 1) << "," << fixed(r.display_wait, 3) << ","
+            << fixed(r.max_wait, 3) << "\n";
+        md << "| " << r.ranks << " | " << linkLabel(r) << (r.saturating ? " (narrow)" : "") << " | " << fixed(r.fps, 1)
+           << " | " << fixed(r.layout.latency_frames, 2) << " | " << fixed(r.layout.latency_ms, 1) << " | " << r.skipped
+           << " of " << r.poses << " | " << fixed(r.layout.camera, 0) << " | " << fixed(r.layout.delta, 0) << " | "
+           << fixed(r.layout.eof, 0) << " | " << fixed(model, 0) << " | " << fixed(model > 0 ? total / model : 0, 2)
+           << " | " << (max_fps > 0 ? fixed(max_fps, max_fps < 100 ? 1 : 0) : std::string("-")) << " | "
+           << fixed(r.display_wait, 2) << " | " << fixed(r.max_wait, 2) << " |\n";
+    }
+    md << "\nMeasured bytes differ from SWITCH's formula where our messages differ from its packets: a\n"
+       << "camera packet is " << fixed(h + kCameraPayloadSize, 0) << " bytes (72 + h would be " << fixed(72 + h, 0)
+       << "), a delta carries a " << kDeltaPayloadHeaderSize << "-byte payload header with its hash,\n"
+       << "a removal costs 4 bytes and an addition or LOD change 8, and every frame adds end-of-frame\n"
+       << "messages (" << fixed(h + kEndOfFramePayloadSize, 0) << " bytes each) that the formula has no term for.\n";
+    writeFileAtomic((out / "links.csv").string(), csv.str());
+    writeFileAtomic((out / "links.md").string(), md.str());
+    const std::string gnuplot = findInPath("gnuplot");
+    if (!gnuplot.empty()) {
+        const fs::path script = out / "plots" / "links.gp";
+        std::string gp =
+            "# links.png from links.csv of `occswitch bench links`; run from the results folder\n"
+            "set datafile separator ','\nset terminal pngcairo size 1100,460 font 'sans,10' noenhanced\n"
+            "set output 'plots/links.png'\nset grid ytics lc rgb '#dddddd'\nset key autotitle columnhead\n"
+            "set multiplot layout 1,2 title 'Emulated links: the switch with paced cameras'\n"
+            "set xlabel 'link latency (ms)'\nset logscale x 10\nset ylabel 'fps shown'\n"
+            "set title 'frames per second'\nplot ";
+        std::string lat = "set title 'camera-to-display latency'\nset ylabel 'ms'\nplot ";
+        bool first = true;
+        for (int ranks : o.layouts)
+            for (double mbps : o.mbps) {
+                const std::string filter = "(column('ranks') == " + std::to_string(ranks) + " && column('mbps') == " +
+                                           fixed(mbps, 6) + " && column('saturating') == 0 ? ";
+                const std::string title = std::to_string(ranks) + " ranks, " +
+                                          (mbps >= 1000 ? fixed(mbps / 1000, 0) + " Gb/s" : fixed(mbps, 0) + " Mb/s");
+                gp += std::string(first ? "" : ", ") + "'links.csv' using (column('latency_ms') > 0 ? column('latency_ms') : 0.05):" +
+                      filter + "column('fps') : 1/0) with linespoints title '" + title + "'";
+                lat += std::string(first ? "" : ", ") + "'links.csv' using (column('latency_ms') > 0 ? column('latency_ms') : 0.05):" +
+                       filter + "column('display_latency_ms') : 1/0) with linespoints title '" + title + "'";
+                first = false;
+            }
+        writeFileAtomic(script.string(), gp + "\n" + lat + "\nunset multiplot\n");
+        runner.run("gnuplot_links", {gnuplot, "-e", "cd '" + fs::absolute(out).string() + "'", fs::absolute(script).string()});
+    }
+    std::printf("%s\n", (out / "links.md").c_str());
     return 0;
 }
 

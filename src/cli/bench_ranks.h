@@ -28,4 +28,28 @@ struct BenchRanksOptions {
 // measured here. Prints the summary's path on stdout.
 int runBenchRanks(const BenchRanksOptions& options);
 
+struct BenchLinksOptions {
+    std::string out;                                  // results folder (created if missing)
+    std::string scene;                                // an existing .oss instead of the 4x4x4 engine grid
+    std::string model;                                // the grid's model (default: the 2CylinderEngine)
+    std::vector<int> layouts{3, 4};                   // rank counts: the 3-rank switch, 2 + P
+    std::vector<double> latencies_ms{0, 0.2, 1, 5, 20};
+    std::vector<double> mbps{100, 1000, 10000};
+    uint32_t frames = 60;                             // cameras of the walk
+    double path_fps = 30;                             // render --pace recorded --path-fps
+    double saturate_fps = 10;                         // the bandwidth-bound run aims at this many fps (0: none)
+    std::string size = "320x240";
+    double run_timeout_s = 1800;
+};
+
+// `occswitch bench links --out DIR` (issue 17): the walk with paced cameras (--pace recorded)
+// through every layout, first without emulation, then over every emulated link of latency x
+// bandwidth (render --link): displayed fps, camera-to-display latency in frames and ms, poses
+// skipped, bytes per frame by kind, the time each rank waits; SWITCH's bandwidth formula
+// (Govindaraju et al. 2003: 8n + nh/b + 3(72 + h) bytes per frame) from the measured n and our
+// header size beside the measured bytes; the largest frame rate each link carries, and one run
+// on a link just narrow enough to hold the switch to `saturate_fps`. Writes links.md, links.csv,
+// plots/links.png (with gnuplot) into --out and prints the summary's path.
+int runBenchLinks(const BenchLinksOptions& options);
+
 }  // namespace occ::cli

@@ -632,7 +632,28 @@ Command addBenchCommand(CLI::App& app) {
         ->capture_default_str();
     ranks->add_option("--run-timeout", ro->run_timeout_s, "seconds after which a run is stopped and reported")
         ->capture_default_str();
-    return {bench, [o, prep, po, size, pvs, ao, all, mo, massive, ro, ranks] {
+    auto lo = std::make_shared<BenchLinksOptions>();
+    CLI::App* links = bench->add_subcommand(
+        "links", "Latency and bandwidth experiments: the walk with paced cameras (--pace recorded) through the\n"
+                 "3-rank switch and 2 + P, without emulation and over every emulated link of --latencies x\n"
+                 "--mbps (render --link): fps shown, camera-to-display latency, poses skipped, bytes per frame\n"
+                 "by kind against SWITCH's bandwidth formula, the fps each link can carry, rank waits; one run\n"
+                 "on a link just narrow enough for --saturate-fps. Writes links.md, links.csv and\n"
+                 "plots/links.png into --out. Default scene: the 4x4x4 engine grid (made once in OUT/scenes).");
+    links->add_option("--out", lo->out, "results folder (created if missing)")->required();
+    links->add_option("--scene", lo->scene, "an existing .oss scene instead of the 4x4x4 engine grid");
+    links->add_option("--layouts", lo->layouts, "rank counts: 3 (the switch), 2 + P")->delimiter(',')->capture_default_str();
+    links->add_option("--latencies", lo->latencies_ms, "link latencies, ms")->delimiter(',')->capture_default_str();
+    links->add_option("--mbps", lo->mbps, "link bandwidths, Mb/s")->delimiter(',')->capture_default_str();
+    links->add_option("--frames", lo->frames, "cameras of the walk")->check(CLI::Range(10u, 100000u))->capture_default_str();
+    links->add_option("--path-fps", lo->path_fps, "cameras per second the path is played at")->capture_default_str();
+    links->add_option("--saturate-fps", lo->saturate_fps, "the narrow link's target fps (0: no such run)")
+        ->capture_default_str();
+    links->add_option("--size", lo->size, "render --size WxH")->capture_default_str();
+    links->add_option("--run-timeout", lo->run_timeout_s, "seconds after which a run is stopped and reported")
+        ->capture_default_str();
+    return {bench, [o, prep, po, size, pvs, ao, all, mo, massive, ro, ranks, lo, links] {
+                if (links->parsed()) return runBenchLinks(*lo);
                 if (ranks->parsed()) return runBenchRanks(*ro);
                 if (prep->parsed()) return runBenchPrep(*o);
                 if (all->parsed()) return runBenchAll(*ao);
