@@ -470,6 +470,34 @@ int runBenchLinks(const BenchLinksOptions& o) {
            << " | " << (max_fps > 0 ? fixed(max_fps, max_fps < 100 ? 1 : 0) : std::string("-")) << " | "
            << fixed(r.display_wait, 2) << " | " << fixed(r.max_wait, 2) << " |\n";
     }
+    // Where a frame's time goes on the slowest link of each layout, against no emulation.
+    md << "\n## The latency budget\n\nPer layout, the run without emulation and the one over the longest link\n"
+       << "latency at the lowest bandwidth: the display's frame (1000 / fps shown), the display's wait for\n"
+       << "messages, its own work (streaming, reform, drawing), the culling ranks' occluder raster + HZM\n"
+       << "(OR) and culling + LOD (HC) per frame, and the camera-to-display latency. One frame of latency\n"
+       << "holds when the switch skips cameras instead of falling further behind.\n\n"
+       << "| ranks | link | frame ms | display wait ms | display work ms | OR ms | HC ms | latency frames | latency ms |\n"
+       << "|---|---|---|---|---|---|---|---|---|\n";
+    for (int ranks : o.layouts) {
+        const LinkRun* none = nullptr;
+        const LinkRun* slow = nullptr;
+        for (const LinkRun& r : runs) {
+            if (r.ranks != ranks || r.saturating) continue;
+            if (r.latency_ms == 0 && r.mbps == 0) none = &r;
+            else if (!slow || r.latency_ms > slow->latency_ms ||
+                     (r.latency_ms == slow->latency_ms && r.mbps < slow->mbps))
+                slow = &r;
+        }
+        for (const LinkRun* r : {none, slow}) {
+            if (!r) continue;
+            const auto d = r->layout.per_rank.find(0);
+            const double work = d == r->layout.per_rank.end() ? 0 : d->second.busy;
+            md << "| " << ranks << " | " << linkLabel(*r) << " | " << fixed(r->fps > 0 ? 1000.0 / r->fps : 0, 1) << " | "
+               << fixed(r->display_wait, 2) << " | " << fixed(work, 2) << " | " << fixed(r->layout.or_ms, 2) << " | "
+               << fixed(r->layout.hc_ms, 2) << " | " << fixed(r->layout.latency_frames, 2) << " | "
+               << fixed(r->layout.latency_ms, 1) << " |\n";
+        }
+    }
     md << "\nMeasured bytes differ from SWITCH's formula where our messages differ from its packets: a\n"
        << "camera packet is " << fixed(h + kCameraPayloadSize, 0) << " bytes (72 + h would be " << fixed(72 + h, 0)
        << "), a delta carries a " << kDeltaPayloadHeaderSize << "-byte payload header with its hash,\n"
