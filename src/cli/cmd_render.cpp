@@ -49,6 +49,7 @@ struct RenderOptions {
     double occluder_ms = -1;  // -1: the default of the mode (on in a window)
     double rank_timeout = 5.0;
     std::string link;  // --link LATENCY_MS[:MBPS[:JITTER_MS]]
+    std::string link_file;  // --link-file F: per pair of ranks
     LinkSpec link_spec;
     int sort_last_cells = 1;
     int device = -1;
@@ -221,7 +222,23 @@ int runRender(RenderOptions o) {
         hub = std::make_unique<InProcessHub>(1);
         transport = hub->connect(0);
     }
-    if (o.link_spec.active()) transport = std::make_unique<EmulatedLink>(std::move(transport), o.link_spec);
+    std::string link_summary;
+    if (!o.link_file.empty()) {
+        std::vector<LinkSpec> to = readLinkFile(o.link_file, transport->rank(), transport->size(), o.link_spec);
+        for (int a = 0; a < transport->size(); ++a) {
+            const std::vector<LinkSpec> from_a = readLinkFile(o.link_file, a, transport->size(), o.link_spec);
+            for (int b = a + 1; b < transport->size(); ++b)
+                link_summary += (link_summary.empty() ? "" : "; ") + std::to_string(a) + "-" + std::to_string(b) + " " +
+                                from_a[size_t(b)].describe();
+        }
+        if (std::any_of(to.begin(), to.end(), [](const LinkSpec& s) { return s.active(); }) || o.link_spec.active())
+            transport = std::make_unique<EmulatedLink>(std::move(transport), std::move(to));
+        link_summary = "emulated per pair of ranks from " + o.link_file + ": " +
+                       (link_summary.empty() ? "(one rank: no pairs)" : link_summary);
+    } else if (o.link_spec.active()) {
+        transport = std::make_unique<EmulatedLink>(std::move(transport), o.link_spec);
+        link_summary = "emulated between every pair of ranks: " + o.link_spec.describe();
+    }
 #ifdef OCC_HAVE_GL
     if (draws && !o.headless) return runInWindow(o, file, *transport, device.ordinal);
 #endif
@@ -360,10 +377,10 @@ int runRender(RenderOptions o) {
                 double(sum.bytes_camera) / frames, double(sum.bytes_eof) / frames, sum.latency_frames,
                 sum.latency_frames == 1 ? "" : "s", frames > 1 ? sum.latency_ms / (frames - 1) : 0.0,
                 sum.ms_wait / frames);
-    if (o.link_spec.active())
-        std::printf("link: emulated between every pair of ranks: %s (each message delayed by the latency, its bytes at "
-                    "the bandwidth, one queue per destination)\n",
-                    o.link_spec.describe().c_str());
+    if (!link_summary.empty())
+        std::printf("link: %s (each message delayed by the latency, its bytes at the bandwidth, one queue per "
+                    "destination)\n",
+                    link_summary.c_str());
     if (paced) {
         // The longest run of poses no frame showed.
         uint64_t longest = pose_of.empty() ? 0 : pose_of.front();
@@ -497,6 +514,10 @@ Command addRenderCommand(CLI::App& app) {
                     "LATENCY_MS[:MBPS[:JITTER_MS]]: emulate a network link between every pair of ranks, e.g. 1:100\n"
                     "(1 ms, 100 Mb/s), 0.2:10000, 20:100:2 (seeded jitter); every rank must get the same")
         ->type_name("SPEC");
+    sub->add_option("--link-file", o->link_file,
+                    "a link per pair of ranks: lines 'RANK RANK SPEC' (SPEC as --link), e.g. '0 1 5:100' for a slow\n"
+                    "display <-> culler link and '1 2 0.05:10000' between the switch pair; other pairs get --link")
+        ->type_name("FILE");
     sub->add_option("--rank-timeout", o->rank_timeout,
                     "seconds a rank waits for a message before it declares the sender dead")
         ->capture_default_str();

@@ -1,9 +1,14 @@
 // SPDX-License-Identifier: MIT
 #include "net/emulated_link.h"
 
+#include "scene/errors.h"
+
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <fstream>
+#include <set>
+#include <sstream>
 #include <stdexcept>
 #include <thread>
 
@@ -69,9 +74,60 @@ LinkSpec parseLinkSpec(const std::string& text) {
 }
 
 EmulatedLink::EmulatedLink(std::unique_ptr<Transport> inner, const LinkSpec& link)
-    : inner_(std::move(inner)), link_(link), jitter_rng_(link.seed * 0x9E3779B97F4A7C15ull + uint64_t(inner_->rank())) {
+    : EmulatedLink(std::move(inner), std::vector<LinkSpec>()) {
+    to_rank_.assign(size_t(inner_->size()), link);
+    jitter_rng_.seed(link.seed * 0x9E3779B97F4A7C15ull + uint64_t(inner_->rank()));
+}
+
+EmulatedLink::EmulatedLink(std::unique_ptr<Transport> inner, std::vector<LinkSpec> to_rank)
+    : inner_(std::move(inner)), to_rank_(std::move(to_rank)) {
+    to_rank_.resize(size_t(inner_->size()));
+    jitter_rng_.seed((to_rank_.empty() ? 1 : to_rank_[0].seed) * 0x9E3779B97F4A7C15ull + uint64_t(inner_->rank()));
     link_free_ns_.assign(size_t(inner_->size()), 0);
     last_arrival_ns_.assign(size_t(inner_->size()), 0);
+}
+
+std::vector<LinkSpec> readLinkFile(const std::string& path, int rank, int size, const LinkSpec& fallback) {
+    std::ifstream in(path);
+    if (!in) throw InputError(path, "cannot read the link file");
+    std::vector<LinkSpec> to(size_t(size), fallback);
+    std::set<std::pair<int, int>> seen;
+    std::string line;
+    for (int number = 1; std::getline(in, line); ++number) {
+        const size_t hash = line.find('#');
+        if (hash != std::string::npos) line.resize(hash);
+        std::istringstream words(line);
+        std::string a_text, b_text, spec, extra;
+        if (!(words >> a_text)) continue;
+        const std::string where = "line " + std::to_string(number) + ": ";
+        if (!(words >> b_text >> spec) || (words >> extra))
+            throw InputError(path, where + "expected RANK RANK LATENCY_MS[:MBPS[:JITTER_MS]], got '" + line + "'");
+        int ab[2];
+        const std::string texts[2] = {a_text, b_text};
+        for (int i = 0; i < 2; ++i) {
+            size_t used = 0;
+            try {
+                ab[i] = std::stoi(texts[i], &used);
+            } catch (const std::exception&) {
+                used = 0;
+            }
+            if (used == 0 || used != texts[i].size() || ab[i] < 0 || ab[i] >= size)
+                throw InputError(path, where + "rank '" + texts[i] + "' is not in [0, " + std::to_string(size) + ")");
+        }
+        if (ab[0] == ab[1]) throw InputError(path, where + "rank " + a_text + " paired with itself");
+        if (!seen.insert({std::min(ab[0], ab[1]), std::max(ab[0], ab[1])}).second)
+            throw InputError(path, where + "the pair " + a_text + " " + b_text + " is listed twice");
+        LinkSpec s;
+        try {
+            s = parseLinkSpec(spec);
+        } catch (const std::invalid_argument& e) {
+            throw InputError(path, where + e.what());
+        }
+        s.seed = fallback.seed;
+        if (ab[0] == rank) to[size_t(ab[1])] = s;
+        if (ab[1] == rank) to[size_t(ab[0])] = s;
+    }
+    return to;
 }
 
 void EmulatedLink::send(int dest, MessageKind kind, std::vector<uint8_t> bytes) {
@@ -82,6 +138,7 @@ void EmulatedLink::send(int dest, MessageKind kind, std::vector<uint8_t> bytes) 
     const int64_t now = nowNs();
     int64_t arrival = now;
     if (dest != rank()) {
+        const LinkSpec& link_ = to_rank_[size_t(dest)];
         int64_t& free = link_free_ns_[size_t(dest)];
         const double wire_ns = link_.mbps > 0 ? double(bytes.size()) * 8.0 / (link_.mbps * 1e6) * 1e9 : 0.0;
         const int64_t departed = std::max(now, free) + int64_t(wire_ns);
@@ -136,6 +193,15 @@ void EmulatedLink::composite(const std::vector<int>& group, std::vector<DepthPix
                              std::chrono::milliseconds timeout, const std::function<void()>& idle) {
     const size_t bytes = pixels.size() * sizeof(DepthPixel);
     inner_->composite(group, pixels, timeout, idle);
+    // One hop over the slowest of this rank's links to the group.
+    LinkSpec link_;
+    for (int g : group)
+        if (g != rank() && g >= 0 && g < size()) {
+            const LinkSpec& l = to_rank_[size_t(g)];
+            const double ms = l.latency_ms + (l.mbps > 0 ? double(bytes) * 8.0 / (l.mbps * 1e3) : 0.0);
+            const double now_ms = link_.latency_ms + (link_.mbps > 0 ? double(bytes) * 8.0 / (link_.mbps * 1e3) : 0.0);
+            if (ms > now_ms) link_ = l;
+        }
     const double wire_ns = link_.mbps > 0 ? double(bytes) * 8.0 / (link_.mbps * 1e6) * 1e9 : 0.0;
     const int64_t until = nowNs() + int64_t(link_.latency_ms * 1e6 + wire_ns);
     while (nowNs() < until) {

@@ -43,9 +43,18 @@ struct LinkSpec {
 // std::invalid_argument naming the part that is not a finite number >= 0 (bandwidth > 0).
 LinkSpec parseLinkSpec(const std::string& text);
 
+// Links per pair of ranks, from a small text file: one pair per line, "RANK RANK SPEC" (SPEC as
+// parseLinkSpec takes it), both directions; '#' starts a comment. Pairs not listed get
+// `fallback`. Returns the link from `rank` to each of `size` ranks. Throws InputError(path,
+// "line N: ...") for an unreadable file, a malformed line, a rank outside [0, size), a rank paired
+// with itself or a pair listed twice.
+std::vector<LinkSpec> readLinkFile(const std::string& path, int rank, int size, const LinkSpec& fallback);
+
 class EmulatedLink final : public Transport {
 public:
     EmulatedLink(std::unique_ptr<Transport> inner, const LinkSpec& link);
+    // One link per destination (to_rank[d], this rank's own entry unused).
+    EmulatedLink(std::unique_ptr<Transport> inner, std::vector<LinkSpec> to_rank);
 
     int rank() const override { return inner_->rank(); }
     int size() const override { return inner_->size(); }
@@ -58,7 +67,7 @@ public:
                    const std::function<void()>& idle) override;
     TransportCounters counters() const override;
 
-    const LinkSpec& link() const { return link_; }
+    const LinkSpec& link(int dest) const { return to_rank_[size_t(dest)]; }
 
 private:
     struct Held {
@@ -69,7 +78,7 @@ private:
     void take(int source, MessageKind kind, std::chrono::milliseconds timeout);
 
     std::unique_ptr<Transport> inner_;
-    LinkSpec link_;
+    std::vector<LinkSpec> to_rank_;
     std::mt19937_64 jitter_rng_;
     std::vector<int64_t> link_free_ns_;      // per destination: when its link is idle again
     std::vector<int64_t> last_arrival_ns_;   // per destination: the latest arrival stamped

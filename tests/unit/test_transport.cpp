@@ -1,10 +1,12 @@
 // SPDX-License-Identifier: MIT
 #include "net/emulated_link.h"
 #include "net/transport.h"
+#include "scene/errors.h"
 
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <fstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -226,6 +228,51 @@ TEST(EmulatedLinkTransport, JitterKeepsTheOrderOfAPair) {
     std::thread other([&] { a.finish(2s); });
     b.finish(2s);
     other.join();
+}
+
+// Links per pair from a file: each rank gets its own row, both directions of a pair alike, the
+// fallback elsewhere; malformed files name the file and the line.
+TEST(EmulatedLinkTransport, LinkFilesGiveEachPairItsLink) {
+    const std::string path = testing::TempDir() + "occ_links.txt";
+    const auto write = [&](const std::string& text) {
+        std::ofstream(path, std::ios::trunc) << text;
+    };
+    write("# display <-> switch slow\n0 1 10:100\n0 2 10:100  # both cullers\n\n1 2 0.05:10000\n");
+    const LinkSpec fallback = parseLinkSpec("1");
+    const std::vector<LinkSpec> from0 = readLinkFile(path, 0, 4, fallback), from2 = readLinkFile(path, 2, 4, fallback);
+    ASSERT_EQ(from0.size(), 4u);
+    EXPECT_EQ(from0[1].describe(), "10 ms, 100 Mb/s");
+    EXPECT_EQ(from0[2].describe(), "10 ms, 100 Mb/s");
+    EXPECT_EQ(from0[3].describe(), "1 ms, unlimited");  // not listed: the fallback
+    EXPECT_EQ(from2[0].describe(), "10 ms, 100 Mb/s");
+    EXPECT_EQ(from2[1].describe(), "0.05 ms, 10 Gb/s");
+    for (const char* bad : {"0 1\n", "0 1 5 extra\n", "0 7 1\n", "x 1 1\n", "1 1 1\n", "0 1 1\n1 0 2\n", "0 1 fast\n"}) {
+        write(bad);
+        try {
+            readLinkFile(path, 0, 3, fallback);
+            ADD_FAILURE() << "accepted: " << bad;
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+            EXPECT_NE(std::string(e.what()).find("line "), std::string::npos) << e.what();
+        }
+    }
+    EXPECT_THROW(readLinkFile(path + ".missing", 0, 3, fallback), InputError);
+    // Per destination: rank 0's message to rank 1 waits for its 40 ms link, to rank 2 not.
+    write("0 1 40\n");
+    InProcessHub hub(3);
+    EmulatedLink a(hub.connect(0), readLinkFile(path, 0, 3, LinkSpec{})), b(hub.connect(1), readLinkFile(path, 1, 3, LinkSpec{})),
+        c(hub.connect(2), readLinkFile(path, 2, 3, LinkSpec{}));
+    const auto start = std::chrono::steady_clock::now();
+    a.send(1, MessageKind::Delta, {1});
+    a.send(2, MessageKind::Delta, {2});
+    EXPECT_EQ(c.receive(0, MessageKind::Delta, 2s), (std::vector<uint8_t>{2}));
+    EXPECT_FALSE(b.poll(0, MessageKind::Delta));
+    EXPECT_EQ(b.receive(0, MessageKind::Delta, 2s), (std::vector<uint8_t>{1}));
+    EXPECT_GE(std::chrono::steady_clock::now() - start, 40ms);
+    std::thread t1([&] { b.finish(2s); }), t2([&] { c.finish(2s); });
+    a.finish(2s);
+    t1.join();
+    t2.join();
 }
 
 }  // namespace
