@@ -19,12 +19,20 @@ csv_field() {  # csv_field FILE ROW COLUMN: the value in data row ROW (1 = first
 
 "$exe" bench all --size tiny --out "$out" >"$dir/stdout" 2>"$dir/stderr" || { cat "$dir/stderr"; fail "bench all"; }
 [ "$(cat "$dir/stdout")" = "$out/summary.md" ] || fail "stdout is not the summary's path: $(cat "$dir/stdout")"
-for k in 1 2 3 4 5 6 7 8; do
-  grep -q "^bench all \[$k/8\] " "$dir/stderr" || fail "no progress line for experiment $k"
+for k in 1 2 3 4 5 6 7 8 9; do
+  grep -q "^bench all \[$k/9\] " "$dir/stderr" || fail "no progress line for experiment $k"
 done
+# Section 9: bench links on the grid (no link; 0, 1 and 5 ms at 100 Mb/s; the narrow link), one frame
+# of latency in every run.
+[ "$(tail -n +2 "$out/links/links.csv" | wc -l)" -eq 5 ] || fail "links/links.csv: not 5 runs"
+awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == "latency_frames") c = i; next } $c != "1.000" { bad = 1 } END { exit bad || !c }' \
+  "$out/links/links.csv" || fail "links: latency not one frame: $(cat "$out/links/links.csv")"
+grep -q "^## 9. Emulated links" "$out/summary.md" || fail "summary.md has no section 9"
+grep -q "^### The latency budget" "$out/summary.md" || fail "section 9 lacks the latency budget"
 for f in breakdown accuracy accuracy_frames streaming bytes bytes_frames latency fps_frames scaling hierarchy; do
   [ "$(wc -l <"$out/$f.csv")" -ge 2 ] || fail "$f.csv has no rows"
 done
+[ "$(head -c 8 "$out/plots/links.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] || fail "plots/links.png is not a PNG"
 for p in breakdown accuracy streaming bytes latency fps scaling hierarchy; do
   [ -s "$out/plots/$p.gp" ] || fail "no plots/$p.gp"
   [ "$(head -c 8 "$out/plots/$p.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] || fail "plots/$p.png is not a PNG"
@@ -75,9 +83,10 @@ grep -q "plant_400.oss does not verify; preparing it again" "$dir/stderr2" || fa
 # Without MPI every experiment still runs, the layouts on 1 rank, and the summary says so.
 "$exe" bench all --size tiny --no-mpi --scenes "$out/scenes" --out "$dir/nompi" >/dev/null 2>"$dir/stderr3" ||
   { cat "$dir/stderr3"; fail "--no-mpi run"; }
-for k in 1 2 3 4 5 6 7 8; do
-  grep -q "^bench all \[$k/8\] " "$dir/stderr3" || fail "--no-mpi: no progress line for experiment $k"
+for k in 1 2 3 4 5 6 7 8 9; do
+  grep -q "^bench all \[$k/9\] " "$dir/stderr3" || fail "--no-mpi: no progress line for experiment $k"
 done
+grep -q "^Not run: --no-mpi" "$dir/nompi/summary.md" || fail "--no-mpi: section 9 does not say it was not run"
 [ "$(tail -n +2 "$dir/nompi/latency.csv" | wc -l)" -eq 1 ] || fail "--no-mpi: not 1 layout"
 grep -q "^- note: --no-mpi: the layouts were measured with 1 rank only" "$dir/nompi/summary.md" || fail "--no-mpi: no note"
 

@@ -66,7 +66,7 @@ constexpr double kPeng2014TrianglesPerSecond = 110e6;  // on a GPU
 constexpr double kPengCaoStreamedShare = 0.04;        // % of active triangles streamed per frame
 constexpr double kGovindarajuLessTraffic = 93.0;      // % less visible-set traffic with deltas
 
-constexpr int kExperiments = 8;
+constexpr int kExperiments = 9;
 
 // ---------------------------------------------------------------------------------------------
 // Small helpers
@@ -153,6 +153,7 @@ private:
     void bytesAndLatency(std::ostringstream& md);
     void scaling(std::ostringstream& md);
     void hierarchy(std::ostringstream& md);
+    void links(std::ostringstream& md);
     void plots();
 
     const BenchAllOptions& o_;
@@ -752,6 +753,43 @@ void Bench::hierarchy(std::ostringstream& md) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Emulated links (issue 17): `bench links` on the grid's walk, the 3-rank switch with paced
+// cameras, without emulation and over 0, 1 and 5 ms at 100 Mb/s, plus the narrow link; its
+// summary becomes this section, its plot plots/links.png.
+void Bench::links(std::ostringstream& md) {
+    const char* title = "emulated links";
+    md << "## 9. Emulated links: the switch over 100 Mb/s with 1 and 5 ms (issue 17)\n\n";
+    if (!useMpi()) {
+        md << "Not run: " << (o_.no_mpi ? "--no-mpi" : "mpirun not found") << " (the links are between MPI ranks).\n\n";
+        progress(9, title, "skipped (no MPI)", 0);
+        return;
+    }
+    const fs::path dir = out_ / "links";
+    const RunResult r = runner_.run(
+        "bench_links", command({"bench", "links", "--out", dir.string(), "--scene", grid_.oss.string(), "--layouts", "3",
+                                "--latencies", "0,1,5", "--mbps", "100", "--frames", std::to_string(size_.frames),
+                                "--path-fps", "30", "--saturate-fps", "10", "--size", "320x240"}));
+    std::string text = readText(dir / "links.md");
+    // Its headings one level down, under this section's.
+    std::string shifted;
+    std::istringstream in(text);
+    bool first = true;
+    for (std::string line; std::getline(in, line);) {
+        if (first && line.rfind("# ", 0) == 0) {
+            first = false;
+            continue;
+        }
+        first = false;
+        if (line.rfind("## ", 0) == 0) line = "#" + line;
+        shifted += line + "\n";
+    }
+    md << "`occswitch bench links --layouts 3 --latencies 0,1,5 --mbps 100` on the grid (all of it in\n"
+       << "`links/`; the full sweep is `occswitch bench links --out DIR`):\n" << shifted << "\n";
+    if (fs::exists(dir / "plots" / "links.png")) fs::copy_file(dir / "plots" / "links.png", plots_ / "links.png",
+                                                               fs::copy_options::overwrite_existing);
+    progress(9, title, "3 ranks over no link, 0, 1 and 5 ms at 100 Mb/s and a narrow link", r.seconds);
+}
+
 // Plots: one gnuplot script per figure in OUT/plots, run from OUT (`cd OUT && gnuplot plots/X.gp`).
 
 struct Plot {
@@ -931,11 +969,13 @@ int Bench::run() {
     streaming(part3);
     bytesAndLatency(part45);
     scaling(part7);
-    std::ostringstream part8;
+    std::ostringstream part8, part9;
     hierarchy(part8);
+    links(part9);
     plots();
 
-    body << part1.str() << part2.str() << part3.str() << part45.str() << part6.str() << part7.str() << part8.str();
+    body << part1.str() << part2.str() << part3.str() << part45.str() << part6.str() << part7.str() << part8.str()
+         << part9.str();
 
     const double total = std::chrono::duration<double>(Clock::now() - start).count();
     std::time_t now = std::time(nullptr);
