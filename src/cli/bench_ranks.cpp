@@ -473,11 +473,12 @@ int runBenchLinks(const BenchLinksOptions& o) {
     // Where a frame's time goes on the slowest link of each layout, against no emulation.
     md << "\n## The latency budget\n\nPer layout, the run without emulation and the one over the longest link\n"
        << "latency at the lowest bandwidth: the display's frame (1000 / fps shown), the display's wait for\n"
-       << "messages, its own work (streaming, reform, drawing), the culling ranks' occluder raster + HZM\n"
+       << "messages, its own work (streaming, reform, drawing, and with 2 + P compositing, of which the\n"
+       << "composite column, the pixels' time on the link included), the culling ranks' occluder raster + HZM\n"
        << "(OR) and culling + LOD (HC) per frame, and the camera-to-display latency. One frame of latency\n"
        << "holds when the switch skips cameras instead of falling further behind.\n\n"
-       << "| ranks | link | frame ms | display wait ms | display work ms | OR ms | HC ms | latency frames | latency ms |\n"
-       << "|---|---|---|---|---|---|---|---|---|\n";
+       << "| ranks | link | frame ms | display wait ms | display work ms | composite ms | OR ms | HC ms | latency frames | latency ms |\n"
+       << "|---|---|---|---|---|---|---|---|---|---|\n";
     for (int ranks : o.layouts) {
         const LinkRun* none = nullptr;
         const LinkRun* slow = nullptr;
@@ -493,7 +494,8 @@ int runBenchLinks(const BenchLinksOptions& o) {
             const auto d = r->layout.per_rank.find(0);
             const double work = d == r->layout.per_rank.end() ? 0 : d->second.busy;
             md << "| " << ranks << " | " << linkLabel(*r) << " | " << fixed(r->fps > 0 ? 1000.0 / r->fps : 0, 1) << " | "
-               << fixed(r->display_wait, 2) << " | " << fixed(work, 2) << " | " << fixed(r->layout.or_ms, 2) << " | "
+               << fixed(r->display_wait, 2) << " | " << fixed(work, 2) << " | " << fixed(r->layout.ms_composite, 2) << " | "
+               << fixed(r->layout.or_ms, 2) << " | "
                << fixed(r->layout.hc_ms, 2) << " | " << fixed(r->layout.latency_frames, 2) << " | "
                << fixed(r->layout.latency_ms, 1) << " |\n";
         }

@@ -203,11 +203,13 @@ void EmulatedLink::composite(const std::vector<int>& group, std::vector<DepthPix
             if (ms > now_ms) link_ = l;
         }
     const double wire_ns = link_.mbps > 0 ? double(bytes) * 8.0 / (link_.mbps * 1e6) * 1e9 : 0.0;
-    const int64_t until = nowNs() + int64_t(link_.latency_ms * 1e6 + wire_ns);
+    const int64_t before = nowNs();
+    const int64_t until = before + int64_t(link_.latency_ms * 1e6 + wire_ns);
     while (nowNs() < until) {
         if (idle) idle();
         std::this_thread::sleep_for(std::chrono::microseconds(200));
     }
+    adjust_.composite_ns += nowNs() - before;
 }
 
 TransportCounters EmulatedLink::counters() const {
@@ -217,6 +219,7 @@ TransportCounters EmulatedLink::counters() const {
         c.kinds[i].bytes_received -= adjust_.kinds[i].bytes_received;
         c.kinds[i].receive_wait_ns += adjust_.kinds[i].receive_wait_ns;
     }
+    c.composite_ns += adjust_.composite_ns;  // the pixels' time on the link
     return c;
 }
 
