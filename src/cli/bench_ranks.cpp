@@ -23,6 +23,32 @@ std::string fixed(double v, int digits) {
     return b;
 }
 
+// `mpirun -np N` with this project's fault grace (docs/protocol.md), as root where needed.
+std::vector<std::string> mpirunArgv(const std::string& mpirun, int ranks) {
+    std::vector<std::string> argv{mpirun, "-np", std::to_string(ranks), "--oversubscribe", "--mca",
+                                  "odls_base_sigkill_timeout", "3"};
+    if (::geteuid() == 0) argv.push_back("--allow-run-as-root");
+    return argv;
+}
+
+// A benchmark's own scene in OUT/scenes: generated (gen_args after `occswitch gen`) and prepared
+// (prep_args after the output) once, reused by later runs.
+fs::path sceneOnce(Runner& runner, const std::string& exe, const fs::path& oss, std::vector<std::string> gen_args,
+                   const std::vector<std::string>& prep_args) {
+    if (fs::exists(oss)) return oss;
+    fs::path glb = oss;
+    glb.replace_extension(".glb");
+    std::vector<std::string> gen{exe, "gen"};
+    gen.insert(gen.end(), gen_args.begin(), gen_args.end());
+    gen.insert(gen.end(), {"-o", glb.string()});
+    runner.run("gen", gen);
+    std::vector<std::string> prep{exe, "prep", glb.string(), "-o", oss.string()};
+    prep.insert(prep.end(), prep_args.begin(), prep_args.end());
+    runner.run("prep", prep);
+    fs::remove(glb);
+    return oss;
+}
+
 // What one layout's run measured (frames after the first).
 struct Layout {
     int ranks = 0;
@@ -166,15 +192,9 @@ int runBenchRanks(const BenchRanksOptions& o) {
     const std::string exe = fs::read_symlink("/proc/self/exe").string();
 
     fs::path scene = o.scene;
-    if (scene.empty()) {
-        scene = out / "scenes" / ("plant_" + std::to_string(o.objects) + ".oss");
-        if (!fs::exists(scene)) {
-            const fs::path glb = out / "scenes" / ("plant_" + std::to_string(o.objects) + ".glb");
-            runner.run("gen", {exe, "gen", "plant", "--objects", std::to_string(o.objects), "-o", glb.string()});
-            runner.run("prep", {exe, "prep", glb.string(), "-o", scene.string()});
-            fs::remove(glb);
-        }
-    }
+    if (scene.empty())
+        scene = sceneOnce(runner, exe, out / "scenes" / ("plant_" + std::to_string(o.objects) + ".oss"),
+                          {"plant", "--objects", std::to_string(o.objects)}, {});
     const OssFile file = OssFile::open(scene.string());
     const fs::path cam = out / "scenes" / ("walk" + std::to_string(o.frames) + ".cam");
     runner.run("path", {exe, "path", "walk", scene.string(), "--frames", std::to_string(o.frames), "-o", cam.string()});
@@ -182,11 +202,7 @@ int runBenchRanks(const BenchRanksOptions& o) {
     std::vector<Layout> layouts;
     for (int n : o.ranks) {
         const std::string name = "np" + std::to_string(n);
-        std::vector<std::string> argv;
-        if (n > 1) {
-            argv = {mpirun, "-np", std::to_string(n), "--oversubscribe", "--mca", "odls_base_sigkill_timeout", "3"};
-            if (::geteuid() == 0) argv.push_back("--allow-run-as-root");
-        }
+        std::vector<std::string> argv = n > 1 ? mpirunArgv(mpirun, n) : std::vector<std::string>();
         const fs::path frames = out / "frames" / name;
         fs::remove_all(frames);
         // Every layout with the 3-rank switch's occluders (the PVS two frames back), so that all
@@ -349,15 +365,9 @@ int runBenchLinks(const BenchLinksOptions& o) {
     const std::string exe = fs::read_symlink("/proc/self/exe").string();
 
     fs::path scene = o.scene;
-    if (scene.empty()) {
-        scene = out / "scenes" / "grid_4x4x4.oss";
-        if (!fs::exists(scene)) {
-            const fs::path glb = out / "scenes" / "grid_4x4x4.glb";
-            runner.run("gen", {exe, "gen", "grid", "--nx", "4", "--ny", "4", "--nz", "4", "-o", glb.string()});
-            runner.run("prep", {exe, "prep", glb.string(), "-o", scene.string(), "--hierarchy", "off"});
-            fs::remove(glb);
-        }
-    }
+    if (scene.empty())
+        scene = sceneOnce(runner, exe, out / "scenes" / "grid_4x4x4.oss", {"grid", "--nx", "4", "--ny", "4", "--nz", "4"},
+                          {"--hierarchy", "off"});
     const OssFile file = OssFile::open(scene.string());
     const fs::path cam = out / "scenes" / ("walk" + std::to_string(o.frames) + ".cam");
     runner.run("path", {exe, "path", "walk", scene.string(), "--frames", std::to_string(o.frames), "-o", cam.string()});
@@ -369,9 +379,7 @@ int runBenchLinks(const BenchLinksOptions& o) {
         std::string name = "np" + std::to_string(ranks) + "_";
         name += (latency_ms == 0 && mbps == 0) ? std::string("none") : fixed(latency_ms, 1) + "ms_" + fixed(mbps, 3) + "mbps";
         const fs::path csv = out / "raw" / (name + ".csv");
-        std::vector<std::string> argv{mpirun, "-np", std::to_string(ranks), "--oversubscribe", "--mca",
-                                      "odls_base_sigkill_timeout", "3"};
-        if (::geteuid() == 0) argv.push_back("--allow-run-as-root");
+        std::vector<std::string> argv = mpirunArgv(mpirun, ranks);
         for (const std::string& a : {exe, std::string("render"), scene.string(), std::string("--path"), cam.string(),
                                      std::string("--headless"), std::string("--size"), o.size, std::string("--pace"),
                                      std::string("recorded"), std::string("--path-fps"), fixed(o.path_fps, 3),

@@ -224,13 +224,12 @@ int runRender(RenderOptions o) {
     }
     std::string link_summary;
     if (!o.link_file.empty()) {
-        std::vector<LinkSpec> to = readLinkFile(o.link_file, transport->rank(), transport->size(), o.link_spec);
-        for (int a = 0; a < transport->size(); ++a) {
-            const std::vector<LinkSpec> from_a = readLinkFile(o.link_file, a, transport->size(), o.link_spec);
+        const std::vector<std::vector<LinkSpec>> table = readLinkTable(o.link_file, transport->size(), o.link_spec);
+        std::vector<LinkSpec> to = table[size_t(transport->rank())];
+        for (int a = 0; a < transport->size(); ++a)
             for (int b = a + 1; b < transport->size(); ++b)
                 link_summary += (link_summary.empty() ? "" : "; ") + std::to_string(a) + "-" + std::to_string(b) + " " +
-                                from_a[size_t(b)].describe();
-        }
+                                table[size_t(a)][size_t(b)].describe();
         if (std::any_of(to.begin(), to.end(), [](const LinkSpec& s) { return s.active(); }) || o.link_spec.active())
             transport = std::make_unique<EmulatedLink>(std::move(transport), std::move(to));
         link_summary = "emulated per pair of ranks from " + o.link_file + ": " +

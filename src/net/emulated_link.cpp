@@ -3,6 +3,7 @@
 
 #include "scene/errors.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -74,23 +75,23 @@ LinkSpec parseLinkSpec(const std::string& text) {
 }
 
 EmulatedLink::EmulatedLink(std::unique_ptr<Transport> inner, const LinkSpec& link)
-    : EmulatedLink(std::move(inner), std::vector<LinkSpec>()) {
-    to_rank_.assign(size_t(inner_->size()), link);
-    jitter_rng_.seed(link.seed * 0x9E3779B97F4A7C15ull + uint64_t(inner_->rank()));
+    : EmulatedLink(std::move(inner), std::vector<LinkSpec>(1, link)) {
+    to_rank_.assign(to_rank_.size(), link);
 }
 
 EmulatedLink::EmulatedLink(std::unique_ptr<Transport> inner, std::vector<LinkSpec> to_rank)
-    : inner_(std::move(inner)), to_rank_(std::move(to_rank)) {
+    : inner_(std::move(inner)),
+      to_rank_(std::move(to_rank)),
+      jitter_rng_((to_rank_.empty() ? 1 : to_rank_[0].seed) * 0x9E3779B97F4A7C15ull + uint64_t(inner_->rank())),
+      link_free_ns_(size_t(inner_->size()), 0),
+      last_arrival_ns_(size_t(inner_->size()), 0) {
     to_rank_.resize(size_t(inner_->size()));
-    jitter_rng_.seed((to_rank_.empty() ? 1 : to_rank_[0].seed) * 0x9E3779B97F4A7C15ull + uint64_t(inner_->rank()));
-    link_free_ns_.assign(size_t(inner_->size()), 0);
-    last_arrival_ns_.assign(size_t(inner_->size()), 0);
 }
 
-std::vector<LinkSpec> readLinkFile(const std::string& path, int rank, int size, const LinkSpec& fallback) {
+std::vector<std::vector<LinkSpec>> readLinkTable(const std::string& path, int size, const LinkSpec& fallback) {
     std::ifstream in(path);
     if (!in) throw InputError(path, "cannot read the link file");
-    std::vector<LinkSpec> to(size_t(size), fallback);
+    std::vector<std::vector<LinkSpec>> table(size_t(size), std::vector<LinkSpec>(size_t(size), fallback));
     std::set<std::pair<int, int>> seen;
     std::string line;
     for (int number = 1; std::getline(in, line); ++number) {
@@ -124,10 +125,13 @@ std::vector<LinkSpec> readLinkFile(const std::string& path, int rank, int size, 
             throw InputError(path, where + e.what());
         }
         s.seed = fallback.seed;
-        if (ab[0] == rank) to[size_t(ab[1])] = s;
-        if (ab[1] == rank) to[size_t(ab[0])] = s;
+        table[size_t(ab[0])][size_t(ab[1])] = table[size_t(ab[1])][size_t(ab[0])] = s;
     }
-    return to;
+    return table;
+}
+
+std::vector<LinkSpec> readLinkFile(const std::string& path, int rank, int size, const LinkSpec& fallback) {
+    return readLinkTable(path, size, fallback)[size_t(rank)];
 }
 
 void EmulatedLink::send(int dest, MessageKind kind, std::vector<uint8_t> bytes) {
@@ -194,17 +198,14 @@ void EmulatedLink::composite(const std::vector<int>& group, std::vector<DepthPix
     const size_t bytes = pixels.size() * sizeof(DepthPixel);
     inner_->composite(group, pixels, timeout, idle);
     // One hop over the slowest of this rank's links to the group.
-    LinkSpec link_;
+    const auto hop_ms = [bytes](const LinkSpec& l) {
+        return l.latency_ms + (l.mbps > 0 ? double(bytes) * 8.0 / (l.mbps * 1e3) : 0.0);
+    };
+    double slowest_ms = 0.0;
     for (int g : group)
-        if (g != rank() && g >= 0 && g < size()) {
-            const LinkSpec& l = to_rank_[size_t(g)];
-            const double ms = l.latency_ms + (l.mbps > 0 ? double(bytes) * 8.0 / (l.mbps * 1e3) : 0.0);
-            const double now_ms = link_.latency_ms + (link_.mbps > 0 ? double(bytes) * 8.0 / (link_.mbps * 1e3) : 0.0);
-            if (ms > now_ms) link_ = l;
-        }
-    const double wire_ns = link_.mbps > 0 ? double(bytes) * 8.0 / (link_.mbps * 1e6) * 1e9 : 0.0;
+        if (g != rank() && g >= 0 && g < size()) slowest_ms = std::max(slowest_ms, hop_ms(to_rank_[size_t(g)]));
     const int64_t before = nowNs();
-    const int64_t until = before + int64_t(link_.latency_ms * 1e6 + wire_ns);
+    const int64_t until = before + int64_t(slowest_ms * 1e6);
     while (nowNs() < until) {
         if (idle) idle();
         std::this_thread::sleep_for(std::chrono::microseconds(200));

@@ -49,6 +49,8 @@ LinkSpec parseLinkSpec(const std::string& text);
 // "line N: ...") for an unreadable file, a malformed line, a rank outside [0, size), a rank paired
 // with itself or a pair listed twice.
 std::vector<LinkSpec> readLinkFile(const std::string& path, int rank, int size, const LinkSpec& fallback);
+// The same for every rank at once: table[a][b] is the link from a to b (the file read once).
+std::vector<std::vector<LinkSpec>> readLinkTable(const std::string& path, int size, const LinkSpec& fallback);
 
 class EmulatedLink final : public Transport {
 public:

@@ -20,11 +20,13 @@
 
 namespace occ {
 
-ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser) {
+namespace {
+
+// Weld, the collapse sequence `collapse` makes of the welded mesh, the §4.2 arrays, Algorithm 1.
+template <typename Collapse>
+ProgressiveMesh buildFromSequence(const Mesh& mesh, const Collapse& collapse) {
     const WeldedMesh welded = weldPositions(mesh.positions, mesh.indices);
-    const CollapseSequence sequence = collapser == Collapser::Fast
-                                          ? fastCollapseSequence(welded.positions, welded.triangles)
-                                          : openMeshCollapseSequence(welded.positions, welded.triangles);
+    const CollapseSequence sequence = collapse(welded);
     const CollapseArrays arrays = recordCollapseArrays(uint32_t(welded.positions.size()),
                                                        uint32_t(welded.triangles.size() / 3), sequence);
     ProgressiveMesh pm = rearrange(welded.positions, welded.triangles, sequence, arrays);
@@ -33,16 +35,19 @@ ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser) {
     return pm;
 }
 
+}  // namespace
+
+ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser) {
+    return buildFromSequence(mesh, [collapser](const WeldedMesh& w) {
+        return collapser == Collapser::Fast ? fastCollapseSequence(w.positions, w.triangles)
+                                            : openMeshCollapseSequence(w.positions, w.triangles);
+    });
+}
+
 ProgressiveMesh buildClusteredProgressiveMesh(const Mesh& mesh) {
-    const WeldedMesh welded = weldPositions(mesh.positions, mesh.indices);
-    const CollapseSequence sequence = clusterAfterCollapses(
-        welded.positions, welded.triangles, fastCollapseSequence(welded.positions, welded.triangles));
-    const CollapseArrays arrays = recordCollapseArrays(uint32_t(welded.positions.size()),
-                                                       uint32_t(welded.triangles.size() / 3), sequence);
-    ProgressiveMesh pm = rearrange(welded.positions, welded.triangles, sequence, arrays);
-    pm.source_vertices = uint32_t(mesh.positions.size());
-    pm.dropped_triangles = welded.dropped_triangles;
-    return pm;
+    return buildFromSequence(mesh, [](const WeldedMesh& w) {
+        return clusterAfterCollapses(w.positions, w.triangles, fastCollapseSequence(w.positions, w.triangles));
+    });
 }
 
 namespace {
