@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "lod_select.h"
 
+#include "box_projection.h"
 #include "device_access.h"
 
 #include <thrust/execution_policy.h>
@@ -18,52 +19,6 @@ namespace {
 
 // A not-drawn object's share: below every real share (which are >= 0).
 constexpr float kNotDrawn = -1.0f;
-
-// Pixels of the bounding rectangle of an object's projected AABB, clamped to the viewport, and
-// its nearest view depth (at least near_plane); an AABB with a corner nearer than the near
-// plane gets the whole viewport and depth near_plane.
-struct Projection {
-    float area, depth;
-};
-
-OCC_HD inline Projection projectBox(const ObjectInfo& o, const Camera& camera) {
-    const float width = float(camera.width), height = float(camera.height);
-    // Clip position and view depth are affine in the corner, so the eight corners are sums
-    // of one term per axis: 6 column products instead of 8 matrix products.
-    const glm::mat4& m = camera.view_proj;
-    const glm::vec3 lo = o.aabb.min - camera.eye, hi = o.aabb.max - camera.eye;
-    const glm::vec4 cx[2] = {m[0] * o.aabb.min.x, m[0] * o.aabb.max.x};
-    const glm::vec4 cy[2] = {m[1] * o.aabb.min.y, m[1] * o.aabb.max.y};
-    const glm::vec4 cz[2] = {m[2] * o.aabb.min.z + m[3], m[2] * o.aabb.max.z + m[3]};
-    const float dx[2] = {lo.x * camera.forward.x, hi.x * camera.forward.x};
-    const float dy[2] = {lo.y * camera.forward.y, hi.y * camera.forward.y};
-    const float dz[2] = {lo.z * camera.forward.z, hi.z * camera.forward.z};
-    float area = width * height, depth = camera.near_plane;
-    bool crosses_near = false;
-    float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY, nearest = INFINITY;
-    for (int c = 0; c < 8; ++c) {
-        const int ix = c & 1, iy = (c >> 1) & 1, iz = c >> 2;
-        const float d = dx[ix] + dy[iy] + dz[iz];
-        const glm::vec4 clip = cx[ix] + cy[iy] + cz[iz];
-        // A corner behind the near plane has no meaningful projection (w may be <= 0).
-        if (d < camera.near_plane || clip.w <= 0.0f) {
-            crosses_near = true;
-            break;
-        }
-        nearest = glm::min(nearest, d);
-        const float x = (clip.x / clip.w * 0.5f + 0.5f) * width;
-        const float y = (clip.y / clip.w * 0.5f + 0.5f) * height;
-        x0 = glm::min(x0, x), x1 = glm::max(x1, x);
-        y0 = glm::min(y0, y), y1 = glm::max(y1, y);
-    }
-    if (!crosses_near) {
-        x0 = fmaxf(x0, 0.0f), y0 = fmaxf(y0, 0.0f);
-        x1 = fminf(x1, width), y1 = fminf(y1, height);
-        area = fmaxf(x1 - x0, 0.0f) * fmaxf(y1 - y0, 0.0f);
-        depth = fmaxf(nearest, camera.near_plane);
-    }
-    return {area, depth};
-}
 
 // log of Eq. 1's share s_i = (A_i P_i / D_i)^((alpha-1)/alpha), or -inf when the object is
 // not drawn. Logs keep (A P / D)^beta finite: with A ~ 1e7 px, P ~ 1e7 and D ~ 1e-2 the
@@ -244,6 +199,7 @@ struct ErrorLevel {
     const uint64_t* map_first;
     const float* lod_error;
     const float* scale;
+    const float* error_offset;  // may be null
     const uint32_t* maps;
     uint32_t* vertex_count;
     uint32_t* triangle_count;
@@ -257,9 +213,13 @@ struct ErrorLevel {
             if (pr.area >= pet) {
                 // World units that project to tau pixels at the object's nearest depth.
                 const float pixels_per_unit = float(camera.height) / (2.0f * tanf(0.5f * camera.fovy) * pr.depth);
-                float allowed = tau / (pixels_per_unit * fmaxf(scale[id], 1e-30f));
+                float allowed = tau / pixels_per_unit;
                 // eps q / alpha <= tau: the less of it shows, the larger the error allowed.
                 if (visible_share) allowed /= fmaxf(visible_share[j], 1e-30f);
+                // What the item's input already gave up (an HLOD's node error) leaves the rest
+                // to its level; none left: full detail (no level has a negative error).
+                if (error_offset) allowed -= error_offset[id];
+                allowed /= fmaxf(scale[id], 1e-30f);
                 const float* e = lod_error + map_first[o.mesh];
                 // e is non-increasing in k and e[P] = 0: the smallest k >= q with e[k] <= allowed.
                 uint32_t lo = o.q < o.vertex_count ? o.q : o.vertex_count, hi = o.vertex_count;
@@ -287,13 +247,13 @@ uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const u
                           const Camera& camera, float tau, float pet, DevicePtr<const float> visible_share,
                           DevicePtr<const uint64_t> map_first,
                           DevicePtr<const float> lod_error, DevicePtr<const float> scale,
-                          DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
-                          DevicePtr<uint32_t> triangle_count) {
+                          DevicePtr<const float> error_offset, DevicePtr<const uint32_t> maps,
+                          DevicePtr<uint32_t> vertex_count, DevicePtr<uint32_t> triangle_count) {
     if (count == 0) return 0;
     const thrust::counting_iterator<uint32_t> first(0);
     const uint64_t sum = thrust::transform_reduce(
         thrust::device, first, first + count,
-        ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first), raw(lod_error), raw(scale), raw(maps),
+        ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first), raw(lod_error), raw(scale), raw(error_offset), raw(maps),
                    raw(vertex_count), raw(triangle_count)},
         uint64_t(0), Plus());
     countReadback(sizeof sum);

@@ -44,8 +44,9 @@ uint64_t lodSelect(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t
 
 // Error-bounded LOD (SWITCH's and CHLOD's rule, `--lod error`): for each listed object the
 // coarsest level whose simplification error projects to at most tau pixels: the smallest
-// vc_i in [q_i, P_i] with lod_error_i[vc_i] * scale[i] * H / (2 tan(fovy / 2) D_i) <= tau,
-// D_i, A_i and pet as lodSelect's (0 when A_i < pet or P_i = 0). lod_error + map_first[mesh]
+// vc_i in [q_i, P_i] with (lod_error_i[vc_i] * scale[i] + offset_i) * H / (2 tan(fovy / 2) D_i)
+// <= tau (offset_i = error_offset[i], world units, what an HLOD's input already gave up; 0 when
+// error_offset is null), D_i, A_i and pet as lodSelect's (0 when A_i < pet or P_i = 0). lod_error + map_first[mesh]
 // holds, per mesh, vertex_count + 1 non-increasing entries: the largest collapse error of the
 // level with k vertices, in object space (0 at full detail); scale[i] is how much object i's
 // world matrix enlarges lengths at most. Writes vertex_count and triangle_count as lodSelect
@@ -54,7 +55,7 @@ uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const u
                           const Camera& camera, float tau, float pet, DevicePtr<const float> visible_share,
                           DevicePtr<const uint64_t> map_first,
                           DevicePtr<const float> lod_error, DevicePtr<const float> scale,
-                          DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
-                          DevicePtr<uint32_t> triangle_count);
+                          DevicePtr<const float> error_offset, DevicePtr<const uint32_t> maps,
+                          DevicePtr<uint32_t> vertex_count, DevicePtr<uint32_t> triangle_count);
 
 }  // namespace occ::k

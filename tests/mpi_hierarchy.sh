@@ -47,6 +47,26 @@ assert differ >= 20, f'the cut equals the flat visible set in {40 - differ} of 4
 assert all(int(x['objects_visible']) > 0 for x in r1), 'an empty cut'
 PY
 
+# The error rule's cut trades draws against triangles by --draw-cost: dearer draws, fewer
+# items and no fewer triangles; a negative cost is refused.
+for c in 0 1000; do
+  "$exe" "${render[@]}" --no-display --draw-cost $c --stats "$dir/cost$c.csv" >/dev/null 2>"$dir/err" \
+    || fail "--draw-cost $c: $(cat "$dir/err")"
+done
+python3 - "$dir" <<'PY' || fail "--draw-cost"
+import csv, sys
+d = sys.argv[1]
+def mean(name, c):
+    r = list(csv.DictReader(open(f'{d}/{name}')))
+    return sum(float(x[c]) for x in r) / len(r)
+cheap, dear = (mean(f'cost{c}.csv', 'objects_visible') for c in (0, 1000))
+assert dear < 0.8 * cheap, f'draw cost 1000 draws {dear} items, draw cost 0 {cheap}'
+cheap_t, dear_t = (mean(f'cost{c}.csv', 'active_triangles') for c in (0, 1000))
+assert dear_t >= cheap_t, f'draw cost 1000: {dear_t} triangles, draw cost 0: {cheap_t}'
+PY
+"$exe" "${render[@]}" --no-display --draw-cost -1 >/dev/null 2>"$dir/err"
+[ $? -eq 2 ] && grep -q "draw.cost" "$dir/err" || fail "--draw-cost -1: $(cat "$dir/err")"
+
 # Refused, naming the flag: a file without a hierarchy, and 2 + P ranks.
 "$exe" render "$dir/flat.oss" --path "$dir/orbit.cam" --no-display --hierarchy on >/dev/null 2>"$dir/err"
 [ $? -eq 2 ] && grep -q "^error: --hierarchy on: .*flat.oss has no hierarchy" "$dir/err" || fail "no hierarchy: $(cat "$dir/err")"

@@ -561,6 +561,10 @@ Command addRenderCommand(CLI::App& app) {
                     "nodes, an inner node drawn as its HLOD where its error projects to at most --tau pixels\n"
                     "(tested against the frustum and the HZM level by level); off: every object on its own")
         ->capture_default_str();
+    sub->add_option("--draw-cost", o->pipeline.draw_cost,
+                    "--hierarchy on --lod error: what one draw is worth in triangles; the cut stops at a node\n"
+                    "whose HLOD within --tau costs no more than its children within --tau (0: fewest triangles)")
+        ->capture_default_str();
     sub->add_option("--colours", o->colours,
                     "headless pictures: object (each object its colour, an HLOD its objects' mean) or uniform\n"
                     "(every item grey: --reference then compares geometry and shading only)")

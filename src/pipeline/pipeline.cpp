@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "pipeline/pipeline.h"
 
+#include "box_projection.h"
 #include "frustum_cull.h"
 #include "hzm.h"
 #include "hzm_build.h"
@@ -69,6 +70,8 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
 
     if (!(options.tau > 0.0f && std::isfinite(options.tau)))
         throw OptionError("tau", OptionError::value(options.tau) + ": must be a positive number of pixels");
+    if (!(options.draw_cost >= 0.0f && std::isfinite(options.draw_cost)))
+        throw OptionError("draw_cost", OptionError::value(options.draw_cost) + ": must be a number of triangles >= 0");
 
     if (options.hierarchy && file.nodeCount() == 0)
         throw OptionError("hierarchy", "on: " + file.path() +
@@ -89,13 +92,20 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
         for (uint32_t i = 0; i < scene_.object_count; ++i) {
             const glm::mat4& w = scene_.host_world[i];
             scale[i] = std::max({glm::length(glm::vec3(w[0])), glm::length(glm::vec3(w[1])), glm::length(glm::vec3(w[2]))});
-            // An HLOD's level gets the rest of tau after its node's own error (kNodeErrorShare).
-            if (scene_.nodes && scene_.host_nodes[i].child_count > 0) scale[i] /= 1.0f - PipelineOptions::kNodeErrorShare;
         }
         lod_error_.resize(lod_error.size());
         k::copyToDevice(lod_error_.ptr(), lod_error.data(), lod_error.size());
         object_scale_.resize(scale.size());
         k::copyToDevice(object_scale_.ptr(), scale.data(), scale.size());
+        if (scene_.nodes) {
+            // An HLOD's level gets what its node's own error leaves of tau.
+            std::vector<float> item_error(std::max<uint32_t>(1, scene_.object_count), 0.0f);
+            for (uint32_t i = 0; i < scene_.object_count; ++i) item_error[i] = scene_.host_nodes[i].error;
+            item_error_.resize(item_error.size());
+            k::copyToDevice(item_error_.ptr(), item_error.data(), item_error.size());
+            host_lod_error_ = std::move(lod_error);
+            host_scale_ = std::move(scale);
+        }
     }
     const uint32_t n = scene_.object_count;
     double scene_vertices = 0;
@@ -215,25 +225,82 @@ uint32_t Pipeline::hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out) 
     return k::compactSelected(frustum_ids_.ptr(), occluded_.ptr(), frustum_count_, 0, out);
 }
 
+uint32_t Pipeline::cutTriangles(uint32_t item, float allowed) const {
+    const k::ObjectInfo& o = scene_.host_objects[item];
+    if (o.vertex_count == 0) return 0;
+    allowed /= std::max(host_scale_[item], 1e-30f);
+    // As k::lodSelectByError: the smallest k >= q whose suffix maximum is within the error.
+    const float* e = host_lod_error_.data() + scene_.host_map_first[o.mesh];
+    uint32_t lo = std::min(o.q, o.vertex_count), hi = o.vertex_count;
+    while (lo < hi) {
+        const uint32_t mid = lo + (hi - lo) / 2;
+        if (e[mid] <= allowed) hi = mid;
+        else lo = mid + 1;
+    }
+    return scene_.file->allMaps()[scene_.host_map_first[o.mesh] + lo];
+}
+
+bool Pipeline::cutAllowance(uint32_t item, const k::Camera& camera, float share, float& allowed) const {
+    const float pixels_at_1 = float(options_.height) / (2.0f * std::tan(0.5f * camera.fovy));
+    const k::Projection pr = k::projectBox(scene_.host_objects[item], camera);
+    if (pr.area < options_.pet) return false;
+    allowed = options_.tau * pr.depth / (pixels_at_1 * std::max(share, 1e-30f));
+    return true;
+}
+
+uint8_t Pipeline::decideNode(uint32_t id, const k::Camera& camera, float share) {
+    const DeviceScene::NodeLinks& node = scene_.host_nodes[id];
+    if (options_.lod != LodRule::Error || options_.mode == CullMode::Full) {
+        if (node.child_count == 0) return kCutStop;
+        if (options_.mode == CullMode::Full) return kCutRefined;
+        // The budget rule: the node's own error within tau (Eq. 1 then chooses its level).
+        const float pixels_at_1 = float(options_.height) / (2.0f * std::tan(0.5f * camera.fovy));
+        const k::Aabb& box = scene_.host_objects[id].aabb;
+        const float distance = std::max(glm::length(glm::clamp(camera.eye, box.min, box.max) - camera.eye),
+                                        camera.near_plane);
+        return node.error * share * pixels_at_1 / distance <= options_.tau ? kCutStop : kCutRefined;
+    }
+    // The error rule: what the node costs drawn within tau (infinite where its own error leaves
+    // its level nothing; 0 under the pixel threshold: not drawn), and the fine cut's stop: its
+    // own error within kFineCutShare of what may be given up.
+    float a = 0.0f;
+    if (!cutAllowance(id, camera, share, a)) {
+        cut_cost_[id] = 0.0;
+        return kCutStop;
+    }
+    cut_cost_[id] = node.error < a ? double(cutTriangles(id, a - node.error)) + options_.draw_cost : INFINITY;
+    return node.child_count == 0 || node.error <= PipelineOptions::kFineCutShare * a ? kCutStop : kCutRefined;
+}
+
 uint32_t Pipeline::refineCut(const k::Camera& camera, bool occlusion, k::DevicePtr<uint32_t> out) {
     const uint32_t n = scene_.object_count;
     cut_in_frustum_.resize(n);
     k::copyToHost(cut_in_frustum_.data(), in_frustum_.ptr(), n);
     const bool weighted = occlusion && options_.visibility_weighted;
-    // Pixels per world unit at distance 1 along the view; a node's error e at distance d
-    // projects to e * pixels_per_unit / d pixels.
-    const float pixels_per_unit = float(options_.height) / (2.0f * std::tan(0.5f * camera.fovy));
-    const float tau = options_.tau * (options_.lod == LodRule::Error ? PipelineOptions::kNodeErrorShare : 1.0f);
+    const bool coarsen = options_.lod == LodRule::Error && options_.mode != CullMode::Full;
+    if (cut_state_.size() != n) {
+        cut_state_.assign(n, kCutNone);
+        cut_cost_.assign(coarsen ? n : 0, 0.0);
+        cut_covered_.assign(coarsen ? n : 0, 0);
+    }
     cut_.clear();
-    cut_level_.clear();
+    fine_cut_.clear();
+    cut_hidden_ids_.clear();
     nodes_tested_ = 0;
-    if (cut_in_frustum_[0]) cut_level_.push_back(0);
-    while (!cut_level_.empty()) {
-        const uint32_t count = uint32_t(cut_level_.size());
+    // Top-down, a level at a time: the HZM tests the level's nodes in one batch, each node
+    // decides on its own (both cores), the refined ones' children in the frustum make the next.
+    size_t depth = 0;
+    if (cut_levels_.empty()) cut_levels_.emplace_back();
+    cut_levels_[0].clear();
+    if (cut_in_frustum_[0]) cut_levels_[0].push_back(0);
+    while (!cut_levels_[depth].empty()) {
+        if (cut_levels_.size() <= depth + 1) cut_levels_.emplace_back();  // before the references
+        const std::vector<uint32_t>& level = cut_levels_[depth];
+        const uint32_t count = uint32_t(level.size());
         nodes_tested_ += count;
         if (occlusion) {
             cut_level_device_.growTo(count);
-            k::copyToDevice(cut_level_device_.ptr(), cut_level_.data(), count);
+            k::copyToDevice(cut_level_device_.ptr(), level.data(), count);
             occluded_.growTo(count);
             k::hzmTest(scene_.objects.ptr(), cut_level_device_.ptr(), count, camera, hzmLevels(), occluded_.ptr());
             cut_hidden_.resize(count);
@@ -246,29 +313,72 @@ uint32_t Pipeline::refineCut(const k::Camera& camera, bool occlusion, k::DeviceP
                 k::copyToHost(cut_share_.data(), cut_share_device_.ptr(), count);
             }
         }
-        cut_next_.clear();
-        for (uint32_t j = 0; j < count; ++j) {
-            const uint32_t id = cut_level_[j];
-            if (occlusion && cut_hidden_[j]) continue;
-            const DeviceScene::NodeLinks& node = scene_.host_nodes[id];
-            bool stop = node.child_count == 0;
-            if (!stop && options_.mode != CullMode::Full) {
-                const k::Aabb& box = scene_.host_objects[id].aabb;
-                const float distance = std::max(glm::length(glm::clamp(camera.eye, box.min, box.max) - camera.eye),
-                                                camera.near_plane);
-                const float error = node.error * (weighted ? cut_share_[j] : 1.0f);
-                stop = error * pixels_per_unit / distance <= tau;
-            }
-            if (stop) {
-                cut_.push_back(id);
+        const auto decide = [&](uint32_t j) {
+            const uint32_t id = level[j];
+            cut_state_[id] = occlusion && cut_hidden_[j] ? kCutHidden : decideNode(id, camera, weighted ? cut_share_[j] : 1.0f);
+        };
+        if (count >= 256) {
+            cut_index_.resize(count);
+            std::iota(cut_index_.begin(), cut_index_.end(), 0u);
+            std::for_each(std::execution::par, cut_index_.begin(), cut_index_.end(), decide);
+        } else {
+            for (uint32_t j = 0; j < count; ++j) decide(j);
+        }
+        std::vector<uint32_t>& next = cut_levels_[depth + 1];
+        next.clear();
+        for (const uint32_t id : level) {
+            const uint8_t state = cut_state_[id];
+            if (state == kCutHidden) {
+                if (occlusion) cut_hidden_ids_.push_back(id);
                 continue;
             }
+            if (state == kCutStop) {
+                (coarsen ? fine_cut_ : cut_).push_back(id);
+                continue;
+            }
+            const DeviceScene::NodeLinks& node = scene_.host_nodes[id];
             for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c)
-                if (cut_in_frustum_[c]) cut_next_.push_back(c);
+                if (cut_in_frustum_[c]) next.push_back(c);
         }
-        std::swap(cut_level_, cut_next_);
+        ++depth;
+    }
+    if (coarsen) {
+        // Bottom-up over what was refined: a node replaces its children's cuts where it is
+        // within tau and costs no more (triangles, and draw_cost per draw). A child out of the
+        // frustum costs nothing; every other child was decided, hidden ones cost nothing.
+        for (size_t d = depth; d-- > 0;)
+            for (const uint32_t id : cut_levels_[d]) {
+                if (cut_state_[id] == kCutHidden) cut_cost_[id] = 0.0;
+                if (cut_state_[id] != kCutRefined) continue;
+                const DeviceScene::NodeLinks& node = scene_.host_nodes[id];
+                double children = 0.0;
+                for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c)
+                    if (cut_in_frustum_[c]) children += cut_cost_[c];
+                if (cut_cost_[id] <= children) cut_state_[id] = kCutMerged;
+                else cut_cost_[id] = children;
+            }
+        // Top-down: the stopped and merged nodes no merged node lies above.
+        for (size_t d = 0; d < depth; ++d)
+            for (const uint32_t id : cut_levels_[d]) {
+                const uint8_t state = cut_state_[id];
+                const bool covered = cut_covered_[id];
+                cut_covered_[id] = 0;
+                if (state == kCutHidden || (state == kCutStop && covered)) continue;
+                if (!covered && (state == kCutStop || state == kCutMerged)) cut_.push_back(id);
+                if (state == kCutStop) continue;
+                const DeviceScene::NodeLinks& node = scene_.host_nodes[id];
+                for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c)
+                    if (cut_in_frustum_[c]) cut_covered_[c] = covered || state == kCutMerged;
+            }
     }
     std::sort(cut_.begin(), cut_.end());
+    if (occlusion) {
+        // The frustum's share of the refinement: the cut and the nodes found hidden.
+        cut_hidden_ids_.insert(cut_hidden_ids_.end(), cut_.begin(), cut_.end());
+        std::sort(cut_hidden_ids_.begin(), cut_hidden_ids_.end());
+        frustum_count_ = uint32_t(cut_hidden_ids_.size());
+        k::copyToDevice(frustum_ids_.ptr(), cut_hidden_ids_.data(), frustum_count_);
+    }
     k::copyToDevice(out, cut_.data(), cut_.size());
     return uint32_t(cut_.size());
 }
@@ -303,7 +413,10 @@ void Pipeline::frustumPass(const CameraPose& pose, FrameStats& stats) {
     const uint32_t n = scene_.object_count;
     const k::Frustum frustum = k::frustumFromViewProj(camera.view_proj);
     frustum_count_ = k::frustumCull(scene_.objects.ptr(), n, frustum, in_frustum_.ptr(), frustum_ids_.ptr());
-    if (scene_.nodes) frustum_count_ = refineCut(camera, false, frustum_ids_.ptr());
+    // With nodes the frustum's cut is the visible set of modes full and lod; oc+lod refines
+    // against the HZM only (its in-frustum items are then the cut and the nodes found hidden),
+    // and its first frame's occluders come from every item the frustum holds.
+    if (scene_.nodes && options_.mode != CullMode::OcLod) frustum_count_ = refineCut(camera, false, frustum_ids_.ptr());
     frustum_pose_ = pose;
     has_frustum_pose_ = true;
     clock.lap(Stage::FrustumCull);
@@ -322,16 +435,16 @@ void Pipeline::occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& 
     const uint64_t lag = options_.pvs_occluder_lag;
     if (frame >= lag)
         for (const CulledFrame& h : history_) {
-            if (h.frame == frame - lag) source = h.device_pvs.ptr(), source_count = uint32_t(h.pvs.size());
+            if (h.frame == frame - lag) source = h.device_pvs.ptr(), source_count = h.occluder_count;
             if (frame >= 2 * lag && h.frame == frame - 2 * lag && !h.pvs.empty()) older = &h;
         }
     if (older && source_count > 0) {
         // Both sets, one after the other; the choice takes an id listed twice once.
-        occluder_candidates_.growTo(source_count + older->pvs.size());
+        occluder_candidates_.growTo(source_count + older->occluder_count);
         k::copyOnDevice(occluder_candidates_.ptr(), source, source_count);
-        k::copyOnDevice(occluder_candidates_.ptr() + source_count, older->device_pvs.ptr(), older->pvs.size());
+        k::copyOnDevice(occluder_candidates_.ptr() + source_count, older->device_pvs.ptr(), older->occluder_count);
         source = occluder_candidates_.ptr();
-        source_count += uint32_t(older->pvs.size());
+        source_count += older->occluder_count;
     }
     if (!frustumIsFor(pose)) frustumPass(pose, stats);
     StageClock clock(stats);
@@ -373,15 +486,15 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     if (!frustumIsFor(pose)) frustumPass(pose, stats);
     StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
-    const uint32_t in_count = frustum_count_;
-    stats.objects_in_frustum = in_count;
-    uint32_t count = in_count;
+    uint32_t count = frustum_count_;
     k::DevicePtr<const uint32_t> pvs = frustum_ids_.ptr();
     if (options_.mode == CullMode::OcLod) {
         count = scene_.nodes ? refineCut(camera, true, pvs_device_.ptr()) : hzmCull(camera, pvs_device_.ptr());
         pvs = pvs_device_.ptr();
         clock.lap(Stage::HzmTest);
     }
+    const uint32_t in_count = frustum_count_;  // with nodes in oc+lod, refineCut's
+    stats.objects_in_frustum = in_count;
     stats.objects_visible = count;
     stats.objects_occluded = in_count - std::min(in_count, count);
     // The visible set comes back to the host, for the network and the history; it stays on the
@@ -404,7 +517,7 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     } else if (options_.lod == LodRule::Error) {
         // No hysteresis: keeping a coarser level than the bound allows would break it.
         k::lodSelectByError(scene_.objects.ptr(), pvs, count, camera, options_.tau, options_.pet, visibleShares(camera, pvs, count), scene_.map_first.ptr(),
-                            lod_error_.ptr(), object_scale_.ptr(), scene_.maps, pvs_vc_device_.ptr(),
+                            lod_error_.ptr(), object_scale_.ptr(), scene_.nodes ? item_error_.ptr() : nullptr, scene_.maps, pvs_vc_device_.ptr(),
                             pvs_tc_device_.ptr());
         k::copyToHost(pvs_vc_.data(), pvs_vc_device_.ptr(), count);
     } else {
@@ -427,8 +540,17 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     CulledFrame& h = history_[0];
     h.frame = frame;
     h.pvs.assign(pvs_.begin(), pvs_.end());
-    h.device_pvs.growTo(std::max<uint32_t>(1, count));
-    k::copyOnDevice(h.device_pvs.ptr(), pvs, count);
+    if (scene_.nodes && !fine_cut_.empty()) {
+        // The coarsened cut's HLODs are no occluders: the fine cut's visible items before the
+        // coarsening (the leaves among them) are the candidates.
+        h.occluder_count = uint32_t(fine_cut_.size());
+        h.device_pvs.growTo(std::max<uint32_t>(1, h.occluder_count));
+        k::copyToDevice(h.device_pvs.ptr(), fine_cut_.data(), h.occluder_count);
+    } else {
+        h.occluder_count = count;
+        h.device_pvs.growTo(std::max<uint32_t>(1, count));
+        k::copyOnDevice(h.device_pvs.ptr(), pvs, count);
+    }
     h.lod.resize(pvs_.size());
     for (size_t j = 0; j < pvs_.size(); ++j) h.lod[j] = {pvs_[j], pvs_vc_[j]};
     clock.lap(Stage::LodSelect);

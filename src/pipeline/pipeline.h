@@ -96,18 +96,21 @@ struct PipelineOptions {
     bool visibility_weighted = false;
     // Refine the file's object hierarchy (prep --hierarchy on) instead of testing every object:
     // each frame a cut of nodes, breadth-first from the root, a node tested against the frustum
-    // (and in oc+lod the HZM) level by level, stopping where its HLOD's error projects to at
-    // most tau pixels (with the visible share: error x q / alpha). Items are then nodes: the
-    // visible set, LODs, streaming and drawing work on node ids (DeviceScene). Mode full
-    // refines to the leaves. The error rule gives the node's own error a tenth of tau and the
-    // HLOD's level the rest.
+    // (and in oc+lod the HZM) level by level. Items are then nodes: the visible set, LODs,
+    // streaming and drawing work on node ids (DeviceScene). Mode full refines to the leaves.
+    // The budget rule stops at a node whose own error (what its children gave up to make its
+    // input) projects to at most tau pixels. The error rule stops where the node can be drawn
+    // within tau (its own error plus its HLOD level's) and that costs no more than its children
+    // drawn within tau each, a draw counted as draw_cost triangles (with the visible share:
+    // error x q / alpha).
     bool hierarchy = false;
-    // The share of tau a node's own error may take when the error rule also chooses its level.
-    // A node's own error (what its children gave up to make its input) is small next to what
-    // its coarse levels give up, so most of tau goes to the level: on the 10^5-object plant's
-    // orbit (docs/results.md) 0.1 drew 4.9x fewer triangles than every object on its own at
-    // -0.35 dB, 0.15 1.75x fewer at equal PSNR, 0.5 1.46x more.
-    static constexpr float kNodeErrorShare = 0.1f;
+    // The error rule's cut: what one more draw costs, in triangles. 0 minimises triangles alone.
+    float draw_cost = kDefaultDrawCost;
+    static constexpr float kDefaultDrawCost = 64.0f;
+    // The error rule refines first to where a node's own error is within this share of what
+    // may be given up there, then coarsens bottom-up wherever a node costs no more than its
+    // children's cuts.
+    static constexpr float kFineCutShare = 0.1f;
 };
 
 LodRule parseLodRule(const std::string& s);  // "budget" or "error"; OptionError("lod") otherwise
@@ -191,7 +194,8 @@ public:
     // Every level of the HZM (meaningful after an oc+lod frame).
     k::HzmLevels hzmLevels() const;
     // Objects in the frustum, ascending ids, frustumCount() of them (with the hierarchy: the
-    // nodes of the cut refined without occlusion).
+    // nodes of the cut refined without occlusion; in oc+lod, after the cull, the cut and the
+    // nodes its refinement found hidden, and before it every item in the frustum).
     k::DevicePtr<const uint32_t> frustumIds() const { return frustum_ids_.ptr(); }
     // Items the visible set, the deltas and the layout are over: objects, or nodes.
     uint32_t itemCount() const { return scene_.object_count; }
@@ -217,6 +221,14 @@ private:
     // With the hierarchy: the cut, into out (ascending node ids); returns its size. Needs
     // in_frustum_ for this camera; occlusion: also the HZM test, level by level.
     uint32_t refineCut(const k::Camera& camera, bool occlusion, k::DevicePtr<uint32_t> out);
+    // The error rule: the world error item may show (tau at its nearest depth, / share), or
+    // false when it is under the pixel threshold (not drawn).
+    bool cutAllowance(uint32_t item, const k::Camera& camera, float share, float& allowed) const;
+    // A visible tested node's kCutStop or kCutRefined (its visible share: 1 without the
+    // weighting); with the error rule also its cost drawn (cut_cost_). Nodes in parallel.
+    uint8_t decideNode(uint32_t id, const k::Camera& camera, float share);
+    // The error rule: triangles of item's coarsest level that gives up at most `allowed` world units.
+    uint32_t cutTriangles(uint32_t item, float allowed) const;
     // options_.visibility_weighted in oc+lod: the PVS entries' visible shares; else null.
     k::DevicePtr<const float> visibleShares(const k::Camera& camera, k::DevicePtr<const uint32_t> pvs, uint32_t count);
 
@@ -245,6 +257,10 @@ private:
     // LodRule::Error: per mesh, vertex_count + 1 entries laid out as the maps (map_first): the
     // largest collapse error of the level with k vertices; per object, its world scale.
     k::DeviceArray<float> lod_error_, object_scale_;
+    // With nodes: per item, the world error its input already has (an HLOD's node error, 0 for
+    // leaves), and host copies of the three tables for the cut's costs.
+    k::DeviceArray<float> item_error_;
+    std::vector<float> host_lod_error_, host_scale_;
     k::DeviceArray<float> visible_share_;  // visibility_weighted: per PVS entry
     k::PinnedArray<k::LodEntry> previous_lod_;  // the hysteresis' last visible set, on its way up
     k::DeviceArray<k::LodEntry> previous_lod_device_;
@@ -252,9 +268,20 @@ private:
     CameraPose frustum_pose_{};
     bool has_frustum_pose_ = false;
     // refineCut's level by level work: host lists and flags, the level's ids on the device.
+    enum : uint8_t { kCutNone = 0, kCutRefined, kCutStop, kCutHidden, kCutMerged };
     std::vector<uint8_t> cut_in_frustum_, cut_hidden_;
+    // Per item, valid for the items the last refinement tested (the root, and the in-frustum
+    // children of refined nodes): its kCut* state; with the error rule its best cut's cost
+    // (triangles + draw_cost per draw) and, while the cut is gathered, whether a merged node
+    // lies above it.
+    std::vector<uint8_t> cut_state_, cut_covered_;
+    std::vector<double> cut_cost_;
     std::vector<float> cut_share_;
-    std::vector<uint32_t> cut_level_, cut_next_, cut_;
+    std::vector<std::vector<uint32_t>> cut_levels_;  // the tested nodes, by depth
+    std::vector<uint32_t> cut_index_;
+    std::vector<uint32_t> cut_;
+    std::vector<uint32_t> fine_cut_;  // the error rule: the visible cut before coarsening
+    std::vector<uint32_t> cut_hidden_ids_;  // oc+lod: the nodes found hidden, then with the cut
     k::DeviceArray<uint32_t> cut_level_device_;
     k::DeviceArray<float> cut_share_device_;
     uint64_t nodes_tested_ = 0;
@@ -267,7 +294,9 @@ private:
     struct CulledFrame {
         uint64_t frame = UINT64_MAX;
         std::vector<uint32_t> pvs;
-        k::DeviceArray<uint32_t> device_pvs;  // the same, for the occluder choice
+        // For the occluder choice: the same, or with the error rule's coarsened cut, the fine cut.
+        k::DeviceArray<uint32_t> device_pvs;
+        uint32_t occluder_count = 0;  // device_pvs' entries
         std::vector<std::pair<uint32_t, uint32_t>> lod;
     };
     // The last four culled frames, newest first. The occluder pass of frame f takes as

@@ -1,0 +1,57 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "host_device.h"
+#include "kernel_types.h"
+
+#include <cmath>
+
+namespace occ::k {
+
+// Pixels of the bounding rectangle of an object's projected AABB, clamped to the viewport, and
+// its nearest view depth (at least near_plane); an AABB with a corner nearer than the near
+// plane gets the whole viewport and depth near_plane.
+struct Projection {
+    float area, depth;
+};
+
+OCC_HD inline Projection projectBox(const ObjectInfo& o, const Camera& camera) {
+    const float width = float(camera.width), height = float(camera.height);
+    // Clip position and view depth are affine in the corner, so the eight corners are sums
+    // of one term per axis: 6 column products instead of 8 matrix products.
+    const glm::mat4& m = camera.view_proj;
+    const glm::vec3 lo = o.aabb.min - camera.eye, hi = o.aabb.max - camera.eye;
+    const glm::vec4 cx[2] = {m[0] * o.aabb.min.x, m[0] * o.aabb.max.x};
+    const glm::vec4 cy[2] = {m[1] * o.aabb.min.y, m[1] * o.aabb.max.y};
+    const glm::vec4 cz[2] = {m[2] * o.aabb.min.z + m[3], m[2] * o.aabb.max.z + m[3]};
+    const float dx[2] = {lo.x * camera.forward.x, hi.x * camera.forward.x};
+    const float dy[2] = {lo.y * camera.forward.y, hi.y * camera.forward.y};
+    const float dz[2] = {lo.z * camera.forward.z, hi.z * camera.forward.z};
+    float area = width * height, depth = camera.near_plane;
+    bool crosses_near = false;
+    float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY, nearest = INFINITY;
+    for (int c = 0; c < 8; ++c) {
+        const int ix = c & 1, iy = (c >> 1) & 1, iz = c >> 2;
+        const float d = dx[ix] + dy[iy] + dz[iz];
+        const glm::vec4 clip = cx[ix] + cy[iy] + cz[iz];
+        // A corner behind the near plane has no meaningful projection (w may be <= 0).
+        if (d < camera.near_plane || clip.w <= 0.0f) {
+            crosses_near = true;
+            break;
+        }
+        nearest = glm::min(nearest, d);
+        const float x = (clip.x / clip.w * 0.5f + 0.5f) * width;
+        const float y = (clip.y / clip.w * 0.5f + 0.5f) * height;
+        x0 = glm::min(x0, x), x1 = glm::max(x1, x);
+        y0 = glm::min(y0, y), y1 = glm::max(y1, y);
+    }
+    if (!crosses_near) {
+        x0 = fmaxf(x0, 0.0f), y0 = fmaxf(y0, 0.0f);
+        x1 = fminf(x1, width), y1 = fminf(y1, height);
+        area = fmaxf(x1 - x0, 0.0f) * fmaxf(y1 - y0, 0.0f);
+        depth = fmaxf(nearest, camera.near_plane);
+    }
+    return {area, depth};
+}
+
+}  // namespace occ::k
