@@ -702,7 +702,7 @@ void Bench::hierarchy(std::ostringstream& md) {
        << "`render --headless --reference --lod error --tau 1`, `oc+lod`, with `--hierarchy off` (every object\n"
        << "its own coarsest level within tau) and `--hierarchy on` (the cut of `prep`'s hierarchy: refined to\n"
        << "where a node's own error is within tau / 10, then coarsened wherever a node's HLOD within tau costs\n"
-       << "no more than its children's cuts, a draw counted as `--draw-cost` = 8 triangles);\n"
+       << "no more than its children's cuts, a draw counted as `--draw-cost` = 12 triangles);\n"
        << "on the walks also `--visibility-weighted on` (the error x the visible share q / alpha, Charalambos\n"
        << "2006). Items drawn: objects, or nodes of the cut. PSNR against the full-detail unculled picture,\n"
        << "both drawn `--colours uniform` (every item grey): an HLOD has one colour for all the objects it\n"

@@ -105,10 +105,11 @@ struct PipelineOptions {
     // error x q / alpha).
     bool hierarchy = false;
     // The error rule's cut: what one more draw costs, in triangles; 0 minimises triangles
-    // alone. On the 10^5-object plant's orbit (docs/results.md) 0 drew 5.9x fewer items than
-    // every object on its own, 8 10.0x (4.5x fewer triangles), 16 15.6x (3.0x fewer triangles).
+    // alone. On the 10^5-object plant's orbit (docs/results.md) against every object on its
+    // own: 0 drew 5.4x fewer items (5.7x fewer triangles), 8 9.5x (4.0x), 12 12.4x (3.2x),
+    // 16 15.2x (2.7x), all within 0.4 dB.
     float draw_cost = kDefaultDrawCost;
-    static constexpr float kDefaultDrawCost = 8.0f;
+    static constexpr float kDefaultDrawCost = 12.0f;
     // The error rule refines first to where a node's own error is within this share of what
     // may be given up there, then coarsens bottom-up wherever a node costs no more than its
     // children's cuts.
