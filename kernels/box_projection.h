@@ -8,6 +8,8 @@
 
 namespace occ::k {
 
+// What the LOD rules need of a box and of a mesh's errors, on the device and on the host.
+
 // Pixels of the bounding rectangle of an object's projected AABB, clamped to the viewport, and
 // its nearest view depth (at least near_plane); an AABB with a corner nearer than the near
 // plane gets the whole viewport and depth near_plane.
@@ -52,6 +54,19 @@ OCC_HD inline Projection projectBox(const ObjectInfo& o, const Camera& camera) {
         depth = fmaxf(nearest, camera.near_plane);
     }
     return {area, depth};
+}
+
+// The error-bounded level of a mesh: e holds its vertex_count + 1 non-increasing suffix maxima
+// of the collapse errors (e[vertex_count] = 0); the smallest k in [min(q, vertex_count),
+// vertex_count] with e[k] <= allowed (vertex_count when allowed < 0).
+OCC_HD inline uint32_t levelWithinError(const float* e, uint32_t q, uint32_t vertex_count, float allowed) {
+    uint32_t lo = q < vertex_count ? q : vertex_count, hi = vertex_count;
+    while (lo < hi) {
+        const uint32_t mid = lo + (hi - lo) / 2;
+        if (e[mid] <= allowed) hi = mid;
+        else lo = mid + 1;
+    }
+    return lo;
 }
 
 }  // namespace occ::k

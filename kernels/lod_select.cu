@@ -220,15 +220,7 @@ struct ErrorLevel {
                 // to its level; none left: full detail (no level has a negative error).
                 if (error_offset) allowed -= error_offset[id];
                 allowed /= fmaxf(scale[id], 1e-30f);
-                const float* e = lod_error + map_first[o.mesh];
-                // e is non-increasing in k and e[P] = 0: the smallest k >= q with e[k] <= allowed.
-                uint32_t lo = o.q < o.vertex_count ? o.q : o.vertex_count, hi = o.vertex_count;
-                while (lo < hi) {
-                    const uint32_t mid = lo + (hi - lo) / 2;
-                    if (e[mid] <= allowed) hi = mid;
-                    else lo = mid + 1;
-                }
-                k = lo;
+                k = levelWithinError(lod_error + map_first[o.mesh], o.q, o.vertex_count, allowed);
             }
         }
         vertex_count[j] = k;

@@ -74,7 +74,6 @@ DeviceScene DeviceScene::upload(const OssFile& file, bool hierarchy) {
             links.first_child = n.first_child;
             links.child_count = n.child_count;
             links.error = n.error;
-            links.triangles = n.triangles;
             if (n.child_count == 0) {
                 links.object = n.object;
                 colour_triangles[i] = meshes[objects[n.object].mesh].triangle_count;

@@ -35,7 +35,6 @@ struct DeviceScene {
         uint32_t first_child = 0, child_count = 0;
         float error = 0.0f;
         uint32_t object = 0;
-        uint64_t triangles = 0;  // the subtree's at full detail
     };
     std::vector<NodeLinks> host_nodes;
     std::vector<uint64_t> host_vertex_first;      // per mesh, into the file's positions and ecol

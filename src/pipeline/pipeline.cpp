@@ -228,23 +228,16 @@ uint32_t Pipeline::hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out) 
 uint32_t Pipeline::cutTriangles(uint32_t item, float allowed) const {
     const k::ObjectInfo& o = scene_.host_objects[item];
     if (o.vertex_count == 0) return 0;
-    allowed /= std::max(host_scale_[item], 1e-30f);
-    // As k::lodSelectByError: the smallest k >= q whose suffix maximum is within the error.
-    const float* e = host_lod_error_.data() + scene_.host_map_first[o.mesh];
-    uint32_t lo = std::min(o.q, o.vertex_count), hi = o.vertex_count;
-    while (lo < hi) {
-        const uint32_t mid = lo + (hi - lo) / 2;
-        if (e[mid] <= allowed) hi = mid;
-        else lo = mid + 1;
-    }
-    return scene_.file->allMaps()[scene_.host_map_first[o.mesh] + lo];
+    // The level k::lodSelectByError will choose.
+    const uint32_t k = k::levelWithinError(host_lod_error_.data() + scene_.host_map_first[o.mesh], o.q, o.vertex_count,
+                                           allowed / std::max(host_scale_[item], 1e-30f));
+    return scene_.file->allMaps()[scene_.host_map_first[o.mesh] + k];
 }
 
 bool Pipeline::cutAllowance(uint32_t item, const k::Camera& camera, float share, float& allowed) const {
-    const float pixels_at_1 = float(options_.height) / (2.0f * std::tan(0.5f * camera.fovy));
     const k::Projection pr = k::projectBox(scene_.host_objects[item], camera);
     if (pr.area < options_.pet) return false;
-    allowed = options_.tau * pr.depth / (pixels_at_1 * std::max(share, 1e-30f));
+    allowed = options_.tau * pr.depth / (cut_pixels_at_1_ * std::max(share, 1e-30f));
     return true;
 }
 
@@ -254,11 +247,10 @@ uint8_t Pipeline::decideNode(uint32_t id, const k::Camera& camera, float share) 
         if (node.child_count == 0) return kCutStop;
         if (options_.mode == CullMode::Full) return kCutRefined;
         // The budget rule: the node's own error within tau (Eq. 1 then chooses its level).
-        const float pixels_at_1 = float(options_.height) / (2.0f * std::tan(0.5f * camera.fovy));
         const k::Aabb& box = scene_.host_objects[id].aabb;
         const float distance = std::max(glm::length(glm::clamp(camera.eye, box.min, box.max) - camera.eye),
                                         camera.near_plane);
-        return node.error * share * pixels_at_1 / distance <= options_.tau ? kCutStop : kCutRefined;
+        return node.error * share * cut_pixels_at_1_ / distance <= options_.tau ? kCutStop : kCutRefined;
     }
     // The error rule: what the node costs drawn within tau (infinite where its own error leaves
     // its level nothing; 0 under the pixel threshold: not drawn), and the fine cut's stop: its
@@ -278,6 +270,7 @@ uint32_t Pipeline::refineCut(const k::Camera& camera, bool occlusion, k::DeviceP
     k::copyToHost(cut_in_frustum_.data(), in_frustum_.ptr(), n);
     const bool weighted = occlusion && options_.visibility_weighted;
     const bool coarsen = options_.lod == LodRule::Error && options_.mode != CullMode::Full;
+    cut_pixels_at_1_ = float(options_.height) / (2.0f * std::tan(0.5f * camera.fovy));
     if (cut_state_.size() != n) {
         cut_state_.assign(n, kCutNone);
         cut_cost_.assign(coarsen ? n : 0, 0.0);
@@ -315,7 +308,7 @@ uint32_t Pipeline::refineCut(const k::Camera& camera, bool occlusion, k::DeviceP
         }
         const auto decide = [&](uint32_t j) {
             const uint32_t id = level[j];
-            cut_state_[id] = occlusion && cut_hidden_[j] ? kCutHidden : decideNode(id, camera, weighted ? cut_share_[j] : 1.0f);
+            cut_state_[id] = occlusion && cut_hidden_[j] ? uint8_t(kCutHidden) : decideNode(id, camera, weighted ? cut_share_[j] : 1.0f);
         };
         if (count >= 256) {
             cut_index_.resize(count);
@@ -329,7 +322,7 @@ uint32_t Pipeline::refineCut(const k::Camera& camera, bool occlusion, k::DeviceP
         for (const uint32_t id : level) {
             const uint8_t state = cut_state_[id];
             if (state == kCutHidden) {
-                if (occlusion) cut_hidden_ids_.push_back(id);
+                cut_hidden_ids_.push_back(id);
                 continue;
             }
             if (state == kCutStop) {

@@ -99,10 +99,9 @@ struct PipelineOptions {
     // (and in oc+lod the HZM) level by level. Items are then nodes: the visible set, LODs,
     // streaming and drawing work on node ids (DeviceScene). Mode full refines to the leaves.
     // The budget rule stops at a node whose own error (what its children gave up to make its
-    // input) projects to at most tau pixels. The error rule stops where the node can be drawn
-    // within tau (its own error plus its HLOD level's) and that costs no more than its children
-    // drawn within tau each, a draw counted as draw_cost triangles (with the visible share:
-    // error x q / alpha).
+    // input) projects to at most tau pixels. The error rule draws a node where it fits within
+    // tau (its own error plus its HLOD level's) and costs no more than its children's best
+    // cuts, a draw counted as draw_cost triangles (with the visible share: error x q / alpha).
     bool hierarchy = false;
     // The error rule's cut: what one more draw costs, in triangles; 0 minimises triangles
     // alone. On the 10^5-object plant's orbit (docs/results.md) against every object on its
@@ -288,6 +287,7 @@ private:
     k::DeviceArray<uint32_t> cut_level_device_;
     k::DeviceArray<float> cut_share_device_;
     uint64_t nodes_tested_ = 0;
+    float cut_pixels_at_1_ = 0.0f;  // this refinement's pixels per world unit at depth 1
 
     // Host memory: the visible set, as the network sends it.
     std::vector<uint32_t> drawn_pvs_;  // the visible set streamPass last laid out, for the churn
