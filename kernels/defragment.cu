@@ -14,7 +14,7 @@ struct WorkOf {
 
 // Element i of block j's work: the moved prefix first, then the staged part after the kept one.
 template <class T, int W>
-struct Place {
+struct PlaceMoved {
     const BlockMove* moves;
     const uint64_t* work_offset;
     uint32_t count;
@@ -41,7 +41,7 @@ uint64_t apply(DevicePtr<const BlockMove> moves, uint32_t count, DevicePtr<const
                DevicePtr<const T> staging, ActiveArrays& scratch) {
     return forEachBlockTile(count, WorkOf{raw(moves)}, scratch.lengths, scratch.offsets,
                             [&](const uint64_t* work_offset, uint64_t total) {
-                                return Place<T, W>{raw(moves), work_offset, count, total, raw(src), raw(staging),
+                                return PlaceMoved<T, W>{raw(moves), work_offset, count, total, raw(src), raw(staging),
                                                    raw(dst)};
                             });
 }

@@ -118,9 +118,6 @@ OCC_HD inline void prefetch(const void* p) {
 }
 
 OCC_HD inline int64_t floorDiv(int64_t a, int64_t b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
-// Plain comparisons rather than fminf/fmaxf, which g++ calls out of line without -ffast-math.
-OCC_HD inline float minf(float a, float b) { return a < b ? a : b; }
-OCC_HD inline float maxf(float a, float b) { return a > b ? a : b; }
 OCC_HD inline int64_t abs64(int64_t a) { return a < 0 ? -a : a; }
 OCC_HD inline int64_t min64(int64_t a, int64_t b) { return a < b ? a : b; }
 OCC_HD inline int64_t max64(int64_t a, int64_t b) { return a > b ? a : b; }

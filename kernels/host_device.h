@@ -13,3 +13,12 @@
 #include <glm/glm.hpp>
 
 #include <cstdint>
+
+namespace occ::k {
+
+// Plain comparisons rather than fminf/fmaxf, which g++ calls out of line without -ffast-math
+// (depths and areas are never NaN here).
+OCC_HD inline float minf(float a, float b) { return a < b ? a : b; }
+OCC_HD inline float maxf(float a, float b) { return a > b ? a : b; }
+
+}  // namespace occ::k

@@ -12,10 +12,6 @@ namespace occ::k {
 
 namespace {
 
-// Plain comparison rather than fmaxf, which g++ calls out of line without -ffast-math; depths
-// are never NaN.
-OCC_HD inline float maxf(float a, float b) { return a > b ? a : b; }
-
 // One texel of level l+1 from the (up to) 2x2 texels of level l below it: the far edge of an
 // odd-sized level has a single column or row under the last texel.
 struct ReduceMax {
