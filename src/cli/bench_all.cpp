@@ -71,12 +71,6 @@ constexpr int kExperiments = 9;
 // ---------------------------------------------------------------------------------------------
 // Small helpers
 
-std::string fixed(double v, int precision) {
-    if (!std::isfinite(v)) return "n/a";
-    char buffer[64];
-    std::snprintf(buffer, sizeof buffer, "%.*f", precision, v);
-    return buffer;
-}
 
 // Thousands separated by thin spaces, as the other results documents write counts.
 std::string count(double v) {

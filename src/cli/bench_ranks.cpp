@@ -17,12 +17,6 @@ namespace {
 
 using namespace bench;
 
-std::string fixed(double v, int digits) {
-    char b[64];
-    std::snprintf(b, sizeof b, "%.*f", digits, v);
-    return b;
-}
-
 // `mpirun -np N` with this project's fault grace (docs/protocol.md), as root where needed.
 std::vector<std::string> mpirunArgv(const std::string& mpirun, int ranks) {
     std::vector<std::string> argv{mpirun, "-np", std::to_string(ranks), "--oversubscribe", "--mca",

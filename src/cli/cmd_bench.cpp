@@ -35,7 +35,6 @@ namespace occ::cli {
 
 namespace {
 
-constexpr const char* kDefaultModel = "/usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
 
 // The fractions of each mesh's triangles the LODs are compared at (the 50, 10, 1 %).
 constexpr double kTargets[] = {0.5, 0.1, 0.01};

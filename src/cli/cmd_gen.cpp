@@ -17,7 +17,6 @@ namespace occ::cli {
 
 namespace {
 
-constexpr const char* kDefaultModel = "/usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
 
 struct GenOptions {
     std::string model = kDefaultModel;

@@ -7,6 +7,10 @@
 
 namespace occ::cli {
 
+// The model gen tiles and bench measures when none is given: the engine of assimp-testmodels.
+inline constexpr const char* kDefaultModel =
+    "/usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
+
 // Each subcommand registers itself and its options on the app and returns the action to run
 // when it is chosen. Actions return the process exit status; errors are thrown (InputError, UsageError).
 struct Command {

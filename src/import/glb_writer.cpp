@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "import/glb_writer.h"
 
+#include "import/gltf_common.h"
+
 #include "scene/errors.h"
 
 #include <charconv>
@@ -11,9 +13,7 @@ namespace occ {
 
 namespace {
 
-constexpr uint32_t kGlbMagic = 0x46546C67;      // "glTF"
-constexpr uint32_t kJsonChunk = 0x4E4F534A;     // "JSON"
-constexpr uint32_t kBinChunk = 0x004E4942;      // "BIN\0"
+using gltf::kGlbMagic;
 constexpr uint64_t kGlbLimit = 0xFFFFFFFFull;   // the GLB header's 32-bit length
 
 bool isIdentity(const glm::mat4& m) { return m == glm::mat4(1.0f); }
@@ -209,7 +209,7 @@ void GltfStreamWriter::finish(const std::vector<uint32_t>& roots) {
     const uint64_t json_chunk = out.size() - json_start;
     unsigned char bin_head[8];
     putU32(bin_head, uint32_t(bin_->size()));
-    putU32(bin_head + 4, kBinChunk);
+    putU32(bin_head + 4, gltf::kGlbChunkBin);
     const uint64_t total = out.size() + (bin_->size() ? 8 + bin_->size() : 0);
     if (total > kGlbLimit)
         throw InputError(path_, "the scene needs " + std::to_string(total) +
@@ -222,7 +222,7 @@ void GltfStreamWriter::finish(const std::vector<uint32_t>& roots) {
     putU32(head + 4, 2);
     putU32(head + 8, uint32_t(total));
     putU32(head + 12, uint32_t(json_chunk));
-    putU32(head + 16, kJsonChunk);
+    putU32(head + 16, gltf::kGlbChunkJson);
     out.writeAt(0, head, sizeof head);
     out.commit();
     bin_.reset();  // the scratch buffer goes

@@ -17,6 +17,10 @@ inline constexpr int kByte = 5120, kUnsignedByte = 5121, kShort = 5122, kUnsigne
                      kUnsignedInt = 5125, kFloat = 5126;
 inline constexpr int kPoints = 0, kLines = 1, kLineLoop = 2, kLineStrip = 3, kTriangles = 4, kTriangleStrip = 5,
                      kTriangleFan = 6;
+// The binary container (GLB): its magic and its two chunk types.
+inline constexpr uint32_t kGlbMagic = 0x46546C67;      // "glTF"
+inline constexpr uint32_t kGlbChunkJson = 0x4E4F534A;  // "JSON"
+inline constexpr uint32_t kGlbChunkBin = 0x004E4942;   // "BIN\0"
 
 // The extensions the importers read (the geometry ones) or may ignore (they change how a
 // model looks, not its triangles). Any other required extension is refused by name.

@@ -31,9 +31,9 @@ using gltf::indexValue;
 using gltf::isSupportedExtension;
 using gltf::triangulatePrimitive;
 
-constexpr uint32_t kGlbMagic = 0x46546C67;      // "glTF"
-constexpr uint32_t kGlbChunkJson = 0x4E4F534A;  // "JSON"
-constexpr uint32_t kGlbChunkBin = 0x004E4942;   // "BIN\0"
+using gltf::kGlbChunkBin;
+using gltf::kGlbChunkJson;
+using gltf::kGlbMagic;
 
 std::vector<unsigned char> readWholeFile(const std::string& path) {
     std::ifstream in(path, std::ios::binary);

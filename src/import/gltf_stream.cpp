@@ -25,9 +25,9 @@ namespace occ {
 
 namespace {
 
-constexpr uint32_t kGlbMagic = 0x46546C67;
-constexpr uint32_t kGlbChunkJson = 0x4E4F534A;
-constexpr uint32_t kGlbChunkBin = 0x004E4942;
+using gltf::kGlbChunkBin;
+using gltf::kGlbChunkJson;
+using gltf::kGlbMagic;
 
 struct Accessor {
     int64_t view = -1;

@@ -13,7 +13,7 @@ namespace occ {
 
 namespace {
 
-constexpr uint32_t kNone = UINT32_MAX;
+constexpr uint32_t kNoTriangle = UINT32_MAX;
 
 // Numerator / denominator of an edge parameter, clamped to the edge: the denominator is the
 // squared edge length, zero when two corners coincide, and rounding may push the ratio a hair
@@ -149,8 +149,8 @@ public:
     // next, nearby query can start from it: its distance bounds the search from the start.
     std::pair<float, uint32_t> closest(const glm::vec3& p, uint32_t hint) const {
         float best = std::numeric_limits<float>::infinity();
-        uint32_t best_triangle = kNone;
-        if (hint != kNone) {
+        uint32_t best_triangle = kNoTriangle;
+        if (hint != kNoTriangle) {
             best = distance2(p, triangleClosest(p, hint));
             best_triangle = hint;
         }
@@ -214,7 +214,7 @@ struct OneSided {
 
 OneSided measure(const std::vector<glm::vec3>& samples, const TriangleBvh& to) {
     OneSided r;
-    uint32_t hint = kNone;
+    uint32_t hint = kNoTriangle;
     for (const glm::vec3& p : samples) {
         const auto [d2, t] = to.closest(p, hint);
         hint = t;

@@ -171,7 +171,7 @@ std::vector<glm::dvec3> largestTriangleNormals(const std::vector<glm::vec3>& pos
     return normals;
 }
 
-struct Candidate {
+struct BoxCandidate {
     Frame axes;
     glm::dvec3 lo{0.0}, hi{0.0};  // extents along axes, relative to the search origin
     double score = std::numeric_limits<double>::infinity();
@@ -181,11 +181,11 @@ struct Search {
     const std::vector<glm::vec3>& positions;
     glm::dvec3 origin;
     double slack;  // kScoreSlack * diagonal of the local axis-aligned box
-    Candidate best;
+    BoxCandidate best;
     std::vector<glm::vec2> projected, thinned, hull;  // scratch of caliperFrame
 
-    Candidate fit(const Frame& axes) const {
-        Candidate c;
+    BoxCandidate fit(const Frame& axes) const {
+        BoxCandidate c;
         c.axes = axes;
         c.lo = glm::dvec3(std::numeric_limits<double>::max());
         c.hi = glm::dvec3(std::numeric_limits<double>::lowest());
@@ -202,7 +202,7 @@ struct Search {
 
     // Returns true if the frame's box beat the best so far.
     bool consider(const Frame& axes) {
-        Candidate c = fit(axes);
+        BoxCandidate c = fit(axes);
         if (!(c.score < best.score * (1.0 - kScoreMargin))) return false;
         best = c;
         return true;
@@ -488,7 +488,7 @@ OccluderData computeOccluderData(const std::vector<glm::vec3>& positions, const 
         if (!improved) break;
     }
 
-    const Candidate& best = search.best;
+    const BoxCandidate& best = search.best;
     const glm::dvec3 half = 0.5 * (best.hi - best.lo);
     const glm::dvec3 mid = 0.5 * (best.hi + best.lo);
     const glm::dvec3 center = origin + mid.x * best.axes[0] + mid.y * best.axes[1] + mid.z * best.axes[2];

@@ -7,6 +7,7 @@
 // CPU kernels and the CUDA kernels; DeviceTest skips a test where the build's device cannot
 // run kernels (the CUDA binary on a machine without a GPU).
 #include "device_memory.h"
+#include "kernel_types.h"
 #include "scan.h"
 
 #include <gtest/gtest.h>
@@ -84,6 +85,13 @@ struct LayoutPair {
 
 // Why this build's device cannot run kernels here, or empty when it can (the CPU build always
 // can). Asked once per process.
+// An object that is only a box (what the culling kernels look at).
+inline ObjectInfo boxObject(const glm::vec3& lo, const glm::vec3& hi) {
+    ObjectInfo o{};
+    o.aabb = {lo, hi};
+    return o;
+}
+
 inline const std::string& deviceMissing() {
     static const std::string reason = [] {
         std::string why;

@@ -16,6 +16,7 @@
 namespace occ::k {
 namespace {
 
+using test::boxObject;
 using test::filledDevice;
 using test::toDevice;
 using test::toHost;
@@ -26,12 +27,6 @@ using FrustumCull = test::DeviceTest;
 // front of the eye the frustum is |x| <= d, |y| <= d, so every expectation below is checked by eye.
 glm::mat4 straightAhead() {
     return glm::perspective(std::numbers::pi_v<float> / 2, 1.0f, 1.0f, 100.0f);
-}
-
-ObjectInfo boxObject(const glm::vec3& lo, const glm::vec3& hi) {
-    ObjectInfo o{};
-    o.aabb = {lo, hi};
-    return o;
 }
 
 // Runs frustumCull over the boxes on the device, once without and once with the ids output;

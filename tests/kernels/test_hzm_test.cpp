@@ -16,6 +16,7 @@
 namespace occ::k {
 namespace {
 
+using test::boxObject;
 using test::toDevice;
 using test::toHost;
 
@@ -71,12 +72,6 @@ Pyramid buildPyramid(const std::vector<float>& depth, uint32_t width, uint32_t h
     p.device_texels = toDevice(p.texels);
     p.levels.data = p.device_texels.ptr();
     return p;
-}
-
-ObjectInfo boxObject(const glm::vec3& lo, const glm::vec3& hi) {
-    ObjectInfo o{};
-    o.aabb = {lo, hi};
-    return o;
 }
 
 std::vector<uint8_t> runTest(const std::vector<ObjectInfo>& boxes, const Camera& camera, const HzmLevels& hzm) {
