@@ -138,8 +138,9 @@ Scene importStl(const std::string& path) {
     PolygonSoup soup;
     soup.positions = std::move(corners.positions);
     soup.corners = std::move(corners.triangles);
-    soup.face_offsets.resize(soup.corners.size() / 3 + 1);
-    for (size_t f = 0; f < soup.face_offsets.size(); ++f) soup.face_offsets[f] = uint32_t(3 * f);
+    const size_t faces = soup.corners.size() / 3;
+    soup.face_offsets.reserve(faces + 1);
+    for (size_t f = 0; f <= faces; ++f) soup.face_offsets.push_back(uint32_t(3 * f));
     addPolygonObjects(soup, path, scene);
     return scene;
 }
