@@ -139,8 +139,8 @@ Scene importStl(const std::string& path) {
     soup.positions = std::move(corners.positions);
     soup.corners = std::move(corners.triangles);
     const size_t faces = soup.corners.size() / 3;
-    soup.face_offsets.reserve(faces + 1);
-    for (size_t f = 0; f <= faces; ++f) soup.face_offsets.push_back(uint32_t(3 * f));
+    soup.face_offsets.reserve(faces + 1);  // already holds the leading 0
+    for (size_t f = 1; f <= faces; ++f) soup.face_offsets.push_back(uint32_t(3 * f));
     addPolygonObjects(soup, path, scene);
     return scene;
 }
