@@ -3,8 +3,8 @@
 # occswitch bench all --size tiny end to end: prepares its scenes, runs every experiment (with
 # 3 MPI ranks when mpirun is there), writes the CSVs, summary.md and eight PNG plots whose
 # numbers hold the invariants (0 false culls, 1 frame of switch latency, deltas smaller than
-# full sets); a second run, --no-mpi, reuses the scenes, prepares a corrupted one again and
-# measures the layouts on 1 rank; impossible
+# full sets); a second run, --no-mpi --only 5,9, reuses the scenes, prepares a corrupted one
+# again, measures the layouts on 1 rank and says which sections it left out; impossible
 # options exit 2; a failing run exits 1, names its log and leaves the earlier results intact.
 set -u
 exe=$1
@@ -73,23 +73,32 @@ sc=$(csv_field "$out/streaming.csv" 1 streamed_triangles_per_frame)
 snc=$(csv_field "$out/streaming.csv" 2 streamed_triangles_per_frame)
 awk -v a="$sc" -v b="$snc" 'BEGIN { exit !(a < b) }' || fail "SC streams no less than SnC ($sc vs $snc)"
 
-# A second run, without MPI, reuses the first run's scenes (one truncated scene is prepared
-# again); every experiment still runs, the layouts on 1 rank, and the summary says so.
+# A second run, without MPI and of the experiments MPI changes only (--only 5,9: 4 comes with
+# 5), reuses the first run's scenes (one truncated scene is prepared again); the layouts run on
+# 1 rank, and the summary says so and which sections were left out.
 truncate -s 1000 "$out/scenes/plant_400.oss"
-"$exe" bench all --size tiny --no-mpi --scenes "$out/scenes" --out "$dir/nompi" >/dev/null 2>"$dir/stderr2" ||
+"$exe" bench all --size tiny --no-mpi --only 5,9 --scenes "$out/scenes" --out "$dir/nompi" >/dev/null 2>"$dir/stderr2" ||
   { cat "$dir/stderr2"; fail "second run (--no-mpi)"; }
 grep -q "scene engine grid 2x1x2: .*(reused" "$dir/stderr2" || fail "second run did not reuse the grid"
 grep -q "plant_400.oss does not verify; preparing it again" "$dir/stderr2" || fail "corrupt scene not prepared again"
 "$exe" verify "$out/scenes/plant_400.oss" >/dev/null || fail "the scene prepared again does not verify"
-for k in 1 2 3 4 5 6 7 8 9; do
-  grep -q "^bench all \[$k/9\] " "$dir/stderr2" || fail "--no-mpi: no progress line for experiment $k"
+for k in 4 5 9; do
+  grep -q "^bench all \[$k/9\] " "$dir/stderr2" || fail "--only 5,9: no progress line for experiment $k"
 done
+for k in 1 2 3 6 7 8; do
+  grep -q "^bench all \[$k/9\] " "$dir/stderr2" && fail "--only 5,9: experiment $k ran"
+  grep -A2 "^## $k\. " "$dir/nompi/summary.md" | grep -q "^Not run: \`--only 5,9\` left it out" ||
+    fail "--only 5,9: section $k does not say it was not run"
+done
+ls "$dir/nompi/plots" | grep -qE '^(breakdown|hierarchy)\.png$' && fail "--only 5,9: plots of experiments not run"
+[ -s "$dir/nompi/plots/latency.png" ] || fail "--only 5,9: no plots/latency.png"
 grep -q "^Not run: --no-mpi" "$dir/nompi/summary.md" || fail "--no-mpi: section 9 does not say it was not run"
 [ "$(tail -n +2 "$dir/nompi/latency.csv" | wc -l)" -eq 1 ] || fail "--no-mpi: not 1 layout"
 grep -q "^- note: --no-mpi: the layouts were measured with 1 rank only" "$dir/nompi/summary.md" || fail "--no-mpi: no note"
 
 # Impossible options: exit 2, one error line, nothing run.
-for bad in "--size huge --out $dir/x" "--size tiny" "--size tiny --out $dir/x --model $dir/none.glb"; do
+for bad in "--size huge --out $dir/x" "--size tiny" "--size tiny --out $dir/x --only 10" \
+           "--size tiny --out $dir/x --only 2,x" "--size tiny --out $dir/x --model $dir/none.glb"; do
   "$exe" bench all $bad >/dev/null 2>"$dir/err"; status=$?
   [ $status -eq 2 ] || fail "bench all $bad: exit $status, expected 2"
   [ "$(wc -l <"$dir/err")" -eq 1 ] && grep -q "^error: " "$dir/err" || fail "bench all $bad: $(cat "$dir/err")"

@@ -50,14 +50,15 @@ struct SizeConfig {
     uint32_t frames;                // cameras of their walks
     std::vector<GridDims> scaling;  // engine grids of the scaling experiment, 10^5 triangles and up
     uint32_t scaling_frames;        // cameras of the scaling walks
+    uint32_t hierarchy_frames;      // cameras of the hierarchy's walks and orbits (each run draws a reference too)
     double run_timeout_s;           // a run that takes longer is stopped and reported
 };
 
 const SizeConfig kSizes[] = {
-    {"tiny", {2, 1, 2}, 400, 24, {{1, 1, 1}, {2, 1, 1}, {2, 1, 2}}, 12, 600},
-    {"small", {4, 4, 4}, 5000, 300, {{1, 1, 1}, {2, 2, 2}, {4, 4, 4}, {6, 6, 6}, {10, 10, 10}}, 60, 1800},
+    {"tiny", {2, 1, 2}, 400, 24, {{1, 1, 1}, {2, 1, 1}, {2, 1, 2}}, 12, 12, 600},
+    {"small", {4, 4, 4}, 5000, 300, {{1, 1, 1}, {2, 2, 2}, {4, 4, 4}, {6, 6, 6}, {10, 10, 10}}, 60, 300, 1800},
     // The papers' scale: each headless frame of the 10^8-triangle grid takes seconds on llvmpipe.
-    {"full", {10, 10, 10}, 20000, 100, {{1, 1, 1}, {2, 2, 2}, {4, 4, 4}, {6, 6, 6}, {10, 10, 10}}, 300, 14400},
+    {"full", {10, 10, 10}, 20000, 100, {{1, 1, 1}, {2, 2, 2}, {4, 4, 4}, {6, 6, 6}, {10, 10, 10}}, 300, 100, 14400},
 };
 
 // The papers' figures set beside ours (../shared/DESIGN.md, "their headline figures").
@@ -67,6 +68,23 @@ constexpr double kPengCaoStreamedShare = 0.04;        // % of active triangles s
 constexpr double kGovindarajuLessTraffic = 93.0;      // % less visible-set traffic with deltas
 
 constexpr int kExperiments = 9;
+
+// The summary's section headings, by experiment number (the progress lines' [k/9]).
+const char* const kHeadings[kExperiments] = {
+    "Frame time per stage (Peng 2014, Table 3)",
+    "Culling accuracy against exact culling (Peng 2014, Table 4)",
+    "Streaming with and without coherence (Peng & Cao 2012, Table 1)",
+    "Visible-set bytes per frame, with and without deltas (Govindaraju et al. 2003, Figure 3)",
+    "Camera-to-display latency and waiting per layout",
+    "Frames per second over the walk (Peng 2014, Figure 6)",
+    "Scaling: scene size against frame time and memory",
+    "The hierarchy: HLOD cuts against every object on its own (issue 16)",
+    "Emulated links: the switch over 100 Mb/s with 1 and 5 ms (issue 17)",
+};
+
+std::string heading(int experiment) {
+    return "## " + std::to_string(experiment) + ". " + kHeadings[experiment - 1] + "\n\n";
+}
 
 // ---------------------------------------------------------------------------------------------
 // Small helpers
@@ -140,6 +158,20 @@ private:
     PreparedScene finishScene(PreparedScene s, const std::function<void(const fs::path&)>& generate, uint32_t frames);
     RunResult render(const std::string& name, const PreparedScene& scene, std::vector<std::string> extra, int ranks);
     bool useMpi() const;
+    // Whether --only chose experiment K (every experiment without --only).
+    bool selected(int k) const {
+        return o_.only.empty() || std::find(o_.only.begin(), o_.only.end(), k) != o_.only.end();
+    }
+    std::string onlyList() const {  // "5,9"
+        std::string list;
+        for (int k : o_.only) {
+            if (!list.empty()) list += ',';
+            list += std::to_string(k);
+        }
+        return list;
+    }
+    // The section of an experiment --only left out.
+    void notRun(std::ostringstream& md, int k) const;
 
     void breakdownAndFps(std::ostringstream& breakdown_md, std::ostringstream& fps_md);
     void accuracy(std::ostringstream& md);
@@ -296,7 +328,7 @@ void Bench::breakdownAndFps(std::ostringstream& md, std::ostringstream& fps_md) 
     for (const Stage& s : kStages) csv << "," << s.key;
     csv << ",ms_frame,fps,active_triangles,mtri_per_s,objects_visible,wall_s\n";
 
-    md << "## 1. Frame time per stage (Peng 2014, Table 3)\n\n"
+    md << heading(1)
        << "`render --headless` of each scene's walk in the three modes: `oc+lod` (occlusion culling, then LOD),\n"
        << "`lod` (frustum culling and LOD, as Peng & Cao 2012) and `full` (frustum culling, full detail).\n"
        << "Mean ms per frame, first frame excluded; *occluders* is Eq. 3 selection + depth raster + HZM build,\n"
@@ -355,7 +387,7 @@ void Bench::breakdownAndFps(std::ostringstream& md, std::ostringstream& fps_md) 
     writeFileAtomic(out_ / "breakdown.csv", csv.str());
     writeFileAtomic(out_ / "fps_frames.csv", fps_csv.str());
 
-    fps_md << "## 6. Frames per second over the walk (Peng 2014, Figure 6)\n\n"
+    fps_md << heading(6)
        << "From the same runs: per-frame 1000 / (pipeline + draw ms), `plots/fps.png`; per-frame values in\n"
        << "`fps_frames.csv`.\n\n| scene | oc+lod fps (mean) | lod fps | full fps | oc+lod / lod | frames where oc+lod is faster than lod |\n"
        << "|---|---|---|---|---|---|\n";
@@ -383,7 +415,7 @@ void Bench::accuracy(std::ostringstream& md) {
     std::ostringstream csv, frames_csv;
     csv << "scene,frames,objects_in_frustum,objects_occluded,exact_occluded,false_culls,accuracy_ratio_of_sums,"
            "accuracy_mean,psnr_mean_db,psnr_min_db\n";
-    md << "## 2. Culling accuracy against exact culling (Peng 2014, Table 4)\n\n"
+    md << heading(2)
        << "`render --headless --exact --reference` of each walk in `oc+lod`: every frame the full-detail model is\n"
        << "also drawn into an item buffer and a depth buffer; *exactly occluded* objects are the frustum's\n"
        << "objects with no pixel in it, *false culls* objects we culled that have a pixel (must be 0: the test\n"
@@ -441,7 +473,7 @@ void Bench::accuracy(std::ostringstream& md) {
 void Bench::streaming(std::ostringstream& md) {
     const char* title = "SC / SnC / NS streaming (Peng & Cao 2012 Table 1)";
     std::ostringstream csv;
-    md << "## 3. Streaming with and without coherence (Peng & Cao 2012, Table 1)\n\n"
+    md << heading(3)
        << "`occswitch bench pipeline SCENE WALK` runs the walk once per mode without drawing: SC streams only\n"
        << "what the last frame lacked and defragments (Alg. 3), SnC streams every active triangle each frame\n"
        << "into a fresh buffer, NS streams object by object. ms per step, streamed triangles per frame.\n\n"
@@ -529,7 +561,7 @@ void Bench::bytesAndLatency(std::ostringstream& md) {
     std::ostringstream bytes_csv, frames_csv;
     bytes_csv << "scene,ranks,frames,delta_bytes_per_frame,full_set_bytes_per_frame_sent,"
                  "full_set_bytes_per_frame_computed,visible_per_frame,less_percent\n";
-    md << "## 4. Visible-set bytes per frame, with and without deltas (Govindaraju et al. 2003, Figure 3)\n\n"
+    md << heading(4)
        << "`render --headless` of each walk with " << max_ranks << " rank" << (max_ranks > 1 ? "s" : "")
        << ", once sending visible-set deltas and once (`--no-deltas`) the whole\n"
        << "visible set every frame; bytes every rank sent in visible-set messages (32-byte header and\n"
@@ -590,7 +622,7 @@ void Bench::bytesAndLatency(std::ostringstream& md) {
     for (int ranks = 1; ranks < max_ranks; ++ranks) layouts[ranks] = layout(grid_, ranks, true, 5, latency_title);
     std::ostringstream csv;
     csv << "ranks,latency_frames,latency_ms,display_wait_ms,switch_wait_ms,display_frame_ms,run_seconds\n";
-    md << "## 5. Camera-to-display latency and waiting per layout\n\n"
+    md << heading(5)
        << "`render --headless` of the " << grid_.label << " walk on 1 rank (every role in one process), 2 ranks\n"
        << "(display | occluder raster + culling) and 3 (display | the occlusion switch: two ranks swapping\n"
        << "raster and culling every frame). Latency: from the camera packet's send to the display of the frame\n"
@@ -636,7 +668,7 @@ void Bench::scaling(std::ostringstream& md) {
             csv << "," << path << "_" << modeKey(kModes[m]) << "_ms," << path << "_" << modeKey(kModes[m])
                 << "_peak_mb," << path << "_" << modeKey(kModes[m]) << "_active_triangles";
     csv << "\n";
-    md << "## 7. Scaling: scene size against frame time and memory\n\n"
+    md << heading(7)
        << "Engine grids from 10^5 triangles up; per grid `prep`, a " << size_.scaling_frames
        << "-camera walk inside it and an orbit around it (the\n"
        << "whole grid in view), each played by `render --no-display` (every stage but drawing: llvmpipe's\n"
@@ -692,7 +724,7 @@ void Bench::hierarchy(std::ostringstream& md) {
     const char* title = "the hierarchy: HLOD cuts against flat objects";
     std::ostringstream csv;
     csv << "run,scene,path,hierarchy,visibility_weighted,items_drawn,active_triangles,frame_ms,psnr_db\n";
-    md << "## 8. The hierarchy: HLOD cuts against every object on its own (issue 16)\n\n"
+    md << heading(8)
        << "`render --headless --reference --lod error --tau 1`, `oc+lod`, with `--hierarchy off` (every object\n"
        << "its own coarsest level within tau) and `--hierarchy on` (the cut of `prep`'s hierarchy: refined to\n"
        << "where a node's own error is within tau / 10, then coarsened wherever a node's HLOD within tau costs\n"
@@ -701,17 +733,20 @@ void Bench::hierarchy(std::ostringstream& md) {
        << "2006). Items drawn: objects, or nodes of the cut. PSNR against the full-detail unculled picture,\n"
        << "both drawn `--colours uniform` (every item grey): an HLOD has one colour for all the objects it\n"
        << "stands for, so with each object in its own colour the PSNR would measure that rather than the\n"
-       << "geometry (docs/results.md gives both). Frame ms: every stage plus drawing.\n\n"
+       << "geometry (docs/results.md gives both). Frame ms: every stage plus drawing. Paths: "
+       << size_.hierarchy_frames << "-camera\n`path orbit` and `path walk`.\n\n"
        << "| scene | path | run | items drawn | triangles drawn | frame ms | PSNR dB |\n|---|---|---|---|---|---|---|\n";
+    const std::string frames = std::to_string(size_.hierarchy_frames);
     for (const PreparedScene* scene : {&grid_, &plant_}) {
-        const fs::path orbit = scenes_ / (scene->key + "_orbit" + std::to_string(size_.frames) + ".cam");
-        if (!fs::exists(orbit))
-            runner_.run("path_" + scene->key + "_orbit",
-                        command({"path", "orbit", scene->oss.string(), "--frames", std::to_string(size_.frames), "-o",
-                                 orbit.string()}));
+        const fs::path orbit = scenes_ / (scene->key + "_orbit" + frames + ".cam");
+        const fs::path walk = scenes_ / (scene->key + "_walk" + frames + ".cam");
+        for (const auto& [kind, cam] : {std::pair{"orbit", orbit}, std::pair{"walk", walk}})
+            if (!fs::exists(cam))
+                runner_.run("path_" + scene->key + "_" + kind + frames,
+                            command({"path", kind, scene->oss.string(), "--frames", frames, "-o", cam.string()}));
         for (const char* path : {"orbit", "walk"}) {
             PreparedScene played = *scene;
-            if (std::string(path) == "orbit") played.cam = orbit;
+            played.cam = std::string(path) == "orbit" ? orbit : walk;
             struct Variant {
                 const char* key;
                 const char* label;
@@ -753,7 +788,7 @@ void Bench::hierarchy(std::ostringstream& md) {
 // summary becomes this section, its plot plots/links.png.
 void Bench::links(std::ostringstream& md) {
     const char* title = "emulated links";
-    md << "## 9. Emulated links: the switch over 100 Mb/s with 1 and 5 ms (issue 17)\n\n";
+    md << heading(9);
     if (!useMpi()) {
         md << "Not run: " << (o_.no_mpi ? "--no-mpi" : "mpirun not found") << " (the links are between MPI ranks).\n\n";
         progress(9, title, "skipped (no MPI)", 0);
@@ -789,6 +824,7 @@ void Bench::links(std::ostringstream& md) {
 
 struct Plot {
     const char* name;
+    int experiment;  // the numbered section whose CSVs it plots
     std::string script;
 };
 
@@ -799,7 +835,7 @@ std::vector<Plot> plotScripts() {
         "set grid ytics lc rgb '#dddddd'\n"
         "set key autotitle columnhead\n";
     std::vector<Plot> plots;
-    plots.push_back({"breakdown", common + R"(set output 'plots/breakdown.png'
+    plots.push_back({"breakdown", 1, common + R"(set output 'plots/breakdown.png'
 set title 'Frame time per stage (Peng 2014, Table 3): mean ms per frame'
 set style data histograms
 set style histogram rowstacked
@@ -810,7 +846,7 @@ set ylabel 'ms per frame'
 set xtics rotate by -30
 plot for [c=4:10] 'breakdown.csv' using c:xtic(sprintf('%s %s', strcol(1), strcol(2))) title columnhead(c)
 )"});
-    plots.push_back({"accuracy", common + R"(set output 'plots/accuracy.png'
+    plots.push_back({"accuracy", 2, common + R"(set output 'plots/accuracy.png'
 set title 'Culling accuracy against exact culling (Peng 2014, Table 4) and false culls'
 set xlabel 'frame'
 set ylabel 'what we cull / what exact culling culls, %'
@@ -824,7 +860,7 @@ plot 'accuracy_frames.csv' using 1:2 with lines lw 2 title 'engine grid', \
      '' using 1:4 axes x1y2 with points pt 7 title 'false culls, grid', \
      '' using 1:5 axes x1y2 with points pt 6 title 'false culls, plant'
 )"});
-    plots.push_back({"streaming", common + R"(set output 'plots/streaming.png'
+    plots.push_back({"streaming", 3, common + R"(set output 'plots/streaming.png'
 set multiplot layout 1,2 title 'Streaming with coherence (SC), without (SnC) and none (NS): Peng & Cao 2012, Table 1'
 set style data histograms
 set style histogram rowstacked
@@ -842,7 +878,7 @@ set style histogram clustered
 plot 'streaming.csv' using (column('streamed_triangles_per_frame')):xtic(label(0)) title 'streamed triangles'
 unset multiplot
 )"});
-    plots.push_back({"bytes", common + R"(set output 'plots/bytes.png'
+    plots.push_back({"bytes", 4, common + R"(set output 'plots/bytes.png'
 set title 'Visible-set bytes per frame (Govindaraju et al. 2003, Figure 3)'
 set xlabel 'frame'
 set ylabel 'bytes per frame (log)'
@@ -853,7 +889,7 @@ plot 'bytes_frames.csv' using 1:($2 > 0 ? $2 : 1/0) with lines lw 2 title 'engin
      '' using 1:($5 > 0 ? $5 : 1/0) with lines lw 2 title 'plant: deltas', \
      '' using 1:($6 > 0 ? $6 : 1/0) with lines lw 2 title 'plant: full sets (--no-deltas)'
 )"});
-    plots.push_back({"latency", common + R"(set output 'plots/latency.png'
+    plots.push_back({"latency", 5, common + R"(set output 'plots/latency.png'
 set title 'Camera-to-display latency and waiting per layout'
 set style data histograms
 set style histogram clustered gap 1
@@ -864,7 +900,7 @@ set key top left
 plot 'latency.csv' using 3:xtic(1) title 'latency ms', '' using 4 title 'display waits ms/frame', \
      '' using 5 title 'other ranks wait ms/frame', '' using 6 title 'display frame ms'
 )"});
-    plots.push_back({"fps", common + R"(set output 'plots/fps.png'
+    plots.push_back({"fps", 6, common + R"(set output 'plots/fps.png'
 set multiplot layout 2,1 title 'Frames per second over the walk (Peng 2014, Figure 6)'
 set ylabel 'fps'
 set key outside right top vertical
@@ -877,7 +913,7 @@ plot 'fps_frames.csv' using 1:5 with lines lw 2 title 'oc+lod', '' using 1:6 wit
      '' using 1:7 with lines lw 1 title 'full'
 unset multiplot
 )"});
-    plots.push_back({"scaling", common + R"(set output 'plots/scaling.png'
+    plots.push_back({"scaling", 7, common + R"(set output 'plots/scaling.png'
 set title 'Scene size against frame time (every stage but drawing) and peak memory'
 set logscale xy
 set autoscale xfix
@@ -894,7 +930,7 @@ plot 'scaling.csv' using 3:(column('walk_oclod_ms')) with linespoints lw 2 pt 7 
      '' using 3:(column('orbit_lod_ms')) with linespoints lw 2 pt 11 title 'orbit, lod', \
      '' using 3:(column('orbit_oclod_peak_mb')) axes x1y2 with linespoints dt 2 pt 6 title 'orbit, oc+lod: peak MB'
 )"});
-    plots.push_back({"hierarchy", common + R"(set output 'plots/hierarchy.png'
+    plots.push_back({"hierarchy", 8, common + R"(set output 'plots/hierarchy.png'
 set datafile separator ','
 set multiplot layout 1,2 title 'The hierarchy (issue 16): HLOD cuts against every object on its own, --lod error --tau 1'
 set style data histograms
@@ -916,7 +952,10 @@ unset multiplot
 
 void Bench::plots() {
     const auto start = Clock::now();
+    size_t drawn = 0;
     for (const Plot& p : plotScripts()) {
+        if (!selected(p.experiment)) continue;
+        ++drawn;
         const fs::path script = plots_ / (std::string(p.name) + ".gp");
         writeFileAtomic(script, "# " + std::string(p.name) + ".png from the CSVs of `occswitch bench all`; run from " +
                                     "the results folder: gnuplot plots/" + p.name + ".gp\n" + p.script);
@@ -925,7 +964,7 @@ void Bench::plots() {
         if (!fs::exists(plots_ / (std::string(p.name) + ".png")))
             throw SystemError("bench all: gnuplot wrote no " + (plots_ / (std::string(p.name) + ".png")).string());
     }
-    std::fprintf(stderr, "bench all: plots: %zu PNGs in %s (%.1f s)\n", plotScripts().size(), plots_.c_str(),
+    std::fprintf(stderr, "bench all: plots: %zu PNGs in %s (%.1f s)\n", drawn, plots_.c_str(),
                  std::chrono::duration<double>(Clock::now() - start).count());
 }
 
@@ -948,25 +987,42 @@ std::string machineDescription() {
            "), " + fixed(double(mem_kb) / 1048576.0, 0) + " GiB";
 }
 
+void Bench::notRun(std::ostringstream& md, int k) const {
+    md << heading(k) << "Not run: `--only " << onlyList() << "` left it out.\n\n";
+}
+
 int Bench::run() {
     const auto start = Clock::now();
     for (const fs::path& dir : {out_, scenes_, raw_, plots_, out_ / "logs"}) makeOutputFolder(dir.string());
     std::fprintf(stderr,
                  "bench all: size %s into %s (scenes in %s; per-run logs in %s)\n", size_.name, out_.c_str(),
                  scenes_.c_str(), (out_ / "logs").c_str());
+    if (!o_.only.empty()) {
+        notes_.push_back("--only " + onlyList() + ": the other experiments were not run (their sections say so)");
+    }
     grid_ = grid(size_.grid, size_.frames);
     plant_ = plant(size_.plant_objects, size_.frames);
 
+    // Experiments 1 and 6 come from the same runs, as do 4 and 5: choosing one runs both.
     std::ostringstream body;
-    std::ostringstream part1, part2, part3, part45, part6, part7;
-    breakdownAndFps(part1, part6);
-    accuracy(part2);
-    streaming(part3);
-    bytesAndLatency(part45);
-    scaling(part7);
-    std::ostringstream part8, part9;
-    hierarchy(part8);
-    links(part9);
+    std::ostringstream part1, part2, part3, part45, part6, part7, part8, part9;
+    if (selected(1) || selected(6)) {
+        breakdownAndFps(part1, part6);
+    } else {
+        notRun(part1, 1);
+        notRun(part6, 6);
+    }
+    selected(2) ? accuracy(part2) : notRun(part2, 2);
+    selected(3) ? streaming(part3) : notRun(part3, 3);
+    if (selected(4) || selected(5)) {
+        bytesAndLatency(part45);
+    } else {
+        notRun(part45, 4);
+        notRun(part45, 5);
+    }
+    selected(7) ? scaling(part7) : notRun(part7, 7);
+    selected(8) ? hierarchy(part8) : notRun(part8, 8);
+    selected(9) ? links(part9) : notRun(part9, 9);
     plots();
 
     body << part1.str() << part2.str() << part3.str() << part45.str() << part6.str() << part7.str() << part8.str()

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 namespace occ::cli {
 
@@ -11,6 +12,7 @@ struct BenchAllOptions {
     std::string scenes;    // folder of prepared scenes, reused between runs (default OUT/scenes)
     std::string model;     // the model the engine grids tile
     bool no_mpi = false;   // measure the layouts with one rank only, without mpirun
+    std::vector<int> only;  // the experiments to run, 1-9 (empty: all); the others' sections say so
 };
 
 // `occswitch bench all --out DIR`: prepares the scenes it needs (engine grids, a plant) unless

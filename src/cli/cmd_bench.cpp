@@ -591,6 +591,12 @@ Command addBenchCommand(CLI::App& app) {
     all->add_option("--scenes", ao->scenes, "folder of prepared scenes, reused by later runs (default: OUT/scenes)");
     all->add_option("--model", ao->model, "the model the engine grids tile")->capture_default_str();
     all->add_flag("--no-mpi", ao->no_mpi, "measure the layouts on 1 rank only, without mpirun");
+    all->add_option("--only", ao->only,
+                    "run only these experiments, by the numbers of the progress lines and the summary's\n"
+                    "sections (e.g. 5,8; 1 and 6 come from the same runs, as do 4 and 5); the others'\n"
+                    "sections say they were not run")
+        ->delimiter(',')
+        ->check(CLI::Range(1, 9));
     auto mo = std::make_shared<BenchMassiveOptions>();
     CLI::App* massive = bench->add_subcommand(
         "massive", "A scene of the papers' Boeing class: a plant of --objects objects (10^6 = 193 M triangles)\n"
