@@ -10,10 +10,10 @@ namespace occ {
 namespace {
 
 // Symmetric 4x4 error quadric of Garland & Heckbert 1997, "Surface simplification using
-// quadric error metrics": the sum of squared distances to a set of planes, area weighted.
+// quadric error metrics": a weighted sum of squared distances to a set of planes.
 struct Quadric {
     double a00 = 0, a01 = 0, a02 = 0, a11 = 0, a12 = 0, a22 = 0, b0 = 0, b1 = 0, b2 = 0, c = 0;
-    double weight = 0;  // total plane weight (area), to turn a sum of squares into a mean
+    double weight = 0;  // total plane weight, to turn the sum of squares into a mean
 
     void addPlane(const glm::dvec3& n, double d, double w) {
         weight += w;
@@ -109,7 +109,8 @@ private:
     // one used by one triangle is a border. A vertex on exactly two border edges whose fan is one
     // open chain (triangles = neighbours - 1) is a border vertex, which may move along its border
     // (Quadric cost; EdgeLength keeps the outline, as the hand-checked fixtures expect); any
-    // other vertex on a border (a corner where chains meet) is locked.
+    // other vertex on a border (a corner where chains meet) is locked until a hole closes
+    // through it (reclassify).
     void classifyVertices() {
         border_.assign(n_, 0);
         const bool borders_move = cost_kind_ == CollapseCost::Quadric;
@@ -154,14 +155,17 @@ private:
             const glm::dvec3 n = glm::cross(p1 - p0, p2 - p0);
             const double len = glm::length(n);
             if (len <= 0.0) continue;
+            // Weighted by the square root of twice the area, linear in length as meshoptimizer
+            // weighs its planes (simplifier.cpp, 0.18): with area weights a fillet's or a pipe
+            // cap's small triangles were too cheap to move far, which a Hausdorff error punishes.
             const glm::dvec3 unit = n / len;
             Quadric q;
-            q.addPlane(unit, -glm::dot(unit, p0), 0.5 * len);
+            q.addPlane(unit, -glm::dot(unit, p0), std::sqrt(len));
             for (int c = 0; c < 3; ++c) quadric_[corner_[3 * t + c]].add(q);
         }
         // A border edge also adds, to both ends, the plane through it at right angles to its
         // face (Garland & Heckbert's boundary constraint), weighted kBorderWeight x the edge's
-        // length squared: moving a border vertex off its outline costs.
+        // length (linear, as the face planes): moving a border vertex off its outline costs.
         for (const BorderEdge& b : border_edges_) {
             const uint32_t t = b.triangle;
             const glm::dvec3 p0 = pos_[corner_[3 * t]], p1 = pos_[corner_[3 * t + 1]], p2 = pos_[corner_[3 * t + 2]];
@@ -172,18 +176,49 @@ private:
             if (len <= 0.0 || edge <= 0.0) continue;
             const glm::dvec3 across = glm::cross(along / edge, n / len);
             Quadric e;
-            e.addPlane(across, -glm::dot(across, pa), kBorderWeight * edge * edge);
+            e.addPlane(across, -glm::dot(across, pa), kBorderWeight * edge);
             e.weight = 0;  // a constraint, not surface: the recorded distance stays a surface mean
             quadric_[b.a].add(e);
             quadric_[b.b].add(e);
         }
     }
 
+    // The removed vertex's quadric at the kept position, as meshoptimizer ranks collapses: v's
+    // own planes pass through p_v, and counting v's earlier collapses again made vertices that had
+    // absorbed much look dear to move onto. Depends on u's quadric and v's position only.
     float cost(uint32_t u, uint32_t v) const {
         if (cost_kind_ == CollapseCost::EdgeLength) return glm::length(pos_[u] - pos_[v]);
-        Quadric q = quadric_[u];
-        q.add(quadric_[v]);
-        return float(std::max(0.0, q.eval(pos_[v])));
+        return float(std::max(0.0, quadric_[u].eval(pos_[v])));
+    }
+
+    // A locked vertex whose border changed (a hole closed through it) may now be a plain border
+    // vertex: on exactly two border edges, one open fan, no edge of three or more triangles.
+    void reclassify(uint32_t x) {
+        const uint32_t m = ++mark_id_;
+        candidates_.clear();
+        uint32_t triangles = 0;
+        forTriangles(x, [&](uint32_t t) {
+            ++triangles;
+            for (int c = 0; c < 3; ++c) {
+                const uint32_t w = corner_[3 * t + c];
+                if (w == x) continue;
+                if (mark_[w] != m) mark_[w] = m, count_[w] = 0, candidates_.push_back(w);
+                ++count_[w];
+            }
+        });
+        uint32_t border_edges = 0;
+        for (uint32_t w : candidates_) {
+            if (count_[w] > 2) return;
+            border_edges += count_[w] == 1;
+        }
+        if (border_edges == 2 && triangles + 1 == candidates_.size()) locked_[x] = 0, border_[x] = 1;
+    }
+
+    // Triangles on the edge a-b.
+    uint32_t trianglesOn(uint32_t a, uint32_t b) {
+        uint32_t n = 0;
+        forTriangles(a, [&](uint32_t t) { n += contains(t, b); });
+        return n;
     }
 
     bool contains(uint32_t t, uint32_t v) const {
@@ -287,22 +322,39 @@ private:
     // Legal half-edge collapse u -> v (v keeps its place): the link condition (common
     // neighbours of u and v are exactly the apexes of the triangles on edge uv), no surviving
     // triangle becomes a copy of one v already has (the tetrahedron case the link condition
-    // misses), and no surviving triangle of u flips or degenerates when u moves onto v.
+    // misses), and no surviving triangle of u turns over when u moves onto v (a triangle that
+    // becomes or was flat is allowed, as meshoptimizer allows it: CAD slivers otherwise pin
+    // their vertices). One exception to the link condition closes holes: a border loop of
+    // three (u, v, x) may shut, u onto v, when both border edges to x are x's, and x turns
+    // interior (or, where loops met at x, becomes a plain border vertex again). Without it every
+    // bolt hole of a CAD sheet stopped as a triangle and held its sheet far above its target.
+    // Sets closes_hole_ to x for collapse(), kNone otherwise.
     bool isLegal(uint32_t u, uint32_t v) {
         const uint32_t mv = markNeighbours(v, nullptr);
         if (mark_[u] != mv) return false;  // no longer an edge
-        uint32_t shared = 0, common = 0;
+        uint32_t shared = 0, common = 0, apex = kNone, extra = kNone;
         const uint32_t mu = ++second_mark_id_;
         forTriangles(u, [&](uint32_t t) {
-            shared += contains(t, v);
+            const bool on_edge = contains(t, v);
+            shared += on_edge;
             for (int c = 0; c < 3; ++c) {
                 const uint32_t w = corner_[3 * t + c];
+                if (on_edge && w != u && w != v) apex = w;
                 if (w != u && second_mark_[w] != mu) {
                     second_mark_[w] = mu;
-                    common += mark_[w] == mv;
+                    if (mark_[w] == mv) {
+                        ++common;
+                        if (!on_edge) extra = w;
+                    }
                 }
             }
         });
+        closes_hole_ = kNone;
+        if (border_[u] && border_[v] && shared == 1 && common == 2 && extra != kNone && extra != apex &&
+            trianglesOn(u, extra) == 1 && trianglesOn(v, extra) == 1) {
+            closes_hole_ = extra;
+            common = 1;
+        }
         if (common != shared) return false;
         // An interior vertex moves along an interior edge (two triangles), a border vertex
         // along its border (one): the border stays a border.
@@ -317,7 +369,7 @@ private:
             const uint32_t a = c[(k + 1) % 3], b = c[(k + 2) % 3];
             const glm::vec3 n_old = glm::cross(pos_[a] - pu, pos_[b] - pu);
             const glm::vec3 n_new = glm::cross(pos_[a] - pv, pos_[b] - pv);
-            if (glm::dot(n_old, n_new) <= 0.0f) {
+            if (glm::dot(n_old, n_new) < 0.0f) {
                 ok = false;
                 return;
             }
@@ -352,22 +404,32 @@ private:
         float recorded = cost_value;
         if (cost_kind_ == CollapseCost::Quadric) {
             // Recorded as a distance: the root mean square distance of the kept position to the
-            // planes both vertices stand for (area weighted).
-            const double weight = quadric_[u].weight + quadric_[v].weight;
-            recorded = weight > 0 ? float(std::sqrt(cost_value / weight)) : 0.0f;
+            // surface planes both vertices stand for (the HLOD cut's error scale is tuned to it).
             quadric_[v].add(quadric_[u]);
+            const double weight = quadric_[v].weight;
+            recorded = weight > 0 ? float(std::sqrt(std::max(0.0, quadric_[v].eval(pos_[v])) / weight)) : 0.0f;
         }
         sequence_.push(u, v, recorded, removed_tris_.data(), removed_tris_.size());
 
-        // v has a new quadric and new neighbours: all its candidates change. A neighbour w
-        // only sees its edge to v change (w's other neighbours and quadrics are as they were),
-        // unless its best target was u or v; then it needs a full look.
+        // A closed hole leaves v interior and x interior or a plain border vertex.
+        const uint32_t closed = closes_hole_;
+        if (closed != kNone) {
+            border_[v] = 0;
+            if (border_[closed]) border_[closed] = 0;
+            else reclassify(closed);
+        }
+
+        // v has a new quadric and new neighbours: all its candidates change. A neighbour w's
+        // quadric and v's position are as they were, so its cost to v stands; what changes is
+        // that u's former neighbours now reach v, and that a w whose best target was u lost it
+        // (a full look, as for a border vertex, whose border neighbours may have changed).
         if (!locked_[v]) pushBest(v);
+        if (closed != kNone && !locked_[closed]) pushBest(closed);
         neighbours_.clear();
         markNeighbours(v, &neighbours_);
         for (uint32_t w : neighbours_) {
-            if (locked_[w]) continue;
-            if (border_[w] || best_target_[w] == u || best_target_[w] == v || best_target_[w] == kNone) {
+            if (locked_[w] || best_target_[w] == v) continue;
+            if (border_[w] || best_target_[w] == u || best_target_[w] == kNone) {
                 pushBest(w);
                 continue;
             }
@@ -393,9 +455,9 @@ private:
     };
     std::vector<BorderEdge> border_edges_;  // the input's border edges and their triangle, for the quadrics
     std::vector<uint32_t> count_, candidates_, border_neighbours_;
-    // A sweep on the engine (bench prep, docs/results_prep.md): 0.3 .. 1 gave the lowest error
-    // at 50 %, 1.5 .. 10 the lowest at 10 % and 1 %; 1 has the lowest sum.
-    static constexpr double kBorderWeight = 1.0;
+    // meshoptimizer's kEdgeWeightBorder; on the engine (bench prep, docs/results_prep.md) 1 and 3
+    // left the 1 % error above meshopt's, 10 below it at every target.
+    static constexpr double kBorderWeight = 10.0;
     std::vector<uint32_t> stamp_, mark_, second_mark_;
     std::vector<float> best_cost_;       // cost of the candidate currently queued for each vertex
     std::vector<uint32_t> best_target_;  // its kept vertex, kNone if none
@@ -404,6 +466,7 @@ private:
     std::priority_queue<Candidate, std::vector<Candidate>, std::greater<Candidate>> heap_;
     std::vector<uint32_t> neighbours_, removed_tris_;
     CollapseSequence sequence_;
+    uint32_t closes_hole_ = kNone;  // set by isLegal: the third vertex of a border loop u-v closes
 };
 
 }  // namespace

@@ -12,6 +12,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <set>
+
 namespace occ {
 namespace {
 
@@ -193,6 +196,84 @@ TEST(Collapsers, OpenSheetBordersCollapseAlongTheBorder) {
     // EdgeLength keeps the outline whole (the hand-checked fixtures rely on it).
     const CollapseSequence locked = fastCollapseSequence(p, t, CollapseCost::EdgeLength);
     EXPECT_EQ(locked.size(), 81u);  // the interior vertices only
+}
+
+// A 10 x 10 sheet of squares (two triangles each) without the squares listed in `holes`.
+struct Sheet {
+    std::vector<glm::vec3> positions;
+    std::vector<uint32_t> triangles;
+    explicit Sheet(std::initializer_list<std::pair<uint32_t, uint32_t>> holes) {
+        for (int y = 0; y <= 10; ++y)
+            for (int x = 0; x <= 10; ++x) positions.push_back({float(x), float(y), 0.0f});
+        for (uint32_t y = 0; y < 10; ++y)
+            for (uint32_t x = 0; x < 10; ++x) {
+                if (std::find(holes.begin(), holes.end(), std::pair{x, y}) != holes.end()) continue;
+                const uint32_t a = y * 11 + x, b = a + 1, c = a + 11, d = c + 1;
+                triangles.insert(triangles.end(), {a, b, d, a, d, c});
+            }
+    }
+};
+
+// Euler characteristic V - E + F of the triangles after the first `count` collapses of s (1 for
+// a disk, 0 for a disk with one hole, -1 with two), and how many triangles are left.
+std::pair<int, int> eulerAfter(const Sheet& sheet, const CollapseSequence& s, size_t count) {
+    std::vector<uint32_t> to(sheet.positions.size());
+    for (uint32_t v = 0; v < to.size(); ++v) to[v] = v;
+    for (size_t i = 0; i < count; ++i) to[s.removed[i]] = s.kept[i];
+    const auto root = [&](uint32_t v) {
+        while (to[v] != v) v = to[v];
+        return v;
+    };
+    std::set<uint32_t> vertices;
+    std::set<std::pair<uint32_t, uint32_t>> edges;
+    int faces = 0;
+    for (size_t t = 0; t < sheet.triangles.size(); t += 3) {
+        const uint32_t c[3] = {root(sheet.triangles[t]), root(sheet.triangles[t + 1]), root(sheet.triangles[t + 2])};
+        if (c[0] == c[1] || c[1] == c[2] || c[0] == c[2]) continue;
+        ++faces;
+        for (int k = 0; k < 3; ++k) {
+            vertices.insert(c[k]);
+            edges.insert(std::minmax(c[k], c[(k + 1) % 3]));
+        }
+    }
+    return {int(vertices.size()) - int(edges.size()) + faces, faces};
+}
+
+// The Euler characteristic of the coarsest level that still has triangles.
+int eulerOfCoarsestLevel(const Sheet& sheet, const CollapseSequence& s) {
+    for (size_t count = s.size();; --count) {
+        const auto [euler, faces] = eulerAfter(sheet, s, count);
+        if (faces > 0 || count == 0) return euler;
+    }
+}
+
+// A sheet with a one-square hole: the hole's border loop shrinks to three vertices and then
+// closes (the one exception to the link condition), so the sheet simplifies as far as one
+// without a hole and ends a disk; the sequence is still a valid progressive mesh.
+TEST(Collapsers, SmallHolesCloseWhenTheirLoopIsDownToThree) {
+    const Sheet sheet({{4, 4}});
+    const CollapseSequence s = fastCollapseSequence(sheet.positions, sheet.triangles);
+    EXPECT_GE(s.size(), sheet.positions.size() - 4);
+    EXPECT_EQ(eulerAfter(sheet, s, 0).first, 0);
+    EXPECT_EQ(eulerOfCoarsestLevel(sheet, s), 1);
+    const CollapseArrays a = recordCollapseArrays(uint32_t(sheet.positions.size()),
+                                                  uint32_t(sheet.triangles.size() / 3), s);
+    expectValidProgressiveMesh(rearrange(sheet.positions, sheet.triangles, s, a));
+}
+
+// Two holes that touch at one vertex (4 border edges there: locked, as meshoptimizer locks it):
+// once one hole closes through it, the vertex is a plain border vertex and may go too.
+TEST(Collapsers, AVertexWhereHolesMeetIsFreedWhenOneCloses) {
+    const Sheet sheet({{4, 4}, {5, 5}});
+    const uint32_t pinch = 5 * 11 + 5;
+    const CollapseSequence s = fastCollapseSequence(sheet.positions, sheet.triangles);
+    EXPECT_NE(std::find(s.removed.begin(), s.removed.end(), pinch), s.removed.end());
+    EXPECT_GE(s.size(), sheet.positions.size() - 4);
+    EXPECT_EQ(eulerAfter(sheet, s, 0).first, -1);  // two holes
+    EXPECT_EQ(eulerOfCoarsestLevel(sheet, s), 1);
+    const CollapseArrays a = recordCollapseArrays(uint32_t(sheet.positions.size()),
+                                                  uint32_t(sheet.triangles.size() / 3), s);
+    expectValidProgressiveMesh(rearrange(sheet.positions, sheet.triangles, s, a));
 }
 
 TEST(Collapsers, NonManifoldEdgeIsKeptAndNeverCollapsed) {
