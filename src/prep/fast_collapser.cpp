@@ -484,9 +484,9 @@ private:
         float recorded = cost_value;
         if (cost_kind_ == CollapseCost::Quadric) {
             // Recorded as a distance: the root mean square distance of the kept position to the
-            // surface planes both vertices stand for, area weighted (the scale the LOD and HLOD
-            // cuts' tau was tuned to; sqrt-area weights record about 1.5x more on the plant's
-            // HLODs, and the 10^5 orbit's cut drew 1.45x the triangles).
+            // surface planes both vertices stand for, area weighted: the scale the LOD and HLOD
+            // cuts' tau was tuned to (recorded with the ranking's sqrt-area weights, the 10^5
+            // plant's orbit cut drew 1.45x the triangles at tau 1).
             quadric_[v].add(quadric_[u]);
             error_quadric_[v].add(error_quadric_[u]);
             const Quadric& e = error_quadric_[v];
