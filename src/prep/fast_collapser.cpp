@@ -184,7 +184,9 @@ private:
         const bool borders_move = cost_kind_ == CollapseCost::Quadric;
         uses_.assign(n_, 0);
         last_triangle_.resize(n_);
-        std::vector<uint32_t>&uses = uses_, &last_triangle = last_triangle_, &touched = touched_;
+        std::vector<uint32_t>& uses = uses_;
+        std::vector<uint32_t>& last_triangle = last_triangle_;
+        std::vector<uint32_t>& touched = touched_;
         for (uint32_t v = 0; v < n_; ++v) {
             if (head_[v] == kNone) {
                 locked_[v] = 1;  // a vertex used by no triangle has nothing to collapse along
@@ -410,9 +412,10 @@ private:
     // bolt hole of a CAD sheet stopped as a triangle and held its sheet far above its target.
     // Sets closes_hole_ to x for collapse(), kNone otherwise.
     bool isLegal(uint32_t u, uint32_t v) {
+        closes_hole_ = kNone;
         const uint32_t mv = markNeighbours(v, nullptr);
         if (mark_[u] != mv) return false;  // no longer an edge
-        uint32_t shared = 0, common = 0, apex = kNone, extra = kNone;
+        uint32_t shared = 0, common = 0, apex = kNone, first_common[2] = {kNone, kNone};
         const uint32_t mu = ++second_mark_id_;
         forTriangles(u, [&](uint32_t t) {
             const bool on_edge = contains(t, v);
@@ -422,15 +425,13 @@ private:
                 if (on_edge && w != u && w != v) apex = w;
                 if (w != u && second_mark_[w] != mu) {
                     second_mark_[w] = mu;
-                    if (mark_[w] == mv) {
-                        ++common;
-                        if (!on_edge) extra = w;
-                    }
+                    if (mark_[w] == mv && common++ < 2) first_common[common - 1] = w;
                 }
             }
         });
-        closes_hole_ = kNone;
-        if (border_[u] && border_[v] && shared == 1 && common == 2 && extra != kNone && extra != apex &&
+        // The common neighbour besides the apex, when there are exactly two.
+        const uint32_t extra = first_common[0] == apex ? first_common[1] : first_common[0];
+        if (border_[u] && border_[v] && shared == 1 && common == 2 && apex != kNone && extra != apex &&
             trianglesOn(u, extra) == 1 && trianglesOn(v, extra) == 1) {
             closes_hole_ = extra;
             common = 1;
