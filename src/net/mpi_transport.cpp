@@ -218,10 +218,11 @@ struct MpiTransport::Impl {
     // Asks every other rank to answer within options.roll_call; returns those that did not,
     // ascending. Ranks answer from inside any transport call (serviceControl), so a silent rank
     // is dead, hung, or computing for longer than the roll-call window. When more than one rank
-    // is silent at the window's end, the call listens for two windows more: a fault seldom takes
-    // two ranks, and a rank that is only slow (a long frame on an oversubscribed or sanitized
-    // run; seen: a 5-rank job under ASan named its healthy display rank with the killed one)
-    // answers once it is back in the transport, while a dead one never does.
+    // is silent at the window's end, the call listens one window more, until one rank is left:
+    // a fault seldom takes two ranks, and a rank that is only slow (a long frame on an
+    // oversubscribed or sanitized run; seen: a 5-rank job under ASan named its healthy display
+    // rank with the killed one) answers once it is back in the transport, while a dead one never
+    // does. Two windows stay within mpirun's default SIGKILL grace of 1 s.
     std::vector<int> rollCall() {
         const uint32_t number = ++roll_call_number;
         std::vector<bool> answered(size_t(size), false);
@@ -232,10 +233,12 @@ struct MpiTransport::Impl {
         bool extended = false;
         Backoff backoff;
         while (std::find(answered.begin(), answered.end(), false) != answered.end()) {
+            const auto silent = std::count(answered.begin(), answered.end(), false);
+            if (extended && silent < 2) break;
             if (Clock::now() >= deadline) {
-                if (extended || std::count(answered.begin(), answered.end(), false) < 2) break;
+                if (extended || silent < 2) break;
                 extended = true;
-                deadline += 2 * options.roll_call;
+                deadline += options.roll_call;
             }
             takeNotices();
             answerPings();

@@ -18,8 +18,8 @@ struct MpiTransportOptions {
     // How long a rank that suspects a fault (a receive timed out, or mpirun sent SIGTERM) waits
     // for the other ranks to answer its roll call; a rank that does not answer is named as the
     // culprit. Ranks answer from inside any transport call, so this bounds how long a healthy
-    // rank may compute between two calls without being taken for dead during a fault (three
-    // times this when several ranks are silent at first: see rollCall).
+    // rank may compute between two calls without being taken for dead during a fault (twice
+    // this when several ranks are silent at first: see rollCall).
     std::chrono::milliseconds roll_call{500};
     // How long a failing rank waits for its fault notices to leave before it gives up on them.
     std::chrono::milliseconds notice_grace{500};
