@@ -13,6 +13,12 @@
 #include <stdexcept>
 #include <thread>
 
+#include <unistd.h>
+
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
 namespace occ {
 
 namespace {
@@ -24,6 +30,7 @@ constexpr int kTagNotice = 16;  // u32 culprit rank, then the fault's text
 constexpr int kTagPing = 17;    // u32 roll-call number
 constexpr int kTagPong = 18;    // u32 roll-call number being answered
 constexpr int kTagBye = 19;     // empty: the sender reached finish()
+constexpr int kTagGroup = 21;   // u32 ranks of a composite group: the sender is ready to make its communicator
 // Notices stay far below every BTL's eager limit (vader 4 KiB), so a matched notice is complete
 // and MPI_Mrecv on it cannot block.
 constexpr size_t kMaxNoticeText = 1000;
@@ -73,6 +80,58 @@ private:
     Clock::time_point start_ = Clock::now();
 };
 
+// Where a rank runs: its host and process, to tell a dead or stopped peer on the same machine
+// from a slow one (see rollCall). start is the process's start time in clock ticks since boot,
+// so a pid reused by another process is not taken for the rank.
+struct ProcessId {
+    char host[MPI_MAX_PROCESSOR_NAME] = {};
+    int64_t pid = 0;
+    uint64_t start = 0;
+};
+
+enum class PeerState { Unknown, Running, Gone, Stopped };
+
+// The start time (field 22) and state (field 3) of /proc/PID/stat; false when there is none.
+bool readProcStat(int64_t pid, char& state, uint64_t& start) {
+    std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+    std::string line;
+    if (!in || !std::getline(in, line)) return false;
+    const size_t close = line.rfind(')');  // the command name may hold spaces and parentheses
+    if (close == std::string::npos) return false;
+    std::istringstream fields(line.substr(close + 1));
+    std::string field;
+    for (int i = 3; i <= 22 && fields >> field; ++i) {
+        if (i == 3) state = field.empty() ? '?' : field[0];
+        if (i == 22) {
+            start = std::strtoull(field.c_str(), nullptr, 10);
+            return true;
+        }
+    }
+    return false;
+}
+
+ProcessId thisProcess() {
+    ProcessId id;
+    int length = 0;
+    if (MPI_Get_processor_name(id.host, &length) != MPI_SUCCESS) id.host[0] = 0;
+    id.pid = int64_t(getpid());
+    char state = 0;
+    if (!readProcStat(id.pid, state, id.start)) id.start = 0;
+    return id;
+}
+
+// What the operating system says of a peer: only for one on this host whose start time was read.
+PeerState peerState(const ProcessId& self, const ProcessId& peer) {
+    if (!self.host[0] || std::strncmp(self.host, peer.host, sizeof self.host) != 0 || peer.start == 0)
+        return PeerState::Unknown;
+    char state = 0;
+    uint64_t start = 0;
+    if (!readProcStat(peer.pid, state, start) || start != peer.start) return PeerState::Gone;
+    if (state == 'Z' || state == 'X') return PeerState::Gone;
+    if (state == 'T' || state == 't') return PeerState::Stopped;
+    return PeerState::Running;
+}
+
 }  // namespace
 
 // Every MPI call goes through this: the call's text, file and line and MPI's own message become
@@ -103,6 +162,7 @@ struct MpiTransport::Impl {
     bool finished = false;
     uint32_t roll_call_number = 0;
     struct sigaction previous_sigterm {};
+    std::vector<ProcessId> processes;  // per rank, gathered once at the start
     // composite(): a communicator per group (made on its first use), the pixel type and the op.
     std::map<std::vector<int>, MPI_Comm> group_comms;
     MPI_Datatype pixel_type = MPI_DATATYPE_NULL;
@@ -222,7 +282,10 @@ struct MpiTransport::Impl {
     // a fault seldom takes two ranks, and a rank that is only slow (a long frame on an
     // oversubscribed or sanitized run; seen: a 5-rank job under ASan named its healthy display
     // rank with the killed one) answers once it is back in the transport, while a dead one never
-    // does. Two windows stay within mpirun's default SIGKILL grace of 1 s.
+    // does. Two windows stay within mpirun's default SIGKILL grace of 1 s. Then, for silent ranks
+    // on this host, the operating system has the last word: a process gone, a zombie or a
+    // stopped one is named first, and silent ranks it shows running are left out (a 5-rank job
+    // under ASan in CI had two healthy ranks silent for both windows).
     std::vector<int> rollCall() {
         const uint32_t number = ++roll_call_number;
         std::vector<bool> answered(size_t(size), false);
@@ -247,10 +310,21 @@ struct MpiTransport::Impl {
             progressSends();
             backoff.pause();
         }
-        std::vector<int> silent;
-        for (int p = 0; p < size; ++p)
-            if (!answered[size_t(p)]) silent.push_back(p);
-        return silent;
+        std::vector<int> silent, confirmed, unknown;
+        for (int p = 0; p < size; ++p) {
+            if (answered[size_t(p)]) continue;
+            silent.push_back(p);
+            const PeerState state = peerState(processes[size_t(rank)], processes[size_t(p)]);
+            if (state == PeerState::Gone || state == PeerState::Stopped)
+                confirmed.push_back(p);
+            else if (state == PeerState::Unknown)
+                unknown.push_back(p);
+        }
+        // A silent rank that the operating system shows dead or stopped is the culprit; silent
+        // ranks it shows running on this host are only slow (or waiting on the culprit).
+        if (confirmed.empty()) return silent;
+        confirmed.insert(confirmed.end(), unknown.begin(), unknown.end());
+        return confirmed;
     }
 
     // Tells every other rank about the fault and waits up to notice_grace for the notices to
@@ -336,6 +410,9 @@ MpiTransport::MpiTransport(int* argc, char*** argv, MpiTransportOptions options)
     if (const int rc = MPI_Comm_dup(MPI_COMM_WORLD, &m.comm); rc != MPI_SUCCESS)
         throw RankError(m.rank, "MPI_Comm_dup(MPI_COMM_WORLD) failed: " + mpiErrorString(rc));
     OCC_MPI_CHECK(m, MPI_Comm_set_errhandler(m.comm, MPI_ERRORS_RETURN), m.rank);
+    const ProcessId me = thisProcess();
+    m.processes.resize(size_t(m.size));
+    OCC_MPI_CHECK(m, MPI_Allgather(&me, int(sizeof me), MPI_BYTE, m.processes.data(), int(sizeof me), MPI_BYTE, m.comm), m.rank);
     struct sigaction action {};
     action.sa_handler = onSigterm;
     sigemptyset(&action.sa_mask);
@@ -450,8 +527,57 @@ void MpiTransport::composite(const std::vector<int>& group, std::vector<DepthPix
         OCC_MPI_CHECK(m, MPI_Type_commit(&m.pixel_type), m.rank);
         OCC_MPI_CHECK(m, MPI_Op_create(compositeDepthPixels, 1, &m.composite_op), m.rank);
     }
+    // A member that never comes (dead, or stopped before its first composite) is a timeout
+    // naming it, with a roll call; while waiting, faults reported meanwhile are seen.
+    const auto overdue = [&](const char* what, const std::vector<bool>* came) {
+        const std::vector<int> silent = m.rollCall();
+        int late = me == 0 ? group[1] : group.front();
+        if (came)
+            for (size_t j = 0; j < group.size(); ++j)
+                if (!(*came)[j]) {
+                    late = group[j];
+                    break;
+                }
+        for (int p : silent)
+            if (std::binary_search(group.begin(), group.end(), p)) {
+                late = p;
+                break;
+            }
+        m.raise(late, std::string("composite (") + what + ") not done within " + formatDuration(timeout) +
+                          (silent.empty() ? ": a rank of the group did not come" : ": the rank died or stopped answering"));
+    };
     auto found = m.group_comms.find(group);
     if (found == m.group_comms.end()) {
+        // MPI_Comm_create_group blocks until every member calls it, with no timeout: first each
+        // member tells the others it is here (point to point) and waits for all of them.
+        std::vector<uint8_t> ready;
+        for (int r : group) {
+            const std::vector<uint8_t> b = u32Bytes(uint32_t(r));
+            ready.insert(ready.end(), b.begin(), b.end());
+        }
+        for (int r : group)
+            if (r != m.rank) m.sendControl(r, kTagGroup, ready);
+        std::vector<bool> came(group.size(), false);
+        came[size_t(me)] = true;
+        Backoff backoff;
+        while (std::find(came.begin(), came.end(), false) != came.end()) {
+            for (size_t j = 0; j < group.size(); ++j) {
+                if (came[j]) continue;
+                if (auto message = m.takeControl(group[j], kTagGroup, ready.size())) {
+                    if (message->second != ready)
+                        m.raise(group[j], "is making another composite group than rank " + std::to_string(m.rank));
+                    came[j] = true;
+                }
+            }
+            m.serviceControl();
+            if (Clock::now() - start >= timeout) overdue("MPI_Comm_create_group", &came);
+            if (idle) {
+                idle();
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            } else {
+                backoff.pause();
+            }
+        }
         MPI_Comm made = MPI_COMM_NULL;
         // Collective over the group's members only (MPI-3): the other ranks take no part.
         MPI_Group world = MPI_GROUP_NULL, members_group = MPI_GROUP_NULL;
@@ -479,17 +605,7 @@ void MpiTransport::composite(const std::vector<int>& group, std::vector<DepthPix
             OCC_MPI_CHECK(m, MPI_Test(&request, &done, MPI_STATUS_IGNORE), group.front());
             if (done) return;
             m.serviceControl();
-            if (Clock::now() - start >= timeout) {
-                const std::vector<int> silent = m.rollCall();
-                int late = me == 0 ? group[1] : group.front();
-                for (int p : silent)
-                    if (std::binary_search(group.begin(), group.end(), p)) {
-                        late = p;
-                        break;
-                    }
-                m.raise(late, std::string("composite (") + what + ") not done within " + formatDuration(timeout) +
-                                  (silent.empty() ? ": a rank of the group did not come" : ": the rank died or stopped answering"));
-            }
+            if (Clock::now() - start >= timeout) overdue(what, nullptr);
             if (idle) {
                 idle();
                 std::this_thread::sleep_for(std::chrono::milliseconds(1));
