@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <utility>
 
 namespace occ {
@@ -212,7 +213,7 @@ struct OneSided {
     double max = 0.0, sum = 0.0;
 };
 
-OneSided measure(const std::vector<glm::vec3>& samples, const TriangleBvh& to) {
+OneSided measure(std::span<const glm::vec3> samples, const TriangleBvh& to) {
     OneSided r;
     uint32_t hint = kNoTriangle;
     for (const glm::vec3& p : samples) {
@@ -269,29 +270,63 @@ std::vector<glm::vec3> sampleSurface(std::span<const glm::vec3> positions, std::
     return out;
 }
 
-HausdorffDistance sampledHausdorff(std::span<const glm::vec3> a_positions, std::span<const uint32_t> a_triangles,
-                                   std::span<const glm::vec3> b_positions, std::span<const uint32_t> b_triangles,
-                                   const HausdorffOptions& options) {
+struct SampledSurface::Impl {
+    bool empty = true;
+    std::vector<glm::vec3> samples;
+    std::optional<TriangleBvh> bvh;
+};
+
+SampledSurface::SampledSurface(std::span<const glm::vec3> positions, std::span<const uint32_t> triangles,
+                               const HausdorffOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+    if (triangles.size() < 3) return;
+    impl_->empty = false;
+    // Same seed for every surface, so that swapping A and B swaps the two directions exactly.
+    impl_->samples = sampleSurface(positions, triangles, options.samples, options.seed);
+    if (!options.vertices) {
+        // sampleSurface puts the vertices first, once each.
+        std::vector<uint8_t> seen(positions.size(), 0);
+        size_t vertex_count = 0;
+        for (uint32_t v : triangles) vertex_count += seen[v] ? 0 : (seen[v] = 1);
+        impl_->samples.erase(impl_->samples.begin(), impl_->samples.begin() + ptrdiff_t(vertex_count));
+    }
+    impl_->bvh.emplace(positions, triangles);
+}
+
+SampledSurface::~SampledSurface() = default;
+SampledSurface::SampledSurface(SampledSurface&&) noexcept = default;
+SampledSurface& SampledSurface::operator=(SampledSurface&&) noexcept = default;
+
+HausdorffDistance SampledSurface::distanceTo(const SampledSurface& other) const {
     HausdorffDistance r;
-    const bool a_empty = a_triangles.size() < 3, b_empty = b_triangles.size() < 3;
-    if (a_empty && b_empty) return r;
-    if (a_empty || b_empty) {
+    const Impl &a = *impl_, &b = *other.impl_;
+    if (a.empty && b.empty) return r;
+    if (a.empty || b.empty) {
         constexpr double inf = std::numeric_limits<double>::infinity();
         r.max = r.mean = inf;
-        (a_empty ? r.b_to_a : r.a_to_b) = inf;
+        (a.empty ? r.b_to_a : r.a_to_b) = inf;
         return r;
     }
-    // Same seed for both surfaces, so that swapping A and B swaps the two directions exactly.
-    const std::vector<glm::vec3> a_samples = sampleSurface(a_positions, a_triangles, options.samples, options.seed);
-    const std::vector<glm::vec3> b_samples = sampleSurface(b_positions, b_triangles, options.samples, options.seed);
-    const OneSided ab = measure(a_samples, TriangleBvh(b_positions, b_triangles));
-    const OneSided ba = measure(b_samples, TriangleBvh(a_positions, a_triangles));
+    const OneSided ab = measure(a.samples, *b.bvh);
+    const OneSided ba = measure(b.samples, *a.bvh);
     r.a_to_b = ab.max;
     r.b_to_a = ba.max;
     r.max = std::max(ab.max, ba.max);
-    r.samples = a_samples.size() + b_samples.size();
+    r.samples = a.samples.size() + b.samples.size();
     r.mean = (ab.sum + ba.sum) / double(r.samples);
     return r;
+}
+
+double SampledSurface::farthestFrom(std::span<const glm::vec3> points) const {
+    if (points.empty()) return 0.0;
+    if (impl_->empty) return std::numeric_limits<double>::infinity();
+    return measure(points, *impl_->bvh).max;
+}
+
+HausdorffDistance sampledHausdorff(std::span<const glm::vec3> a_positions, std::span<const uint32_t> a_triangles,
+                                   std::span<const glm::vec3> b_positions, std::span<const uint32_t> b_triangles,
+                                   const HausdorffOptions& options) {
+    return SampledSurface(a_positions, a_triangles, options).distanceTo(SampledSurface(b_positions, b_triangles, options));
 }
 
 }  // namespace occ

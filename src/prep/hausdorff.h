@@ -4,6 +4,7 @@
 #include <glm/glm.hpp>
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -18,6 +19,9 @@ glm::vec3 closestPointOnTriangle(const glm::vec3& p, const glm::vec3& a, const g
 struct HausdorffOptions {
     uint32_t samples = 20000;  // area-uniform samples per surface, on top of its vertices
     uint64_t seed = 1;         // same seed, same meshes: same samples, same result
+    bool vertices = true;      // sample the vertices too (false: a SampledSurface whose vertices
+                               // are known to lie on the other surface, such as a level of
+                               // detail whose positions are a subset of its full detail's)
 };
 
 // Distances between two surfaces A and B, measured at sample points. A one-sided distance is
@@ -54,5 +58,27 @@ std::vector<glm::vec3> sampleSurface(std::span<const glm::vec3> positions, std::
 HausdorffDistance sampledHausdorff(std::span<const glm::vec3> a_positions, std::span<const uint32_t> a_triangles,
                                    std::span<const glm::vec3> b_positions, std::span<const uint32_t> b_triangles,
                                    const HausdorffOptions& options = {});
+
+// A surface made ready to be measured against others: its samples (sampleSurface) and its
+// triangle hierarchy, made once. One surface measured against many (the levels of one
+// progressive mesh against its full detail) saves rebuilding them for each pair.
+class SampledSurface {
+public:
+    SampledSurface(std::span<const glm::vec3> positions, std::span<const uint32_t> triangles,
+                   const HausdorffOptions& options = {});
+    ~SampledSurface();
+    SampledSurface(SampledSurface&&) noexcept;
+    SampledSurface& operator=(SampledSurface&&) noexcept;
+
+    // sampledHausdorff(this surface as A, other as B), with each surface's own options.
+    HausdorffDistance distanceTo(const SampledSurface& other) const;
+    // The largest distance from one of `points` to this surface (+infinity when it is empty and
+    // there are points, 0 when there are none).
+    double farthestFrom(std::span<const glm::vec3> points) const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace occ

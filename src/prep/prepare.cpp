@@ -4,6 +4,7 @@
 #include "prep/cluster_collapse.h"
 
 #include "prep/collapse_recorder.h"
+#include "prep/error_calibration.h"
 #include "prep/fast_collapser.h"
 #include "prep/occluder.h"
 #include "prep/rearrange.h"
@@ -30,6 +31,7 @@ ProgressiveMesh buildFromSequence(const Mesh& mesh, const Collapse& collapse) {
     const CollapseArrays arrays = recordCollapseArrays(uint32_t(welded.positions.size()),
                                                        uint32_t(welded.triangles.size() / 3), sequence);
     ProgressiveMesh pm = rearrange(welded.positions, welded.triangles, sequence, arrays);
+    calibrateRecordedErrors(pm);  // the recorded errors become distances tau can trust
     pm.source_vertices = uint32_t(mesh.positions.size());
     pm.dropped_triangles = welded.dropped_triangles;
     return pm;

@@ -1,0 +1,82 @@
+// SPDX-License-Identifier: MIT
+#include "prep/error_calibration.h"
+
+#include "prep/hausdorff.h"
+#include "prep/hierarchy.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace occ {
+
+ErrorCalibration calibrateRecordedErrors(ProgressiveMesh& pm, uint32_t samples) {
+    ErrorCalibration result;
+    const uint32_t n = pm.vertexCount(), q = std::min(pm.q, n), total = pm.triangleCount();
+    if (n <= q || total == 0 || pm.error.size() != n) return result;
+    glm::vec3 lo(INFINITY), hi(-INFINITY);
+    for (const glm::vec3& p : pm.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    const double diagonal = glm::length(glm::dvec3(hi - lo));
+    if (!(diagonal > 0.0) || !std::isfinite(diagonal)) return result;
+    // Distances below this are float noise of the positions, not simplification.
+    const double noise = 1e-6 * diagonal;
+
+    // Level errors before calibration: suffix maxima (level k drops vertices k..n-1).
+    std::vector<float> level_error(size_t(n) + 1, 0.0f);
+    for (uint32_t v = n; v-- > 0;) level_error[v] = std::max(level_error[v + 1], pm.error[v]);
+
+    // The measured levels, finest first: k_0 = n (exact, ratio of the next), then halvings.
+    std::vector<uint32_t> ks{n};
+    std::vector<double> ratio{1.0}, measured{0.0};
+    // Both directions from area samples; the full detail's vertices that a level dropped (its
+    // own are a prefix of them, at distance 0) at most kVertexSamples of them, evenly strided.
+    HausdorffOptions options;
+    options.samples = samples;
+    options.vertices = false;
+    const SampledSurface full(pm.positions, pm.triangles, options);
+    constexpr uint32_t kVertexSamples = 128;
+    std::vector<glm::vec3> level_positions, dropped;
+    std::vector<uint32_t> level_triangles;
+    for (uint64_t want = total / 4;; want /= 4) {
+        const uint32_t k = want == 0 ? q : std::max(q, levelWithTriangles(pm.map, q, want));
+        if (k < ks.back()) {
+            level_positions.clear();
+            level_triangles.clear();
+            appendLevel(pm.positions, pm.ecol, pm.triangles, pm.map, k, glm::mat4(1.0f), level_positions,
+                        level_triangles);
+            const SampledSurface level(level_positions, level_triangles, options);
+            dropped.clear();
+            const uint32_t stride = std::max(1u, (n - k + kVertexSamples - 1) / kVertexSamples);
+            for (uint32_t v = k; v < n; v += stride) dropped.push_back(pm.positions[v]);
+            const double d = std::max(full.distanceTo(level).max, level.farthestFrom(dropped));
+            const double h = std::isfinite(d) ? std::min(d, diagonal) : diagonal;
+            const double e = level_error[k];
+            ks.push_back(k);
+            measured.push_back(h);
+            ratio.push_back(h <= noise ? 1.0 : e > 0.0 ? std::max(1.0, h / e) : 1.0);
+            ++result.levels_measured;
+        }
+        if (k <= q || want == 0) break;
+    }
+    if (ks.size() < 2) return result;
+    ratio[0] = ratio[1];
+
+    // Segment i holds the vertices removed between ks[i] (exclusive, finer) and ks[i+1]: v in
+    // [ks[i+1], ks[i]); the vertices of the floor's segment, below the last measured level,
+    // are never removed (v < q).
+    // Within a segment the factor goes from one end's ratio to the other's geometrically, by
+    // the vertex's place between them.
+    for (size_t i = 0; i + 1 < ks.size(); ++i) {
+        const double fine = std::log(ratio[i]), coarse = std::log(ratio[i + 1]);
+        const double span = double(ks[i] - ks[i + 1]);
+        result.largest_factor = std::max(result.largest_factor, float(std::max(ratio[i], ratio[i + 1])));
+        for (uint32_t v = ks[i + 1]; v < ks[i]; ++v) {
+            const double t = double(ks[i] - v) / span;  // 0 at the fine end, 1 at the coarse one
+            pm.error[v] *= float(std::exp(fine + (coarse - fine) * t));
+        }
+    }
+    for (size_t i = 1; i < ks.size(); ++i)
+        if (ks[i] < n && measured[i] > noise) pm.error[ks[i]] = std::max(pm.error[ks[i]], float(measured[i]));
+    return result;
+}
+
+}  // namespace occ
