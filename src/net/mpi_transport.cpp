@@ -116,7 +116,7 @@ ProcessId thisProcess() {
     if (MPI_Get_processor_name(id.host, &length) != MPI_SUCCESS) id.host[0] = 0;
     id.pid = int64_t(getpid());
     char state = 0;
-    if (!readProcStat(id.pid, state, id.start)) id.start = 0;
+    readProcStat(id.pid, state, id.start);  // start stays 0 (unknown) when it cannot be read
     return id;
 }
 
@@ -527,6 +527,15 @@ void MpiTransport::composite(const std::vector<int>& group, std::vector<DepthPix
         OCC_MPI_CHECK(m, MPI_Type_commit(&m.pixel_type), m.rank);
         OCC_MPI_CHECK(m, MPI_Op_create(compositeDepthPixels, 1, &m.composite_op), m.rank);
     }
+    // Between two polls: the caller's idle work, else the usual backoff.
+    const auto pause = [&](Backoff& backoff) {
+        if (idle) {
+            idle();
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        } else {
+            backoff.pause();
+        }
+    };
     // A member that never comes (dead, or stopped before its first composite) is a timeout
     // naming it, with a roll call; while waiting, faults reported meanwhile are seen.
     const auto overdue = [&](const char* what, const std::vector<bool>* came) {
@@ -571,12 +580,7 @@ void MpiTransport::composite(const std::vector<int>& group, std::vector<DepthPix
             }
             m.serviceControl();
             if (Clock::now() - start >= timeout) overdue("MPI_Comm_create_group", &came);
-            if (idle) {
-                idle();
-                std::this_thread::sleep_for(std::chrono::milliseconds(1));
-            } else {
-                backoff.pause();
-            }
+            pause(backoff);
         }
         MPI_Comm made = MPI_COMM_NULL;
         // Collective over the group's members only (MPI-3): the other ranks take no part.
@@ -606,12 +610,7 @@ void MpiTransport::composite(const std::vector<int>& group, std::vector<DepthPix
             if (done) return;
             m.serviceControl();
             if (Clock::now() - start >= timeout) overdue(what, nullptr);
-            if (idle) {
-                idle();
-                std::this_thread::sleep_for(std::chrono::milliseconds(1));
-            } else {
-                backoff.pause();
-            }
+            pause(backoff);
         }
     };
     try {

@@ -24,7 +24,8 @@ ErrorCalibration calibrateRecordedErrors(ProgressiveMesh& pm, uint32_t samples) 
     std::vector<float> level_error(size_t(n) + 1, 0.0f);
     for (uint32_t v = n; v-- > 0;) level_error[v] = std::max(level_error[v + 1], pm.error[v]);
 
-    // The measured levels, finest first: k_0 = n (exact, ratio of the next), then halvings.
+    // The measured levels, finest first: k_0 = n (exact; it takes the next one's ratio), then
+    // each quartering of the triangles.
     std::vector<uint32_t> ks{n};
     std::vector<double> ratio{1.0}, measured{0.0};
     // Both directions from area samples; the full detail's vertices that a level dropped (its
@@ -60,11 +61,9 @@ ErrorCalibration calibrateRecordedErrors(ProgressiveMesh& pm, uint32_t samples) 
     if (ks.size() < 2) return result;
     ratio[0] = ratio[1];
 
-    // Segment i holds the vertices removed between ks[i] (exclusive, finer) and ks[i+1]: v in
-    // [ks[i+1], ks[i]); the vertices of the floor's segment, below the last measured level,
-    // are never removed (v < q).
-    // Within a segment the factor goes from one end's ratio to the other's geometrically, by
-    // the vertex's place between them.
+    // Segment i holds the vertices removed between the measured levels ks[i] and ks[i+1]: v in
+    // [ks[i+1], ks[i]) (below the last, v < q, nothing is removed). Within a segment the factor
+    // goes geometrically from the finer end's ratio to the coarser end's.
     for (size_t i = 0; i + 1 < ks.size(); ++i) {
         const double fine = std::log(ratio[i]), coarse = std::log(ratio[i + 1]);
         const double span = double(ks[i] - ks[i + 1]);

@@ -233,14 +233,16 @@ glm::vec3 closestPointOnTriangle(const glm::vec3& p, const glm::vec3& a, const g
 }
 
 std::vector<glm::vec3> sampleSurface(std::span<const glm::vec3> positions, std::span<const uint32_t> triangles,
-                                     uint32_t count, uint64_t seed) {
+                                     uint32_t count, uint64_t seed, bool vertices) {
     std::vector<glm::vec3> out;
-    std::vector<uint8_t> seen(positions.size(), 0);
-    for (uint32_t v : triangles)
-        if (!seen[v]) {
-            seen[v] = 1;
-            out.push_back(positions[v]);
-        }
+    if (vertices) {
+        std::vector<uint8_t> seen(positions.size(), 0);
+        for (uint32_t v : triangles)
+            if (!seen[v]) {
+                seen[v] = 1;
+                out.push_back(positions[v]);
+            }
+    }
 
     const size_t tc = triangles.size() / 3;
     std::vector<double> cumulative(tc);
@@ -271,25 +273,16 @@ std::vector<glm::vec3> sampleSurface(std::span<const glm::vec3> positions, std::
 }
 
 struct SampledSurface::Impl {
-    bool empty = true;
     std::vector<glm::vec3> samples;
-    std::optional<TriangleBvh> bvh;
+    std::optional<TriangleBvh> bvh;  // none: the surface has no triangles
 };
 
 SampledSurface::SampledSurface(std::span<const glm::vec3> positions, std::span<const uint32_t> triangles,
                                const HausdorffOptions& options)
     : impl_(std::make_unique<Impl>()) {
     if (triangles.size() < 3) return;
-    impl_->empty = false;
     // Same seed for every surface, so that swapping A and B swaps the two directions exactly.
-    impl_->samples = sampleSurface(positions, triangles, options.samples, options.seed);
-    if (!options.vertices) {
-        // sampleSurface puts the vertices first, once each.
-        std::vector<uint8_t> seen(positions.size(), 0);
-        size_t vertex_count = 0;
-        for (uint32_t v : triangles) vertex_count += seen[v] ? 0 : (seen[v] = 1);
-        impl_->samples.erase(impl_->samples.begin(), impl_->samples.begin() + ptrdiff_t(vertex_count));
-    }
+    impl_->samples = sampleSurface(positions, triangles, options.samples, options.seed, options.vertices);
     impl_->bvh.emplace(positions, triangles);
 }
 
@@ -300,11 +293,11 @@ SampledSurface& SampledSurface::operator=(SampledSurface&&) noexcept = default;
 HausdorffDistance SampledSurface::distanceTo(const SampledSurface& other) const {
     HausdorffDistance r;
     const Impl &a = *impl_, &b = *other.impl_;
-    if (a.empty && b.empty) return r;
-    if (a.empty || b.empty) {
+    if (!a.bvh && !b.bvh) return r;
+    if (!a.bvh || !b.bvh) {
         constexpr double inf = std::numeric_limits<double>::infinity();
         r.max = r.mean = inf;
-        (a.empty ? r.b_to_a : r.a_to_b) = inf;
+        (a.bvh ? r.a_to_b : r.b_to_a) = inf;
         return r;
     }
     const OneSided ab = measure(a.samples, *b.bvh);
@@ -319,7 +312,7 @@ HausdorffDistance SampledSurface::distanceTo(const SampledSurface& other) const 
 
 double SampledSurface::farthestFrom(std::span<const glm::vec3> points) const {
     if (points.empty()) return 0.0;
-    if (impl_->empty) return std::numeric_limits<double>::infinity();
+    if (!impl_->bvh) return std::numeric_limits<double>::infinity();
     return measure(points, *impl_->bvh).max;
 }
 

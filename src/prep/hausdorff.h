@@ -36,13 +36,14 @@ struct HausdorffDistance {
     uint64_t samples = 0;     // sample points measured, both directions
 };
 
-// Points on a surface: every vertex some triangle uses, once each, in order of first use, then
-// `count` area-uniform points (stratified along the cumulative area, jittered with a seeded
-// generator, so large triangles get samples in proportion and results repeat exactly).
-// Triangles of zero area get no area samples; with no area at all only vertices are returned.
+// Points on a surface: every vertex some triangle uses, once each, in order of first use
+// (unless `vertices` is false), then `count` area-uniform points (stratified along the
+// cumulative area, jittered with a seeded generator, so large triangles get samples in
+// proportion and results repeat exactly). Triangles of zero area get no area samples; with no
+// area at all only vertices are returned.
 // triangles: 3 indices per triangle, each < positions.size(); may be empty (no points).
 std::vector<glm::vec3> sampleSurface(std::span<const glm::vec3> positions, std::span<const uint32_t> triangles,
-                                     uint32_t count, uint64_t seed);
+                                     uint32_t count, uint64_t seed, bool vertices = true);
 
 // Sampled symmetric Hausdorff distance between triangle meshes A and B: the samples of each
 // (sampleSurface with options.samples and options.seed) are measured against the other's
