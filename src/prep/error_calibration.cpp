@@ -6,8 +6,46 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
+#include <span>
 
 namespace occ {
+
+namespace {
+
+// The extent (bounding-box diagonal) of each vertex's connected component (vertices joined by
+// triangles); 0 for a vertex no triangle uses.
+std::vector<float> componentExtents(std::span<const glm::vec3> positions, std::span<const uint32_t> triangles) {
+    const uint32_t n = uint32_t(positions.size());
+    std::vector<uint32_t> parent(n);
+    std::iota(parent.begin(), parent.end(), 0u);
+    const auto find = [&](uint32_t v) {
+        while (parent[v] != v) v = parent[v] = parent[parent[v]];
+        return v;
+    };
+    for (size_t i = 0; i + 2 < triangles.size(); i += 3) {
+        const uint32_t a = find(triangles[i]), b = find(triangles[i + 1]), c = find(triangles[i + 2]);
+        parent[b] = a;
+        parent[c == b ? a : c] = a;
+    }
+    std::vector<glm::vec3> lo(n, glm::vec3(INFINITY)), hi(n, glm::vec3(-INFINITY));
+    std::vector<uint8_t> used(n, 0);
+    for (uint32_t v : triangles) used[v] = 1;
+    for (uint32_t v = 0; v < n; ++v)
+        if (used[v]) {
+            const uint32_t r = find(v);
+            lo[r] = glm::min(lo[r], positions[v]), hi[r] = glm::max(hi[r], positions[v]);
+        }
+    std::vector<float> extent(n, 0.0f);
+    for (uint32_t v = 0; v < n; ++v)
+        if (used[v]) {
+            const uint32_t r = find(v);
+            extent[v] = glm::length(hi[r] - lo[r]);
+        }
+    return extent;
+}
+
+}  // namespace
 
 ErrorCalibration calibrateRecordedErrors(ProgressiveMesh& pm, uint32_t samples) {
     ErrorCalibration result;
@@ -33,9 +71,16 @@ ErrorCalibration calibrateRecordedErrors(ProgressiveMesh& pm, uint32_t samples) 
     HausdorffOptions options;
     options.samples = samples;
     options.vertices = false;
-    const SampledSurface full(pm.positions, pm.triangles, options);
+    // A sample of the full detail counts at most its connected component's extent: a part that
+    // vanishes whole (an HLOD's small objects) changes the picture only within its own extent,
+    // however far the nearest surface left is (the rule that leaves out objects under a pixel).
+    const std::vector<float> extent = componentExtents(pm.positions, pm.triangles);
+    std::vector<float> triangle_cap(pm.triangles.size() / 3);
+    for (size_t t = 0; t < triangle_cap.size(); ++t) triangle_cap[t] = extent[pm.triangles[3 * t]];
+    const SampledSurface full(pm.positions, pm.triangles, options, triangle_cap);
     constexpr uint32_t kVertexSamples = 128;
     std::vector<glm::vec3> level_positions, dropped;
+    std::vector<float> dropped_cap;
     std::vector<uint32_t> level_triangles;
     for (uint64_t want = total / 4;; want /= 4) {
         const uint32_t k = want == 0 ? q : std::max(q, levelWithTriangles(pm.map, q, want));
@@ -46,9 +91,10 @@ ErrorCalibration calibrateRecordedErrors(ProgressiveMesh& pm, uint32_t samples) 
                         level_triangles);
             const SampledSurface level(level_positions, level_triangles, options);
             dropped.clear();
+            dropped_cap.clear();
             const uint32_t stride = std::max(1u, (n - k + kVertexSamples - 1) / kVertexSamples);
-            for (uint32_t v = k; v < n; v += stride) dropped.push_back(pm.positions[v]);
-            const double d = std::max(full.distanceTo(level).max, level.farthestFrom(dropped));
+            for (uint32_t v = k; v < n; v += stride) dropped.push_back(pm.positions[v]), dropped_cap.push_back(extent[v]);
+            const double d = std::max(full.distanceTo(level).max, level.farthestFrom(dropped, dropped_cap));
             const double h = std::isfinite(d) ? std::min(d, diagonal) : diagonal;
             const double e = level_error[k];
             ks.push_back(k);

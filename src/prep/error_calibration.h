@@ -18,7 +18,9 @@ struct ErrorCalibration {
 // factor that differs from mesh to mesh and from level to level. Here the levels that quarter
 // the triangle count, from the full detail down to q, are measured against the full detail
 // (sampled symmetric Hausdorff distance: `samples` area samples per surface, and up to 128 of
-// the full detail's vertices the level dropped; its own are at distance 0); each measured
+// the full detail's vertices the level dropped; its own are at distance 0; a point of the full
+// detail counts at most the extent of its connected component, which is how much of the picture
+// a component that vanishes whole can change, e.g. an HLOD's small objects); each measured
 // level has a ratio measured / recorded (never below 1), and a collapse error between two
 // measured levels is multiplied by a factor going geometrically from one's ratio to the
 // other's; a measured level's error is then raised to its measured distance where that is

@@ -8,6 +8,7 @@
 #include <limits>
 #include <numeric>
 #include <optional>
+#include <stdexcept>
 #include <utility>
 
 namespace occ {
@@ -213,13 +214,14 @@ struct OneSided {
     double max = 0.0, sum = 0.0;
 };
 
-OneSided measure(std::span<const glm::vec3> samples, const TriangleBvh& to) {
+// caps: empty, or one per sample (the most its distance counts).
+OneSided measure(std::span<const glm::vec3> samples, const TriangleBvh& to, std::span<const float> caps = {}) {
     OneSided r;
     uint32_t hint = kNoTriangle;
-    for (const glm::vec3& p : samples) {
-        const auto [d2, t] = to.closest(p, hint);
+    for (size_t i = 0; i < samples.size(); ++i) {
+        const auto [d2, t] = to.closest(samples[i], hint);
         hint = t;
-        const double d = std::sqrt(double(d2));
+        const double d = caps.empty() ? std::sqrt(double(d2)) : std::min(std::sqrt(double(d2)), double(caps[i]));
         r.max = std::max(r.max, d);
         r.sum += d;
     }
@@ -232,16 +234,23 @@ glm::vec3 closestPointOnTriangle(const glm::vec3& p, const glm::vec3& a, const g
     return closestPoint(p, a, b, c);
 }
 
-std::vector<glm::vec3> sampleSurface(std::span<const glm::vec3> positions, std::span<const uint32_t> triangles,
-                                     uint32_t count, uint64_t seed, bool vertices) {
+namespace {
+
+// sampleSurface, and for each point the triangle it came from (a vertex: the first triangle
+// that uses it) when `from` is given.
+std::vector<glm::vec3> samplePoints(std::span<const glm::vec3> positions, std::span<const uint32_t> triangles,
+                                    uint32_t count, uint64_t seed, bool vertices, std::vector<uint32_t>* from) {
     std::vector<glm::vec3> out;
     if (vertices) {
         std::vector<uint8_t> seen(positions.size(), 0);
-        for (uint32_t v : triangles)
+        for (size_t i = 0; i < triangles.size(); ++i) {
+            const uint32_t v = triangles[i];
             if (!seen[v]) {
                 seen[v] = 1;
                 out.push_back(positions[v]);
+                if (from) from->push_back(uint32_t(i / 3));
             }
+        }
     }
 
     const size_t tc = triangles.size() / 3;
@@ -268,21 +277,38 @@ std::vector<glm::vec3> sampleSurface(std::span<const glm::vec3> positions, std::
         const glm::dvec3 a = positions[triangles[3 * t]], b = positions[triangles[3 * t + 1]],
                          c = positions[triangles[3 * t + 2]];
         out.push_back(glm::vec3((1.0 - s) * a + s * (1.0 - r) * b + s * r * c));
+        if (from) from->push_back(uint32_t(t));
     }
     return out;
 }
 
+}  // namespace
+
+std::vector<glm::vec3> sampleSurface(std::span<const glm::vec3> positions, std::span<const uint32_t> triangles,
+                                     uint32_t count, uint64_t seed, bool vertices) {
+    return samplePoints(positions, triangles, count, seed, vertices, nullptr);
+}
+
 struct SampledSurface::Impl {
     std::vector<glm::vec3> samples;
+    std::vector<float> caps;         // empty, or one per sample
     std::optional<TriangleBvh> bvh;  // none: the surface has no triangles
 };
 
 SampledSurface::SampledSurface(std::span<const glm::vec3> positions, std::span<const uint32_t> triangles,
-                               const HausdorffOptions& options)
+                               const HausdorffOptions& options, std::span<const float> triangle_cap)
     : impl_(std::make_unique<Impl>()) {
     if (triangles.size() < 3) return;
+    if (!triangle_cap.empty() && triangle_cap.size() != triangles.size() / 3)
+        throw std::invalid_argument("SampledSurface: triangle_cap needs one value per triangle");
     // Same seed for every surface, so that swapping A and B swaps the two directions exactly.
-    impl_->samples = sampleSurface(positions, triangles, options.samples, options.seed, options.vertices);
+    std::vector<uint32_t> from;
+    impl_->samples = samplePoints(positions, triangles, options.samples, options.seed, options.vertices,
+                                  triangle_cap.empty() ? nullptr : &from);
+    if (!triangle_cap.empty()) {
+        impl_->caps.reserve(from.size());
+        for (uint32_t t : from) impl_->caps.push_back(triangle_cap[t]);
+    }
     impl_->bvh.emplace(positions, triangles);
 }
 
@@ -295,13 +321,16 @@ HausdorffDistance SampledSurface::distanceTo(const SampledSurface& other) const 
     const Impl &a = *impl_, &b = *other.impl_;
     if (!a.bvh && !b.bvh) return r;
     if (!a.bvh || !b.bvh) {
-        constexpr double inf = std::numeric_limits<double>::infinity();
-        r.max = r.mean = inf;
-        (a.bvh ? r.a_to_b : r.b_to_a) = inf;
+        // Every sample of the other surface is infinitely far from nothing, or its cap.
+        const std::vector<float>& caps = a.bvh ? a.caps : b.caps;
+        const double far = caps.empty() ? std::numeric_limits<double>::infinity()
+                                        : double(*std::max_element(caps.begin(), caps.end()));
+        r.max = r.mean = far;
+        (a.bvh ? r.a_to_b : r.b_to_a) = far;
         return r;
     }
-    const OneSided ab = measure(a.samples, *b.bvh);
-    const OneSided ba = measure(b.samples, *a.bvh);
+    const OneSided ab = measure(a.samples, *b.bvh, a.caps);
+    const OneSided ba = measure(b.samples, *a.bvh, b.caps);
     r.a_to_b = ab.max;
     r.b_to_a = ba.max;
     r.max = std::max(ab.max, ba.max);
@@ -310,10 +339,15 @@ HausdorffDistance SampledSurface::distanceTo(const SampledSurface& other) const 
     return r;
 }
 
-double SampledSurface::farthestFrom(std::span<const glm::vec3> points) const {
+double SampledSurface::farthestFrom(std::span<const glm::vec3> points, std::span<const float> caps) const {
     if (points.empty()) return 0.0;
-    if (!impl_->bvh) return std::numeric_limits<double>::infinity();
-    return measure(points, *impl_->bvh).max;
+    if (!caps.empty() && caps.size() != points.size())
+        throw std::invalid_argument("SampledSurface::farthestFrom: caps needs one value per point");
+    if (!impl_->bvh) {
+        if (caps.empty()) return std::numeric_limits<double>::infinity();
+        return double(*std::max_element(caps.begin(), caps.end()));
+    }
+    return measure(points, *impl_->bvh, caps).max;
 }
 
 HausdorffDistance sampledHausdorff(std::span<const glm::vec3> a_positions, std::span<const uint32_t> a_triangles,

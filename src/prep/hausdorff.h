@@ -65,8 +65,13 @@ HausdorffDistance sampledHausdorff(std::span<const glm::vec3> a_positions, std::
 // progressive mesh against its full detail) saves rebuilding them for each pair.
 class SampledSurface {
 public:
+    // triangle_cap (empty, or one value per triangle): the most a sample of that triangle counts
+    // in this surface's direction of distanceTo, e.g. the extent of the triangle's connected
+    // component (a component that vanishes whole changes a picture only within its own extent).
+    // A vertex sample takes the cap of the first triangle that uses it. With caps, a direction
+    // from this surface to an empty one is its largest cap instead of +infinity.
     SampledSurface(std::span<const glm::vec3> positions, std::span<const uint32_t> triangles,
-                   const HausdorffOptions& options = {});
+                   const HausdorffOptions& options = {}, std::span<const float> triangle_cap = {});
     ~SampledSurface();
     SampledSurface(SampledSurface&&) noexcept;
     SampledSurface& operator=(SampledSurface&&) noexcept;
@@ -74,8 +79,9 @@ public:
     // sampledHausdorff(this surface as A, other as B), with each surface's own options.
     HausdorffDistance distanceTo(const SampledSurface& other) const;
     // The largest distance from one of `points` to this surface (+infinity when it is empty and
-    // there are points, 0 when there are none).
-    double farthestFrom(std::span<const glm::vec3> points) const;
+    // there are points, 0 when there are none); with `caps` (one per point), point i's distance
+    // counts at most caps[i].
+    double farthestFrom(std::span<const glm::vec3> points, std::span<const float> caps = {}) const;
 
 private:
     struct Impl;

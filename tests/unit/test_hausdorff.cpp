@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <vector>
 
 namespace occ {
 namespace {
@@ -199,6 +201,35 @@ TEST(SampledHausdorff, EmptyMeshIsInfinitelyFarAndTwoEmptyOnesCoincide) {
     const HausdorffDistance both = hausdorff(none, none);
     EXPECT_EQ(both.max, 0.0);
     EXPECT_EQ(both.samples, 0u);
+}
+
+// Per-triangle caps bound what a sample counts: a tiny triangle 10 above a square, missing from
+// the other surface, counts its own extent instead of its distance; the other direction and
+// the uncapped measure are unchanged, and a surface measured against nothing gives its largest cap.
+TEST(SampledHausdorff, CapsBoundWhatAVanishedComponentCounts) {
+    TriangleMesh both = square(0.0f);
+    both.positions.insert(both.positions.end(), {{0.5f, 0.5f, 10.0f}, {0.51f, 0.5f, 10.0f}, {0.5f, 0.51f, 10.0f}});
+    both.triangles.insert(both.triangles.end(), {4, 5, 6});
+    const TriangleMesh plain = square(0.0f), none;
+    const float tiny = std::sqrt(2.0f) * 0.01f;
+    const std::vector<float> caps{100.0f, 100.0f, tiny};
+    const HausdorffOptions options{2000, 7};
+    const SampledSurface capped(both.positions, both.triangles, options, caps);
+    const SampledSurface uncapped(both.positions, both.triangles, options);
+    const SampledSurface other(plain.positions, plain.triangles, options);
+    EXPECT_GT(uncapped.distanceTo(other).a_to_b, 9.99);
+    const HausdorffDistance d = capped.distanceTo(other);
+    EXPECT_NEAR(d.a_to_b, tiny, 1e-6);
+    EXPECT_EQ(d.b_to_a, uncapped.distanceTo(other).b_to_a);
+    EXPECT_NEAR(other.distanceTo(capped).b_to_a, tiny, 1e-6);
+    const std::vector<glm::vec3> points{{0.5f, 0.5f, 10.0f}, {0.2f, 0.2f, 0.5f}};
+    EXPECT_NEAR(other.farthestFrom(points), 10.0, 1e-5);
+    EXPECT_NEAR(other.farthestFrom(points, std::vector<float>{0.25f, 1.0f}), 0.5, 1e-6);
+    const SampledSurface empty(none.positions, none.triangles, options);
+    EXPECT_EQ(capped.distanceTo(empty).a_to_b, 100.0);
+    EXPECT_EQ(empty.farthestFrom(points, std::vector<float>{0.25f, 1.0f}), 1.0);
+    EXPECT_THROW(SampledSurface(both.positions, both.triangles, options, std::vector<float>{1.0f}), std::invalid_argument);
+    EXPECT_THROW(other.farthestFrom(points, std::vector<float>{1.0f}), std::invalid_argument);
 }
 
 }  // namespace
