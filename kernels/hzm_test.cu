@@ -7,6 +7,8 @@
 #include <thrust/iterator/counting_iterator.h>
 #include <thrust/transform.h>
 
+#include <glm/matrix.hpp>
+
 #include <cfloat>
 
 namespace occ::k {
@@ -133,40 +135,84 @@ struct HzmOcclusion {
     }
 };
 
-// The share of a box's image rectangle that the occluders may leave visible: at the finest
-// level where the rectangle spans at most 8 x 8 texels, the pixels of the rectangle under texels
-// that do not prove the box hidden, over all its pixels. An upper bound of the visible share
-// (a texel that cannot prove the box hidden may still hide most of it), 1 for a box that
-// crosses the near plane or that no depth map covers.
+// The share of a box's image that the occluders leave visible, as an occlusion query of the
+// box would count it (Charalambos 2006's q / alpha): at the finest level where the box's
+// rectangle spans at most 8 x 8 texels, a ray through the middle of each texel's part of the
+// rectangle is cut with the box; where it enters the box (the box's front faces there) is
+// compared with the texel's farthest depth. share = the pixels whose ray enters the box in
+// front of the texel, over the pixels whose ray enters the box at all. The rectangle's corners
+// the box leaves empty and the far parts of a box whose near corner pokes out in front of an
+// occluder no longer count as visible (the nearest-corner rule below counted every such texel).
+// A box no ray meets (smaller than the texels' spacing) falls back to that rule: the pixels under
+// texels whose depth does not hide the box's nearest point. 1 for a box that crosses the near
+// plane or that no depth map covers.
 struct VisibleShare {
     const ObjectInfo* objects;
     const uint32_t* ids;
     glm::mat4 view_proj;
+    glm::mat4 inverse_view_proj;
     float near_plane;
     HzmLevels hzm;
     const float* texels;
 
+    // Where the ray through window pixel (px, py) enters `box`: its window depth, or false when
+    // it misses the box between the near and far planes.
+    OCC_HD bool entryDepth(const Aabb& box, float px, float py, float w0, float h0, float& depth) const {
+        const float nx = 2.0f * px / w0 - 1.0f, ny = 2.0f * py / h0 - 1.0f;
+        const glm::vec4 a = inverse_view_proj * glm::vec4(nx, ny, -1.0f, 1.0f);
+        const glm::vec4 b = inverse_view_proj * glm::vec4(nx, ny, 1.0f, 1.0f);
+        const glm::vec3 origin = glm::vec3(a) / a.w;
+        const glm::vec3 dir = glm::vec3(b) / b.w - origin;
+        float t0 = 0.0f, t1 = 1.0f;
+        for (int axis = 0; axis < 3; ++axis) {
+            const float o = origin[axis], d = dir[axis];
+            if (d == 0.0f) {
+                if (o < box.min[axis] || o > box.max[axis]) return false;
+                continue;
+            }
+            float ta = (box.min[axis] - o) / d, tb = (box.max[axis] - o) / d;
+            if (ta > tb) {
+                const float t = ta;
+                ta = tb;
+                tb = t;
+            }
+            t0 = ta > t0 ? ta : t0;
+            t1 = tb < t1 ? tb : t1;
+            if (!(t0 <= t1)) return false;  // also a NaN
+        }
+        const glm::vec4 clip = view_proj * glm::vec4(origin + t0 * dir, 1.0f);
+        depth = clip.z / clip.w * 0.5f + 0.5f;
+        return depth == depth;
+    }
+
     OCC_HD float operator()(uint32_t j) const {
         if (hzm.level_count == 0) return 1.0f;
+        const float w0 = float(hzm.width[0]), h0 = float(hzm.height[0]);
+        const Aabb& box = objects[ids[j]].aabb;
         BoxImage image;
-        if (!boxImage(objects[ids[j]].aabb, view_proj, near_plane, float(hzm.width[0]), float(hzm.height[0]), image))
-            return 1.0f;
+        if (!boxImage(box, view_proj, near_plane, w0, h0, image)) return 1.0f;
         const uint32_t x0 = image.x0, x1 = image.x1, y0 = image.y0, y1 = image.y1;
         const float z_min = image.z_min;
         uint32_t level = 0;
         while (level + 1 < hzm.level_count && ((x1 >> level) - (x0 >> level) > 7 || (y1 >> level) - (y0 >> level) > 7))
             ++level;
-        double open = 0;
+        double hit = 0, hit_open = 0, open = 0;
         for (uint32_t ty = y0 >> level; ty <= y1 >> level; ++ty)
             for (uint32_t tx = x0 >> level; tx <= x1 >> level; ++tx) {
-                if (z_min > texels[hzm.offset[level] + uint64_t(ty) * hzm.width[level] + tx] + kDepthEpsilon) continue;
+                const float texel = texels[hzm.offset[level] + uint64_t(ty) * hzm.width[level] + tx];
                 // The texel's pixels inside the rectangle.
                 const uint32_t px0 = (tx << level) > x0 ? (tx << level) : x0;
                 const uint32_t px1 = ((tx + 1) << level) - 1 < x1 ? ((tx + 1) << level) - 1 : x1;
                 const uint32_t py0 = (ty << level) > y0 ? (ty << level) : y0;
                 const uint32_t py1 = ((ty + 1) << level) - 1 < y1 ? ((ty + 1) << level) - 1 : y1;
-                open += double(px1 - px0 + 1) * double(py1 - py0 + 1);
+                const double pixels = double(px1 - px0 + 1) * double(py1 - py0 + 1);
+                if (!(z_min > texel + kDepthEpsilon)) open += pixels;
+                float depth;
+                if (!entryDepth(box, 0.5f * float(px0 + px1 + 1), 0.5f * float(py0 + py1 + 1), w0, h0, depth)) continue;
+                hit += pixels;
+                if (!(depth > texel + kDepthEpsilon)) hit_open += pixels;
             }
+        if (hit > 0) return float(hit_open / hit);
         const double all = double(x1 - x0 + 1) * double(y1 - y0 + 1);
         return float(open / all);
     }
@@ -179,7 +225,8 @@ void hzmVisibleShare(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32
     if (count == 0) return;
     thrust::transform(thrust::device, thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(count),
                       raw(share),
-                      VisibleShare{raw(objects), raw(ids), camera.view_proj, camera.near_plane, hzm, raw(hzm.data)});
+                      VisibleShare{raw(objects), raw(ids), camera.view_proj, glm::inverse(camera.view_proj),
+                                   camera.near_plane, hzm, raw(hzm.data)});
 }
 
 void hzmTest(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count, const Camera& camera,

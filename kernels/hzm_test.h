@@ -43,11 +43,14 @@ void hzmTest(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids,
              const HzmLevels& hzm, DevicePtr<uint8_t> occluded);
 
 // Visibility weighting (Charalambos 2006's q / alpha, estimated): for j < count, share[j] = the
-// fraction of objects[ids[j]]'s image rectangle (as hzmTest projects it) not proven hidden by
-// the pyramid at the finest level where the rectangle spans at most 8 x 8 texels: the pixels
-// under texels whose depth does not hide the box's nearest point, over the rectangle's pixels.
-// In [0, 1], an upper bound of the visible share at that resolution; 1 for a box crossing the
-// near plane, off screen, or with no pyramid. Reads at most 64 texels per box.
+// share of objects[ids[j]]'s image an occlusion query of the box would find visible, sampled at
+// the finest level where the box's rectangle (as hzmTest projects it) spans at most 8 x 8
+// texels: one ray per texel (through the middle of its part of the rectangle) is cut with the
+// box, and its entry depth compared with the texel's; the pixels of the texels whose ray enters
+// the box in front of the texel, over those of the texels whose ray enters it at all. A box no
+// ray meets counts the pixels under texels that do not hide its nearest point, over its
+// rectangle's. In [0, 1]; 1 for a box crossing the near plane, off screen, or with no pyramid.
+// Reads at most 64 texels per box.
 void hzmVisibleShare(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
                      const Camera& camera, const HzmLevels& hzm, DevicePtr<float> share);
 

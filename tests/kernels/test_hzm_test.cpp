@@ -131,6 +131,23 @@ TEST_F(NearWallLeftHalf, VisibleShareIsWhatTheWallLeavesOfTheBoxsImage) {
     EXPECT_FLOAT_EQ(visibleShare(boxObject({-1, -1, -3}, {1, 1, 0}), camera, pyramid.levels), 1.0f);
 }
 
+TEST_F(NearWallLeftHalf, VisibleShareCountsTheBoxsFacesNotItsNearestCorner) {
+    // A long bar left of the view axis, x in [-2, -1], from 4.5 to 60 in front of the eye: its
+    // near face (pixel columns 17.8 to 24.9, rows 28.4 to 35.6, about 50 pixels) is in front of
+    // the wall at 5; its right side face (x = -1) runs from column 24.9 towards the vanishing
+    // point at 32 (about 25 pixels), behind the wall from 5 on (column 25.6). So about 55 of
+    // 75 pixels show. The nearest corner alone (4.5, in front of the wall) said all of them.
+    const float share = visibleShare(boxObject({-2, -0.5f, -60}, {-1, 0.5f, -4.5f}), camera, pyramid.levels);
+    EXPECT_GE(share, 0.6f);
+    EXPECT_LE(share, 0.85f);
+    // The same bar with its near face behind the wall too: nothing shows.
+    EXPECT_FLOAT_EQ(visibleShare(boxObject({-2, -0.5f, -60}, {-1, 0.5f, -5.5f}), camera, pyramid.levels), 0.0f);
+    // A box between the pixels' rays (far and thin) falls back to its nearest corner: in the
+    // clear half all of it shows, behind the wall none.
+    EXPECT_FLOAT_EQ(visibleShare(boxObject({10, 0.01f, -90}, {10.01f, 0.02f, -89.99f}), camera, pyramid.levels), 1.0f);
+    EXPECT_FLOAT_EQ(visibleShare(boxObject({-10.01f, 0.01f, -90}, {-10, 0.02f, -89.99f}), camera, pyramid.levels), 0.0f);
+}
+
 TEST_F(NearWallLeftHalf, BoxBehindWallIsOccluded) { EXPECT_EQ(occluded({-8, -3, -12}, {-1, 3, -10}), 1); }
 
 TEST_F(NearWallLeftHalf, BoxPeekingOverTheRightHalfIsVisible) {
