@@ -150,22 +150,20 @@ struct VisibleShare {
     const ObjectInfo* objects;
     const uint32_t* ids;
     glm::mat4 view_proj;
-    glm::mat4 inverse_view_proj;
     float near_plane;
     HzmLevels hzm;
     const float* texels;
+    // The rays start at the eye; the direction through NDC (nx, ny) is ray_x nx + ray_y ny +
+    // ray_0 (up to a positive factor, which does not move where a ray enters a box).
+    glm::vec3 eye, ray_x, ray_y, ray_0;
 
     // Where the ray through window pixel (px, py) enters `box`: its window depth, or false when
-    // it misses the box between the near and far planes.
+    // it misses the box.
     OCC_HD bool entryDepth(const Aabb& box, float px, float py, float w0, float h0, float& depth) const {
-        const float nx = 2.0f * px / w0 - 1.0f, ny = 2.0f * py / h0 - 1.0f;
-        const glm::vec4 a = inverse_view_proj * glm::vec4(nx, ny, -1.0f, 1.0f);
-        const glm::vec4 b = inverse_view_proj * glm::vec4(nx, ny, 1.0f, 1.0f);
-        const glm::vec3 origin = glm::vec3(a) / a.w;
-        const glm::vec3 dir = glm::vec3(b) / b.w - origin;
-        float t0 = 0.0f, t1 = 1.0f;
+        const glm::vec3 dir = ray_x * (2.0f * px / w0 - 1.0f) + ray_y * (2.0f * py / h0 - 1.0f) + ray_0;
+        float t0 = 0.0f, t1 = FLT_MAX;
         for (int axis = 0; axis < 3; ++axis) {
-            const float o = origin[axis], d = dir[axis];
+            const float o = eye[axis], d = dir[axis];
             if (d == 0.0f) {
                 if (o < box.min[axis] || o > box.max[axis]) return false;
                 continue;
@@ -180,7 +178,7 @@ struct VisibleShare {
             t1 = tb < t1 ? tb : t1;
             if (!(t0 <= t1)) return false;  // also a NaN
         }
-        const glm::vec4 clip = view_proj * glm::vec4(origin + t0 * dir, 1.0f);
+        const glm::vec4 clip = view_proj * glm::vec4(eye + t0 * dir, 1.0f);
         depth = clip.z / clip.w * 0.5f + 0.5f;
         return depth == depth;
     }
@@ -223,10 +221,15 @@ struct VisibleShare {
 void hzmVisibleShare(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
                      const Camera& camera, const HzmLevels& hzm, DevicePtr<float> share) {
     if (count == 0) return;
+    // A far-plane point in homogeneous world coordinates is linear in NDC x and y:
+    // inverse(view_proj) x (nx, ny, 1, 1). Its direction from the eye, times its w (> 0), is too.
+    const glm::mat4 inverse = glm::inverse(camera.view_proj);
+    const auto fromEye = [&](const glm::vec4& v) { return glm::vec3(v) - camera.eye * v.w; };
     thrust::transform(thrust::device, thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(count),
                       raw(share),
-                      VisibleShare{raw(objects), raw(ids), camera.view_proj, glm::inverse(camera.view_proj),
-                                   camera.near_plane, hzm, raw(hzm.data)});
+                      VisibleShare{raw(objects), raw(ids), camera.view_proj, camera.near_plane, hzm, raw(hzm.data),
+                                   camera.eye, fromEye(inverse[0]), fromEye(inverse[1]),
+                                   fromEye(inverse[2] + inverse[3])});
 }
 
 void hzmTest(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count, const Camera& camera,
