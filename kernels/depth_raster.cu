@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "depth_raster.h"
+#include "raster_setup.h"
 
 #include "device_access.h"
 
@@ -24,86 +25,9 @@
 
 namespace occ::k {
 
-// One vertex after projection and snapping (every triangle corner reads it).
-struct DepthRasterVertex {
-    int32_t x, y;    // window position in 1/256 pixel
-    float z;         // window depth
-    uint32_t drawn;  // 0 when the rules skip every triangle using it
-};
-static_assert(sizeof(DepthRasterVertex) == 16);
-
-// One triangle after projection and snapping, as the tiles read it: 52 bytes, padded to a cache
-// line (alignas) since tiles read triangles in scattered order and one line per triangle is
-// the least they can touch.
-struct alignas(64) DepthRasterTriangle {
-    int32_t x[3], y[3];  // window position in 1/256 pixel, counter-clockwise (y up)
-    // The depth written at pixel (px, py) is the plane
-    //   (z_ref + gy * (py - y_lo)) + gx * (px - x_lo)
-    // in float arithmetic, in that order: z_ref, the plane at the centre of pixel (x_lo, y_lo),
-    // already carries the push away (kDepthRasterEpsilon plus a bound on that arithmetic's
-    // rounding), so what is written is never nearer than the triangle.
-    float z_ref, gx, gy;
-    // The nearest corner depth: below every depth the triangle writes, so a triangle whose box
-    // is already at least that near everywhere changes nothing and can be passed over.
-    float lower_bound;
-    // Pixels whose centres may be covered, inclusive, clamped to the viewport; the triangle is
-    // empty (skipped, or covers no centre) when x_lo > x_hi.
-    uint16_t x_lo, y_lo, x_hi, y_hi;
-    // Bit k set: edge k (opposite corner k) is shared within its mesh or across a seam, so it
-    // takes the tie rule instead of the margin. Bit kReversedBit: the stored corners 1 and 2 are
-    // the input's 2 and 1 (the input was clockwise on screen).
-    uint32_t shared_edges;
-};
-static_assert(sizeof(DepthRasterTriangle) == 64);
-
 namespace {
 
-// Arithmetic without fused multiply-adds: nvcc contracts a*b+c in device code by default while
-// g++ for our x86-64 target does not, and the raster must be the same bits on both back ends
-// (and its rounding bounds must hold).
-OCC_HD inline float mulRn(float a, float b) {
-#if defined(__CUDA_ARCH__)
-    return __fmul_rn(a, b);
-#else
-    return a * b;
-#endif
-}
-OCC_HD inline float addRn(float a, float b) {
-#if defined(__CUDA_ARCH__)
-    return __fadd_rn(a, b);
-#else
-    return a + b;
-#endif
-}
-OCC_HD inline float divRn(float a, float b) {
-#if defined(__CUDA_ARCH__)
-    return __fdiv_rn(a, b);
-#else
-    return a / b;
-#endif
-}
-
-OCC_HD inline double mulRn(double a, double b) {
-#if defined(__CUDA_ARCH__)
-    return __dmul_rn(a, b);
-#else
-    return a * b;
-#endif
-}
-OCC_HD inline double addRn(double a, double b) {
-#if defined(__CUDA_ARCH__)
-    return __dadd_rn(a, b);
-#else
-    return a + b;
-#endif
-}
-OCC_HD inline double divRn(double a, double b) {
-#if defined(__CUDA_ARCH__)
-    return __ddiv_rn(a, b);
-#else
-    return a / b;
-#endif
-}
+using namespace raster;
 
 // A tile's triangles are scattered over the setup array, which outgrows the caches: on the CPU,
 // ask for the triangle a few pairs ahead while drawing this one (about 15 % of the whole call on
@@ -117,16 +41,7 @@ OCC_HD inline void prefetch(const void* p) {
 #endif
 }
 
-OCC_HD inline int64_t floorDiv(int64_t a, int64_t b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
-OCC_HD inline int64_t abs64(int64_t a) { return a < 0 ? -a : a; }
-OCC_HD inline int64_t min64(int64_t a, int64_t b) { return a < b ? a : b; }
-OCC_HD inline int64_t max64(int64_t a, int64_t b) { return a > b ? a : b; }
-
-constexpr int64_t kUnits = kDepthRasterSubpixelUnits;
-constexpr int64_t kHalfPixel = kUnits / 2;
-constexpr int64_t kMargin = kDepthRasterMarginUnits;
 constexpr uint32_t kTile = kDepthRasterTileSize;
-constexpr uint32_t kReversedBit = 8;
 // Triangles per binning chunk, and a cap on the tile x chunk count matrix (32 MB).
 constexpr uint64_t kChunkTriangles = 4096;
 constexpr uint64_t kMaxCountCells = uint64_t(1) << 22;
@@ -404,6 +319,7 @@ struct HasSeam {
 // with the sort itself was a quarter of a call on 1.7 M triangles.)
 struct ChunkGrid {
     uint32_t tri_count, chunk_size, chunk_count, tiles_x;
+    uint32_t tile_w_log2, tile_h_log2;
 
     OCC_HD uint32_t chunkBegin(uint32_t chunk) const {
         const uint64_t begin = uint64_t(chunk) * chunk_size;
@@ -424,8 +340,9 @@ struct CountPerChunk {
         for (uint32_t t = grid.chunkBegin(chunk); t < grid.chunkEnd(chunk); ++t) {
             const DepthRasterTriangle& s = setup[t];
             if (s.x_lo > s.x_hi) continue;
-            for (uint32_t ty = s.y_lo / kTile; ty <= s.y_hi / kTile; ++ty)
-                for (uint32_t tx = s.x_lo / kTile; tx <= s.x_hi / kTile; ++tx) ++counts[grid.cell(tx, ty, chunk)];
+            for (uint32_t ty = s.y_lo >> grid.tile_h_log2; ty <= uint32_t(s.y_hi) >> grid.tile_h_log2; ++ty)
+                for (uint32_t tx = s.x_lo >> grid.tile_w_log2; tx <= uint32_t(s.x_hi) >> grid.tile_w_log2; ++tx)
+                    ++counts[grid.cell(tx, ty, chunk)];
         }
     }
 };
@@ -443,8 +360,8 @@ struct FillPerChunk {
         for (uint32_t t = grid.chunkBegin(chunk); t < grid.chunkEnd(chunk); ++t) {
             const DepthRasterTriangle& s = setup[t];
             if (s.x_lo > s.x_hi) continue;
-            for (uint32_t ty = s.y_lo / kTile; ty <= s.y_hi / kTile; ++ty)
-                for (uint32_t tx = s.x_lo / kTile; tx <= s.x_hi / kTile; ++tx)
+            for (uint32_t ty = s.y_lo >> grid.tile_h_log2; ty <= uint32_t(s.y_hi) >> grid.tile_h_log2; ++ty)
+                for (uint32_t tx = s.x_lo >> grid.tile_w_log2; tx <= uint32_t(s.x_hi) >> grid.tile_w_log2; ++tx)
                     pair_triangle[cursor[grid.cell(tx, ty, chunk)]++] = t;
         }
     }
@@ -470,10 +387,9 @@ OCC_HD inline void edgeSpan(int64_t e, int64_t step, int64_t threshold, int64_t&
 // order of triangles irrelevant.
 struct RasterTiles {
     const DepthRasterTriangle* setup;
-    const uint32_t* pair_triangle;
-    const uint64_t* cell_end;  // the cursors once FillPerChunk is done
+    TileBins bins;
     float* depth;
-    uint32_t width, height, tiles_x, chunk_count;
+    uint32_t width, height;
 
     // Whether every pixel of the box (tile coordinates, inclusive) is already at or nearer
     // than `bound`; gives up after the first row that is not. Counting rather than breaking
@@ -489,17 +405,16 @@ struct RasterTiles {
     }
 
     OCC_HD void operator()(uint32_t tile) const {
-        const uint32_t px0 = tile % tiles_x * kTile, py0 = tile / tiles_x * kTile;
+        const uint32_t px0 = tile % bins.tiles_x * kTile, py0 = tile / bins.tiles_x * kTile;
         const uint32_t px1 = px0 + kTile < width ? px0 + kTile : width;
         const uint32_t py1 = py0 + kTile < height ? py0 + kTile : height;
         float nearest[kTile * kTile];
         for (uint32_t i = 0; i < kTile * kTile; ++i) nearest[i] = kFar;
 
-        const uint64_t begin = tile == 0 ? 0 : cell_end[uint64_t(tile) * chunk_count - 1];
-        const uint64_t end = cell_end[uint64_t(tile + 1) * chunk_count - 1];
+        const uint64_t begin = bins.tileBegin(tile), end = bins.tileEnd(tile);
         for (uint64_t i = begin; i < end; ++i) {
-            if (i + kPrefetchDistance < end) prefetch(&setup[pair_triangle[i + kPrefetchDistance]]);
-            const DepthRasterTriangle& s = setup[pair_triangle[i]];
+            if (i + kPrefetchDistance < end) prefetch(&setup[bins.pair_triangle[i + kPrefetchDistance]]);
+            const DepthRasterTriangle& s = setup[bins.pair_triangle[i]];
             const uint32_t x_lo = s.x_lo > px0 ? s.x_lo : px0, x_hi = s.x_hi < px1 - 1 ? s.x_hi : px1 - 1;
             const uint32_t y_lo = s.y_lo > py0 ? s.y_lo : py0, y_hi = s.y_hi < py1 - 1 ? s.y_hi : py1 - 1;
             if (x_lo > x_hi || y_lo > y_hi) continue;
@@ -660,46 +575,40 @@ void seams(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_c
 
 }  // namespace
 
-void depthRaster(DevicePtr<const glm::vec3> position_memory, DevicePtr<const uint32_t> triangle_memory,
-                 uint32_t tri_count, DevicePtr<const uint8_t> flag_memory, DevicePtr<const uint32_t> neighbour_memory,
-                 const Camera& camera, DevicePtr<float> depth_memory, DepthRasterScratch& scratch, bool with_seams) {
-    const glm::vec3* const positions = raw(position_memory);
-    const uint32_t* const triangles = raw(triangle_memory);
-    const uint8_t* const edge_flags = raw(flag_memory);
-    const uint32_t* const edge_neighbours = raw(neighbour_memory);
-    float* const depth = raw(depth_memory);
-    const uint32_t width = camera.width, height = camera.height;
-    // The HZM's limit, which also keeps pixel boxes within 16 bits.
-    if (width > kHzmMaxSide || height > kHzmMaxSide)
-        throw std::invalid_argument("depthRaster: viewport " + std::to_string(width) + "x" + std::to_string(height) +
-                                    " is larger than 32768x32768");
-    if (width == 0 || height == 0) return;
-    const uint32_t tiles_x = (width + kTile - 1) / kTile, tiles_y = (height + kTile - 1) / kTile;
-    const uint32_t tile_count = tiles_x * tiles_y;
+void depthRasterSetup(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
+                      const uint8_t* edge_flags, const uint32_t* edge_neighbours, const Camera& camera,
+                      DepthRasterScratch& scratch, bool with_seams) {
     const thrust::counting_iterator<uint32_t> first(0);
+    const uint32_t vertex_count = thrust::reduce(thrust::device, triangles, triangles + uint64_t(tri_count) * 3, 0u,
+                                                 thrust::maximum<uint32_t>()) + 1;
+    countReadback(sizeof vertex_count);
+    scratch.vertices.resize(vertex_count);
+    scratch.setup.resize(tri_count);
+    ProjectVertices project{positions, raw(scratch.vertices.ptr()), {}, float(camera.width), float(camera.height)};
+    for (int i = 0; i < 16; ++i) project.m[i] = camera.view_proj[i / 4][i % 4];
+    thrust::for_each_n(thrust::device, first, vertex_count, project);
+    const SetupTriangles setup{raw(scratch.vertices.ptr()), triangles, edge_flags, edge_neighbours, tri_count,
+                               raw(scratch.setup.ptr()), int64_t(camera.width) - 1, int64_t(camera.height) - 1};
+    thrust::for_each_n(thrust::device, first, tri_count, setup);
+    if (with_seams) seams(positions, triangles, tri_count, setup, scratch);
+}
 
+TileBins binTriangles(uint32_t tri_count, uint32_t width, uint32_t height, uint32_t tile_w_log2,
+                      uint32_t tile_h_log2, DepthRasterScratch& scratch) {
+    const uint32_t tile_w = 1u << tile_w_log2, tile_h = 1u << tile_h_log2;
+    const uint32_t tiles_x = (width + tile_w - 1) / tile_w, tiles_y = (height + tile_h - 1) / tile_h;
+    const uint32_t tile_count = tiles_x * tiles_y;
     // Enough chunks to keep every core busy, few enough that the count matrix stays small.
     const uint64_t wanted_chunks = (tri_count + kChunkTriangles - 1) / kChunkTriangles;
     const uint32_t chunk_count = uint32_t(std::max<uint64_t>(1, std::min(wanted_chunks, kMaxCountCells / tile_count)));
-    const ChunkGrid grid{tri_count, (tri_count + chunk_count - 1) / chunk_count, chunk_count, tiles_x};
+    const ChunkGrid grid{tri_count, (tri_count + chunk_count - 1) / chunk_count, chunk_count, tiles_x, tile_w_log2,
+                         tile_h_log2};
     const uint64_t cell_count = uint64_t(tile_count) * chunk_count;
     scratch.cells.resize(cell_count + 1);
     uint64_t* cells = raw(scratch.cells.ptr());
     thrust::fill(thrust::device, cells, cells + cell_count + 1, uint64_t(0));
-
     if (tri_count > 0) {
-        const uint32_t vertex_count = thrust::reduce(thrust::device, triangles, triangles + uint64_t(tri_count) * 3,
-                                                     0u, thrust::maximum<uint32_t>()) + 1;
-        countReadback(sizeof vertex_count);
-        scratch.vertices.resize(vertex_count);
-        scratch.setup.resize(tri_count);
-        ProjectVertices project{positions, raw(scratch.vertices.ptr()), {}, float(width), float(height)};
-        for (int i = 0; i < 16; ++i) project.m[i] = camera.view_proj[i / 4][i % 4];
-        thrust::for_each_n(thrust::device, first, vertex_count, project);
-        const SetupTriangles setup{raw(scratch.vertices.ptr()), triangles, edge_flags, edge_neighbours, tri_count,
-                                   raw(scratch.setup.ptr()), int64_t(width) - 1, int64_t(height) - 1};
-        thrust::for_each_n(thrust::device, first, tri_count, setup);
-        if (with_seams) seams(positions, triangles, tri_count, setup, scratch);
+        const thrust::counting_iterator<uint32_t> first(0);
         thrust::for_each_n(thrust::device, first, chunk_count, CountPerChunk{raw(scratch.setup.ptr()), cells, grid});
         // One more cell than there are, counting 0, so that the scan leaves the total there.
         thrust::exclusive_scan(thrust::device, cells, cells + cell_count + 1, cells);
@@ -707,9 +616,29 @@ void depthRaster(DevicePtr<const glm::vec3> position_memory, DevicePtr<const uin
         thrust::for_each_n(thrust::device, first, chunk_count,
                            FillPerChunk{raw(scratch.setup.ptr()), cells, raw(scratch.pair_triangle.ptr()), grid});
     }
-    thrust::for_each_n(thrust::device, first, tile_count,
-                       RasterTiles{raw(scratch.setup.ptr()), raw(scratch.pair_triangle.ptr()), cells, depth, width, height,
-                                   tiles_x, chunk_count});
+    return TileBins{tile_w_log2, tile_h_log2, tiles_x, tiles_y, chunk_count, cells, raw(scratch.pair_triangle.ptr())};
+}
+
+void checkRasterViewport(const Camera& camera, const char* who) {
+    // The HZM's limit, which also keeps pixel boxes within 16 bits.
+    if (camera.width > kHzmMaxSide || camera.height > kHzmMaxSide)
+        throw std::invalid_argument(std::string(who) + ": viewport " + std::to_string(camera.width) + "x" +
+                                    std::to_string(camera.height) + " is larger than 32768x32768");
+}
+
+void depthRaster(DevicePtr<const glm::vec3> position_memory, DevicePtr<const uint32_t> triangle_memory,
+                 uint32_t tri_count, DevicePtr<const uint8_t> flag_memory, DevicePtr<const uint32_t> neighbour_memory,
+                 const Camera& camera, DevicePtr<float> depth_memory, DepthRasterScratch& scratch, bool with_seams) {
+    checkRasterViewport(camera, "depthRaster");
+    const uint32_t width = camera.width, height = camera.height;
+    if (width == 0 || height == 0) return;
+    if (tri_count > 0)
+        depthRasterSetup(raw(position_memory), raw(triangle_memory), tri_count, raw(flag_memory), raw(neighbour_memory),
+                         camera, scratch, with_seams);
+    const TileBins bins = binTriangles(tri_count, width, height, 5, 5, scratch);
+    static_assert(kTile == 1u << 5);
+    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), bins.tiles_x * bins.tiles_y,
+                       RasterTiles{raw(scratch.setup.ptr()), bins, raw(depth_memory), width, height});
 }
 
 }  // namespace occ::k

@@ -44,6 +44,7 @@ constexpr double kWindowOccluderMs = 10.0;
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto", budget = "auto";
     std::string pace = "fast", lod = "budget", visibility_weighted = "off", hierarchy = "off", colours = "object";
+    std::string raster = "exact";
     double path_fps = 60;
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
     double occluder_ms = -1;  // -1: the default of the mode (on in a window)
@@ -169,6 +170,9 @@ int runRender(RenderOptions o) {
     if (o.visibility_weighted != "on" && o.visibility_weighted != "off")
         throw UsageError("--visibility-weighted " + o.visibility_weighted + ": expected on or off");
     o.pipeline.visibility_weighted = o.visibility_weighted == "on";
+    if (o.raster != "masked" && o.raster != "exact")
+        throw UsageError("--raster " + o.raster + ": expected masked or exact");
+    o.pipeline.raster = o.raster == "masked" ? OccluderRaster::Masked : OccluderRaster::Exact;
     if (o.hierarchy != "on" && o.hierarchy != "off")
         throw UsageError("--hierarchy " + o.hierarchy + ": expected on or off");
     o.pipeline.hierarchy = o.hierarchy == "on";
@@ -551,6 +555,10 @@ Command addRenderCommand(CLI::App& app) {
         ->capture_default_str();
     sub->add_option("--tau", o->pipeline.tau,
                     "--lod error: pixels of simplification error allowed; --hierarchy on: also where the cut stops")
+        ->capture_default_str();
+    sub->add_option("--raster", o->raster,
+                    "occluder depth raster: exact (a depth per pixel) or masked (coverage masks and a conservative\n"
+                    "depth per 8x4 subtile, SIMD: Hasselgren et al. 2016); both never cull what is seen")
         ->capture_default_str();
     sub->add_option("--visibility-weighted", o->visibility_weighted,
                     "on: weigh each object by the share of its image the occluders leave visible (HZM), in Eq. 1\n"

@@ -4,6 +4,7 @@
 #include "box_projection.h"
 #include "frustum_cull.h"
 #include "hzm.h"
+#include "occluder_order.h"
 #include "hzm_build.h"
 #include "hzm_test.h"
 #include "lod_select.h"
@@ -201,13 +202,18 @@ void Pipeline::chooseOccluders(const k::Camera& camera, k::DevicePtr<const uint3
 }
 
 void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
-    // Occluders are rastered at full detail, in world space, from the resident meshes.
+    // Occluders are rastered at full detail, in world space, from the resident meshes; for the
+    // masked raster nearest first, which keeps near depths in its subtiles (the exact raster's
+    // minimum does not depend on the order).
+    if (options_.raster == OccluderRaster::Masked)
+        k::sortFrontToBack(scene_.objects.ptr(), occluders_.ptr(), occluder_count_, camera, occluder_keys_);
     k::gatherOccluders(scene_.objects.ptr(), scene_.world.ptr(), scene_.meshes(), occluders_.ptr(), occluder_count_,
                        occluder_geometry_);
     k::appendNearClipped(occluder_geometry_, camera);
     const k::OccluderGeometry& g = occluder_geometry_;
-    k::depthRaster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(),
-                   g.edge_neighbours.ptr(), camera, hzm_.ptr(), raster_scratch_, /*seams=*/true);
+    const auto raster = options_.raster == OccluderRaster::Masked ? k::maskedDepthRaster : k::depthRaster;
+    raster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(), g.edge_neighbours.ptr(),
+           camera, hzm_.ptr(), raster_scratch_, /*seams=*/true);
     stats.aos_size = occluder_count_;
     stats.occluder_triangles = g.triangle_total;
 }

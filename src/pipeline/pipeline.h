@@ -7,6 +7,7 @@
 #include "draw_commands.h"
 #include "reform.h"
 #include "depth_raster.h"
+#include "masked_raster.h"
 #include "device_memory.h"
 #include "occluder_gather.h"
 #include "occluder_weight.h"
@@ -37,6 +38,8 @@ enum class StreamMode { Coherent, NonCoherent, None };
 // level of each object whose simplification error projects to at most tau pixels (SWITCH and
 // CHLOD's rule; no budget, the error bounds the picture).
 enum class LodRule { Budget, Error };
+
+enum class OccluderRaster { Masked, Exact };
 
 struct PipelineOptions {
     uint32_t width = 512, height = 512;  // viewport, also the occlusion depth buffer's size
@@ -94,6 +97,11 @@ struct PipelineOptions {
     // (k::hzmVisibleShare): Eq. 1 spends on what shows, the error rule allows tau / share
     // (Charalambos 2006's eps q / alpha). Off: the projected area, as Peng & Cao.
     bool visibility_weighted = false;
+    // The occluders' depth raster: the masked one (k::maskedDepthRaster: coverage masks and a
+    // conservative depth per 8 x 4 subtile) or the exact one (k::depthRaster: a depth per pixel).
+    // Exact by default: the masked one is not faster yet on our occluder sets and culls less
+    // (docs/results.md, "A masked occluder raster").
+    OccluderRaster raster = OccluderRaster::Exact;
     // Refine the file's object hierarchy (prep --hierarchy on) instead of testing every object:
     // each frame a cut of nodes, breadth-first from the root, a node tested against the frustum
     // (and in oc+lod the HZM) level by level. Items are then nodes: the visible set, LODs,
@@ -193,6 +201,8 @@ public:
     k::DevicePtr<const k::DrawBlock> drawBlocks() const { return lists_.draws.ptr(); }
     uint32_t drawCount() const { return lists_.draw_count; }
     k::DevicePtr<const float> occluderDepth() const { return hzm_.ptr(); }  // W x H, level 0 of the HZM
+    // The occluder triangles the last occluder raster drew (world space, near-clipped parts included).
+    const k::OccluderGeometry& occluderGeometry() const { return occluder_geometry_; }
     // Every level of the HZM (meaningful after an oc+lod frame).
     k::HzmLevels hzmLevels() const;
     // Objects in the frustum, ascending ids, frustumCount() of them (with the hierarchy: the
@@ -253,6 +263,7 @@ private:
     k::PvsOccluderScratch pvs_occluder_scratch_;
     k::OccluderGeometry occluder_geometry_;
     k::DepthRasterScratch raster_scratch_;
+    k::DeviceArray<float> occluder_keys_;  // sortFrontToBack's scratch
     k::DeviceArray<float> hzm_;
     k::DeviceArray<uint32_t> pvs_device_, pvs_vc_device_, pvs_tc_device_;
     k::DeviceArray<float> lod_shares_;

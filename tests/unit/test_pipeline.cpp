@@ -1,6 +1,9 @@
 // SPDX-License-Identifier: MIT
 #include "../kernels/device_test_support.h"
+#include "depth_raster.h"
 #include "frustum_cull.h"
+#include "hzm_build.h"
+#include "masked_raster.h"
 #include "import/plant.h"
 #include "pipeline/pipeline.h"
 #include "prep/prepare.h"
@@ -10,6 +13,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -190,6 +194,44 @@ TEST_F(PipelineFrames, OcclusionCullsOnlyWhatTheFullResolutionDepthHides) {
         EXPECT_EQ(s.objects_occluded + s.objects_visible, s.objects_in_frustum);
     }
     EXPECT_GT(culled, 0u) << "the walk should see some occlusion";
+}
+
+// The masked raster against the exact one on the occluder sets the pipeline records over the walk
+// and the orbit (each frame's gathered occluders, in the masked raster's front-to-back order):
+// never nearer at any level of the HZM, so it never culls what the exact raster would not.
+TEST_F(PipelineFrames, TheMaskedRasterIsNeverNearerThanTheExactOneOnRecordedOccluders) {
+    const PipelineFixture& f = fixture();
+    PipelineOptions options = smallOptions(StreamMode::Coherent);
+    options.raster = OccluderRaster::Masked;
+    Pipeline pipeline(*f.file, options);
+    k::DepthRasterScratch scratch;
+    const uint64_t texels = k::hzmTotalTexels(options.width, options.height);
+    k::DeviceArray<float> masked(texels), exact(texels);
+    uint64_t occluder_triangles = 0, nearer_by_exact = 0;
+    for (size_t frame = 0; frame < f.cameras.size(); ++frame) {
+        pipeline.runFrame(f.cameras[frame], frame);
+        const k::OccluderGeometry& g = pipeline.occluderGeometry();
+        const k::Camera camera = toKernelCamera(f.cameras[frame], options.width, options.height);
+        occluder_triangles += g.triangle_total;
+        k::maskedDepthRaster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(),
+                             g.edge_neighbours.ptr(), camera, masked.ptr(), scratch, true);
+        k::depthRaster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(),
+                       g.edge_neighbours.ptr(), camera, exact.ptr(), scratch, true);
+        k::hzmBuild(masked.ptr(), options.width, options.height);
+        k::hzmBuild(exact.ptr(), options.width, options.height);
+        std::vector<float> a(texels), b(texels);
+        k::copyToHost(a.data(), masked.ptr(), texels);
+        k::copyToHost(b.data(), exact.ptr(), texels);
+        std::vector<float> level0(options.width * options.height);
+        k::copyToHost(level0.data(), pipeline.occluderDepth(), level0.size());
+        ASSERT_TRUE(std::equal(level0.begin(), level0.end(), a.begin())) << "frame " << frame << ": the pipeline's own raster";
+        for (uint64_t i = 0; i < texels; ++i) {
+            ASSERT_GE(a[i], b[i]) << "frame " << frame << ": HZM texel " << i << " of the masked raster is nearer";
+            nearer_by_exact += b[i] < a[i];
+        }
+    }
+    EXPECT_GT(occluder_triangles, 10000u);
+    EXPECT_GT(nearer_by_exact, 0u) << "the masked raster's subtiles are coarser than pixels somewhere";
 }
 
 // Invariant: the frame's vertices stay within the budget N except where the floors q force more.
