@@ -26,10 +26,11 @@ for column in frame objects_in_frustum objects_occluded objects_visible aos_size
   echo "$header" | tr ',' '\n' | grep -qx "$column" || fail "CSV lacks column $column"
 done
 "$exe" render "$dir/p.oss" --path "$dir/orbit.cam" --no-display >/dev/null || fail "orbit"
+"$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display --raster masked >/dev/null || fail "walk, masked raster"
 # Each impossible option is named by its flag, also when the library found it out of range.
 for bad in "--size 0x10" "--size big" "--mode none" "--stream fast" "--alpha 1" "--pet -1" "--budget -3" \
            "--budget 200%" "--budget many" "--lod-hysteresis 1" "--aos 100000" "--pace slow" "--path-fps 0" \
-           "--link x" "--link 1:0" "--link -1" "--link 1:100:2:3" "--link 1::2" "--colours red"; do
+           "--link x" "--link 1:0" "--link -1" "--link 1:100:2:3" "--link 1::2" "--colours red" "--raster fast"; do
   "$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display $bad >/dev/null 2>"$dir/err"; status=$?
   [ $status -eq 2 ] || fail "render $bad: exit $status"
   [ "$(wc -l <"$dir/err")" -eq 1 ] && grep -q -- "^error: ${bad%% *}" "$dir/err" || fail "render $bad: $(cat "$dir/err")"
