@@ -6,6 +6,7 @@
 #include "masked_tile.h"
 
 #include "device_test_support.h"
+#include "raster_fixtures.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
@@ -18,50 +19,14 @@
 namespace occ::k {
 namespace {
 
+using test::atWindow;
+using test::identityCamera;
+using test::Mesh;
+using test::perspectiveCamera;
 using test::toDevice;
 using test::toHost;
 
 using MaskedRaster = test::DeviceTest;
-
-// Eye at the origin looking down -z.
-Camera perspectiveCamera(uint32_t width, uint32_t height) {
-    Camera c{};
-    c.fovy = glm::radians(60.0f);
-    c.view_proj = glm::perspective(c.fovy, float(width) / float(height), 0.5f, 100.0f);
-    c.near_plane = 0.5f;
-    c.far_plane = 100.0f;
-    c.forward = glm::vec3(0, 0, -1);
-    c.width = width;
-    c.height = height;
-    return c;
-}
-
-// view_proj = identity: world coordinates are NDC, so corners can be placed in window space.
-Camera identityCamera(uint32_t width, uint32_t height) {
-    Camera c{};
-    c.view_proj = glm::mat4(1.0f);
-    c.near_plane = 1.0f;
-    c.far_plane = 2.0f;
-    c.forward = glm::vec3(0, 0, -1);
-    c.width = width;
-    c.height = height;
-    return c;
-}
-
-glm::vec3 atWindow(const Camera& c, float x, float y, float d) {
-    return glm::vec3(x / float(c.width) * 2.0f - 1.0f, y / float(c.height) * 2.0f - 1.0f, d * 2.0f - 1.0f);
-}
-
-struct Mesh {
-    std::vector<glm::vec3> positions;
-    std::vector<uint32_t> triangles;
-    void add(glm::vec3 a, glm::vec3 b, glm::vec3 c) {
-        const uint32_t first = uint32_t(positions.size());
-        positions.insert(positions.end(), {a, b, c});
-        triangles.insert(triangles.end(), {first, first + 1, first + 2});
-    }
-    uint32_t triangleCount() const { return uint32_t(triangles.size() / 3); }
-};
 
 // Random triangles of every size, some behind the eye, across the near plane or off screen.
 Mesh randomScene(std::mt19937& rng, uint32_t triangle_count, float max_size) {
