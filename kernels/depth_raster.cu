@@ -29,25 +29,9 @@ namespace {
 
 using namespace raster;
 
-// A tile's triangles are scattered over the setup array, which outgrows the caches: on the CPU,
-// ask for the triangle a few pairs ahead while drawing this one (about 15 % of the whole call on
-// 400 K triangles whose objects come in random order).
-constexpr uint64_t kPrefetchDistance = 8;
-OCC_HD inline void prefetch(const void* p) {
-#if defined(__GNUC__) && !defined(__CUDA_ARCH__)
-    __builtin_prefetch(p);
-#else
-    (void)p;
-#endif
-}
-
-constexpr uint32_t kTile = kDepthRasterTileSize;
 // Triangles per binning chunk, and a cap on the tile x chunk count matrix (32 MB).
 constexpr uint64_t kChunkTriangles = 4096;
 constexpr uint64_t kMaxCountCells = uint64_t(1) << 22;
-// Far above every depth a covered pixel can get (corners are at most kDepthRasterMaxDepth) and
-// every value the plane takes over a box: no triangle yet.
-constexpr float kFar = 3.0e38f;
 
 // One thread per vertex: projection, the skip rules that concern one vertex, snapping.
 struct ProjectVertices {
@@ -385,6 +369,7 @@ OCC_HD inline void edgeSpan(int64_t e, int64_t step, int64_t threshold, int64_t&
 // One thread per tile: draws its triangles into a tile-sized buffer with edge functions in exact
 // integers and depth from the triangle's plane, then writes the tile out. The minimum makes the
 // order of triangles irrelevant.
+// The CUDA build's tile loop, and on the CPU the reference its SIMD loop is tested against.
 struct RasterTiles {
     const DepthRasterTriangle* setup;
     TileBins bins;
@@ -626,19 +611,57 @@ void checkRasterViewport(const Camera& camera, const char* who) {
                                     std::to_string(camera.height) + " is larger than 32768x32768");
 }
 
+namespace {
+
+DepthTiles depthRasterFrontEnd(DevicePtr<const glm::vec3> position_memory, DevicePtr<const uint32_t> triangle_memory,
+                               uint32_t tri_count, DevicePtr<const uint8_t> flag_memory,
+                               DevicePtr<const uint32_t> neighbour_memory, const Camera& camera,
+                               DevicePtr<float> depth_memory, DepthRasterScratch& scratch, bool with_seams) {
+    if (tri_count > 0)
+        depthRasterSetup(raw(position_memory), raw(triangle_memory), tri_count, raw(flag_memory), raw(neighbour_memory),
+                         camera, scratch, with_seams);
+    static_assert(kTile == 1u << 5);
+    const TileBins bins = binTriangles(tri_count, camera.width, camera.height, 5, 5, scratch);
+    return DepthTiles{raw(scratch.setup.ptr()), bins, raw(depth_memory), camera.width, camera.height};
+}
+
+void rasterTilesScalar(const DepthTiles& t) {
+    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), t.bins.tiles_x * t.bins.tiles_y,
+                       RasterTiles{t.setup, t.bins, t.depth, t.width, t.height});
+}
+
+}  // namespace
+
 void depthRaster(DevicePtr<const glm::vec3> position_memory, DevicePtr<const uint32_t> triangle_memory,
                  uint32_t tri_count, DevicePtr<const uint8_t> flag_memory, DevicePtr<const uint32_t> neighbour_memory,
                  const Camera& camera, DevicePtr<float> depth_memory, DepthRasterScratch& scratch, bool with_seams) {
     checkRasterViewport(camera, "depthRaster");
-    const uint32_t width = camera.width, height = camera.height;
-    if (width == 0 || height == 0) return;
-    if (tri_count > 0)
-        depthRasterSetup(raw(position_memory), raw(triangle_memory), tri_count, raw(flag_memory), raw(neighbour_memory),
-                         camera, scratch, with_seams);
-    const TileBins bins = binTriangles(tri_count, width, height, 5, 5, scratch);
-    static_assert(kTile == 1u << 5);
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), bins.tiles_x * bins.tiles_y,
-                       RasterTiles{raw(scratch.setup.ptr()), bins, raw(depth_memory), width, height});
+    if (camera.width == 0 || camera.height == 0) return;
+    const DepthTiles tiles = depthRasterFrontEnd(position_memory, triangle_memory, tri_count, flag_memory,
+                                                 neighbour_memory, camera, depth_memory, scratch, with_seams);
+#if defined(__CUDACC__)
+    rasterTilesScalar(tiles);
+#else
+    depthRasterTilesCpu(tiles);
+#endif
+}
+
+void depthRasterScalar(DevicePtr<const glm::vec3> position_memory, DevicePtr<const uint32_t> triangle_memory,
+                       uint32_t tri_count, DevicePtr<const uint8_t> flag_memory,
+                       DevicePtr<const uint32_t> neighbour_memory, const Camera& camera, DevicePtr<float> depth_memory,
+                       DepthRasterScratch& scratch, bool with_seams) {
+    checkRasterViewport(camera, "depthRasterScalar");
+    if (camera.width == 0 || camera.height == 0) return;
+    rasterTilesScalar(depthRasterFrontEnd(position_memory, triangle_memory, tri_count, flag_memory, neighbour_memory,
+                                          camera, depth_memory, scratch, with_seams));
+}
+
+const char* depthRasterTarget() {
+#if defined(__CUDACC__)
+    return "CUDA";
+#else
+    return depthRasterCpuTarget();
+#endif
 }
 
 }  // namespace occ::k

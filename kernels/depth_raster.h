@@ -122,4 +122,14 @@ void depthRaster(DevicePtr<const glm::vec3> positions, DevicePtr<const uint32_t>
                  DevicePtr<const uint8_t> edge_flags, DevicePtr<const uint32_t> edge_neighbours, const Camera& camera,
                  DevicePtr<float> depth, DepthRasterScratch& scratch, bool seams = false);
 
+// depthRaster with the one-thread-per-tile loop the CUDA build runs, whatever the build: on
+// the CPU, the reference that depthRaster's SIMD tile loop must match bit for bit.
+void depthRasterScalar(DevicePtr<const glm::vec3> positions, DevicePtr<const uint32_t> triangles, uint32_t tri_count,
+                       DevicePtr<const uint8_t> edge_flags, DevicePtr<const uint32_t> edge_neighbours,
+                       const Camera& camera, DevicePtr<float> depth, DepthRasterScratch& scratch, bool seams = false);
+
+// The instruction set depthRaster's tile loop runs with here: "CUDA", or on the CPU the SIMD
+// level (kernels/simd_level.h: "AVX-512", "AVX2", "SSE4" or "portable").
+const char* depthRasterTarget();
+
 }  // namespace occ::k

@@ -40,8 +40,8 @@ void maskedDepthRasterScalar(DevicePtr<const glm::vec3> positions, DevicePtr<con
                              DevicePtr<const uint32_t> edge_neighbours, const Camera& camera, DevicePtr<float> depth,
                              DepthRasterScratch& scratch, bool seams = false);
 
-// The instruction set the CPU's masked raster runs with on this machine ("AVX3" is Highway's
-// name for AVX-512, "EMU128" or "SCALAR" its portable paths); "CUDA" in the CUDA build.
+// The instruction set the CPU's masked raster runs with on this machine (kernels/simd_level.h:
+// "AVX-512", "AVX2", "SSE4" or "portable"); "CUDA" in the CUDA build.
 const char* maskedRasterTarget();
 
 }  // namespace occ::k

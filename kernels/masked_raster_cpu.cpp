@@ -5,14 +5,9 @@
 // mask of the subtile's 32 pixel centres in SIMD, then the layer update of masked_tile.h.
 // Compiled once per instruction set by Highway (foreach_target) and dispatched at run time; with
 // -ffp-contract=off, since a fused multiply-add would change the depth's bits (CMakeLists.txt).
-// Highway is used as headers only: the pick below reads the CPU's features itself, since
-// libhwy.so runs a timer probe (rdtscp) when it loads, which valgrind cannot execute, and every
-// binary linking occ_kernels would load it.
+// Highway is used as headers only, the copy picked by kernels/simd_level.h.
 
-// Only the targets the pick below can choose are compiled.
-#ifndef HWY_DISABLED_TARGETS
-#define HWY_DISABLED_TARGETS (HWY_AVX3_DL | HWY_SSSE3)
-#endif
+#include "simd_level_targets.h"
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "masked_raster_cpu.cpp"
 #include <hwy/foreach_target.h>  // re-includes this file once per instruction set
@@ -136,49 +131,24 @@ HWY_AFTER_NAMESPACE();
 
 #if HWY_ONCE
 namespace occ::k {
+
 namespace {
-
 using BandFunction = void (*)(const MaskedBands&, uint32_t);
-struct BandTarget {
-    BandFunction raster;
-    const char* name;
-};
-
-// The widest compiled copy whose instructions this CPU (and its OS, for the AVX state) has: the
-// feature sets follow Highway's own definitions of its x86 targets.
-BandTarget pickBandTarget() {
-#if HWY_ARCH_X86
-    __builtin_cpu_init();
-    const bool sse4 = __builtin_cpu_supports("ssse3") && __builtin_cpu_supports("sse4.1") &&
-                      __builtin_cpu_supports("sse4.2") && __builtin_cpu_supports("pclmul") &&
-                      __builtin_cpu_supports("aes");
-    const bool avx2 = sse4 && __builtin_cpu_supports("avx") && __builtin_cpu_supports("avx2") &&
-                      __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2") &&
-                      __builtin_cpu_supports("fma") && __builtin_cpu_supports("f16c");
-    const bool avx3 = avx2 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
-                      __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw");
-    BandFunction f = nullptr;
-    if (avx3 && (f = HWY_CHOOSE_AVX3(RasterBand)) != nullptr) return {f, "AVX3"};
-    if (avx2 && (f = HWY_CHOOSE_AVX2(RasterBand)) != nullptr) return {f, "AVX2"};
-    if (sse4 && (f = HWY_CHOOSE_SSE4(RasterBand)) != nullptr) return {f, "SSE4"};
-#endif
-    return {HWY_CHOOSE_FALLBACK(RasterBand), "portable"};
-}
-
-const BandTarget& bandTarget() {
-    static const BandTarget target = pickBandTarget();
-    return target;
-}
-
+const BandFunction kBands[kSimdLevels] = {HWY_CHOOSE_AVX3(RasterBand), HWY_CHOOSE_AVX2(RasterBand),
+                                          HWY_CHOOSE_SSE4(RasterBand), HWY_CHOOSE_FALLBACK(RasterBand)};
 }  // namespace
 
 void maskedRasterBandsCpu(const MaskedBands& bands) {
     const uint32_t band_count = bands.bins.tiles_y;
-    const BandFunction raster = bandTarget().raster;
+    const BandFunction raster = pickSimd(kBands);
     tbb::parallel_for(0u, band_count, [&](uint32_t b) { raster(bands, b); });
 }
 
-const char* maskedRasterCpuTarget() { return bandTarget().name; }
+const char* maskedRasterCpuTarget() {
+    SimdLevel level;
+    pickSimd(kBands, &level);
+    return simdLevelName(level);
+}
 
 }  // namespace occ::k
 #endif

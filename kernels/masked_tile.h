@@ -139,7 +139,7 @@ OCC_HD inline uint32_t subtileInside(uint32_t px0, uint32_t py0, uint32_t width,
 // The CPU's band loop (kernels/masked_raster_cpu.cpp): every band in parallel, each pixel of
 // the viewport written once.
 void maskedRasterBandsCpu(const MaskedBands& bands);
-// Highway's name for the instruction set that loop runs with on this machine.
+// The instruction set that loop runs with on this machine (simdLevelName).
 const char* maskedRasterCpuTarget();
 #endif
 

@@ -107,6 +107,24 @@ constexpr int64_t kHalfPixel = kUnits / 2;
 constexpr int64_t kMargin = kDepthRasterMarginUnits;
 constexpr uint32_t kReversedBit = 8;
 
+// The exact raster's tiles (kDepthRasterTileSize pixels square, the unit of parallel work).
+constexpr uint32_t kTile = kDepthRasterTileSize;
+// Far above every depth a covered pixel can get (corners are at most kDepthRasterMaxDepth) and
+// every value the plane takes over a box: no triangle yet.
+constexpr float kFar = 3.0e38f;
+
+// A tile's triangles are scattered over the setup array, which outgrows the caches: on the CPU,
+// ask for the triangle a few pairs ahead while drawing this one (about 15 % of the whole call on
+// 400 K triangles whose objects come in random order).
+constexpr uint64_t kPrefetchDistance = 8;
+OCC_HD inline void prefetch(const void* p) {
+#if defined(__GNUC__) && !defined(__CUDA_ARCH__)
+    __builtin_prefetch(p);
+#else
+    (void)p;
+#endif
+}
+
 // The three edge functions of a set-up triangle, exactly as both rasters test a pixel centre.
 // Edge k is the one opposite corner k, from corner k+1 to corner k+2:
 // e_k(p) = (b - a) x (p - a), positive inside a counter-clockwise triangle, and a centre is
@@ -178,5 +196,22 @@ struct TileBins {
 // width x height viewport, by the pixel box of each (x_lo..x_hi, y_lo..y_hi). Deterministic.
 TileBins binTriangles(uint32_t tri_count, uint32_t width, uint32_t height, uint32_t tile_w_log2,
                       uint32_t tile_h_log2, DepthRasterScratch& scratch);
+
+// The exact raster's tiles of kTile x kTile pixels, as the tile loops take them: the set-up
+// triangles binned to them, and the depth buffer to fill.
+struct DepthTiles {
+    const DepthRasterTriangle* setup;
+    TileBins bins;
+    float* depth;
+    uint32_t width, height;
+};
+
+#if !defined(__CUDACC__)
+// The CPU's tile loop (kernels/depth_raster_cpu.cpp): every tile in parallel, in SIMD, the same
+// bits as the one-thread-per-tile loop of depth_raster.cu.
+void depthRasterTilesCpu(const DepthTiles& tiles);
+// The instruction set that loop runs with on this machine (simdLevelName).
+const char* depthRasterCpuTarget();
+#endif
 
 }  // namespace occ::k

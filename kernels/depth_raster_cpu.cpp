@@ -1,0 +1,233 @@
+// SPDX-License-Identifier: MIT
+// The CPU's tile loop of the exact occluder raster (depthRaster, kernels/depth_raster.h): the
+// same bits as the one-thread-per-tile loop of depth_raster.cu (RasterTiles), faster.
+//  - A triangle's covered centres along each row of its box are one span, the intersection of
+//    its three edges' half-rows. Each edge's bound is floor((e - threshold) / |step_x|), kept
+//    from row to row as a quotient and remainder (one division per edge per triangle and tile
+//    instead of one per edge per row), so the span is exact integer arithmetic, as before.
+//  - The span's depths are written a vector of columns at a time (the tile's 32 columns in 2,
+//    4 or 8 vectors), with the plane evaluated in the same float operations as the scalar loop.
+//  - The test that skips a triangle whose box is already nearer than its nearest corner runs a
+//    vector of columns at a time too.
+// Compiled once per instruction set by Highway (foreach_target), the copy picked at run time by
+// kernels/simd_level.h; with -ffp-contract=off, so that no multiply-add is fused and the depth
+// keeps its bits (CMakeLists.txt).
+
+#include "simd_level_targets.h"
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "depth_raster_cpu.cpp"
+#include <hwy/foreach_target.h>  // re-includes this file once per instruction set
+
+#include <hwy/highway.h>
+
+#include "raster_setup.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+HWY_BEFORE_NAMESPACE();
+namespace occ::k::HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+namespace {
+
+using namespace raster;
+
+// One edge of a triangle over the rows of its box in one tile (the box clipped to the tile).
+// Column i of row j, both counted from the box's first pixel, is inside the edge when
+// n0 + j * sy + i * sx >= 0, with n0 = e - threshold at the box's first centre, sx and sy the
+// edge function's steps (EdgeFunctions, RasterTiles). The edge crosses row j at column
+// alpha + beta * j, which doubles give to within `error`: enough to tell the rows where no
+// centre can be covered (most of them: on the plant walks, 9 rows in 10 of a box miss the
+// triangle, whose thin slivers have wide boxes), and to start the exact search of the others.
+struct EdgeRows {
+    int64_t n0 = 0, sx = 0, sy = 0;
+    double alpha = 0.0, beta = 0.0, error = 0.0;
+
+    void start(int64_t n, int64_t step_x, int64_t step_y) {
+        n0 = n, sx = step_x, sy = step_y;
+        if (sx == 0) return;
+        alpha = -double(n0) / double(sx), beta = -double(sy) / double(sx);
+        // Each of the two quotients is within 2^-53 of its value, the product and the sum
+        // within 2^-53 of theirs, over at most 32 rows.
+        error = (std::fabs(alpha) + 64.0 * std::fabs(beta) + 1.0) * 0x1p-48;
+    }
+    // The rows j in [0, rows) where the edge's half-row is not empty when sx == 0, as bits.
+    uint32_t flatRows(uint32_t rows) const {
+        const uint32_t all = rows >= 32 ? ~0u : (1u << rows) - 1;
+        int64_t from = 0, to = int64_t(rows) - 1;  // n0 + j * sy >= 0 for j in [from, to]
+        if (sy > 0) {
+            if (n0 < 0) from = (-n0 + sy - 1) / sy;
+        } else if (sy < 0) {
+            to = n0 < 0 ? -1 : min64(to, n0 / -sy);
+        } else if (n0 < 0) {
+            to = -1;
+        }
+        if (from > to) return 0;
+        const uint32_t below_to = to >= 31 ? ~0u : (2u << to) - 1;
+        return all & below_to & ~((1u << from) - 1);
+    }
+    // Narrows [first, last] (columns of the box, `columns` of them) to this edge's half of row
+    // j, exactly in integers: from the approximate crossing, the smallest (sx > 0) or the
+    // largest (sx < 0) inside column is at most a step away. sx != 0.
+    void narrow(uint32_t j, int64_t columns, int64_t& first, int64_t& last) const {
+        const int64_t n = n0 + int64_t(j) * sy;
+        const double b = alpha + beta * double(j);
+        if (sx > 0) {
+            int64_t c = b <= 0.0 ? 0 : b >= double(columns) ? columns : int64_t(std::ceil(b));
+            while (c > 0 && n + (c - 1) * sx >= 0) --c;
+            while (c < columns && n + c * sx < 0) ++c;
+            first = max64(first, c);
+        } else {
+            int64_t c = b < 0.0 ? -1 : b >= double(columns - 1) ? columns - 1 : int64_t(std::floor(b));
+            while (c >= 0 && n + c * sx < 0) --c;
+            while (c + 1 < columns && n + (c + 1) * sx >= 0) ++c;
+            last = min64(last, c);
+        }
+    }
+};
+
+// The rows j in [0, rows) of the box (columns wide) where the approximate crossings leave a
+// column that may be covered, as bits: a superset of the rows with a covered centre.
+// jota: the lanes' indices 0, 1, 2, ... as doubles.
+template <class VD>
+uint32_t candidateRows(const EdgeRows (&edges)[3], uint32_t rows, int64_t columns, VD jota) {
+    const hn::ScalableTag<double> dd;
+    const uint32_t n = uint32_t(hn::Lanes(dd));
+    double error = 0.0;
+    for (const EdgeRows& e : edges) error = std::max(error, e.error);
+    const auto eps = hn::Set(dd, error);
+    const auto lo0 = hn::Set(dd, 0.0), hi0 = hn::Set(dd, double(columns - 1));
+    uint32_t bits = 0;
+    for (uint32_t j0 = 0; j0 < rows; j0 += n) {
+        const auto j = hn::Add(jota, hn::Set(dd, double(j0)));
+        auto lo = lo0, hi = hi0;
+        for (const EdgeRows& e : edges) {
+            const auto b = hn::MulAdd(hn::Set(dd, e.beta), j, hn::Set(dd, e.alpha));
+            if (e.sx > 0) lo = hn::Max(lo, b);
+            if (e.sx < 0) hi = hn::Min(hi, b);
+        }
+        const auto open = hn::Le(hn::Ceil(hn::Sub(lo, eps)), hn::Floor(hn::Add(hi, eps)));
+        uint8_t out[8] = {};
+        hn::StoreMaskBits(dd, open, out);
+        bits |= uint32_t(out[0] & ((n >= 8 ? 0x100u : 1u << n) - 1)) << j0;
+    }
+    bits &= rows >= 32 ? ~0u : (1u << rows) - 1;
+    for (const EdgeRows& e : edges)
+        if (e.sx == 0) bits &= e.flatRows(rows);
+    return bits;
+}
+
+// Whether every pixel of the box (tile coordinates, inclusive) is already at or nearer than
+// `bound` (RasterTiles::hidden). iota: the lanes' indices 0, 1, 2, ... (Highway's Iota goes
+// through memory, hence made once per tile).
+template <class VI>
+bool hidden(const float* nearest, float bound, uint32_t x_lo, uint32_t x_hi, uint32_t y_lo, uint32_t y_hi, VI iota) {
+    const hn::ScalableTag<float> df;
+    const hn::RebindToSigned<decltype(df)> di;
+    const uint32_t n = uint32_t(hn::Lanes(df));
+    const auto vbound = hn::Set(df, bound);
+    const auto before = hn::Set(di, int32_t(x_lo) - 1), after = hn::Set(di, int32_t(x_hi) + 1);
+    const uint32_t c_lo = x_lo / n * n;
+    for (uint32_t c0 = c_lo; c0 <= x_hi; c0 += n) {
+        const auto c = hn::Add(iota, hn::Set(di, int32_t(c0)));
+        const auto in_box = hn::RebindMask(df, hn::And(hn::Gt(c, before), hn::Lt(c, after)));
+        for (uint32_t y = y_lo; y <= y_hi; ++y)
+            if (!hn::AllFalse(df, hn::And(in_box, hn::Gt(hn::Load(df, nearest + y * kTile + c0), vbound)))) return false;
+    }
+    return true;
+}
+
+// Writes min(depth, plane) over columns [a, b] of one tile row: the plane is
+// row_depth + gx * (column_base + c) at tile column c, in the scalar loop's float operations.
+template <class VI>
+void fillSpan(float* row, uint32_t a, uint32_t b, float row_depth, float gx, int32_t column_base, VI iota) {
+    const hn::ScalableTag<float> df;
+    const hn::RebindToSigned<decltype(df)> di;
+    const uint32_t n = uint32_t(hn::Lanes(df));
+    const auto vrow = hn::Set(df, row_depth), vgx = hn::Set(df, gx);
+    const auto vbase = hn::Set(di, column_base);
+    const auto before = hn::Set(di, int32_t(a) - 1), after = hn::Set(di, int32_t(b) + 1);
+    for (uint32_t c0 = a / n * n; c0 <= b; c0 += n) {
+        const auto c = hn::Add(iota, hn::Set(di, int32_t(c0)));
+        const auto in_span = hn::RebindMask(df, hn::And(hn::Gt(c, before), hn::Lt(c, after)));
+        const auto d = hn::Add(vrow, hn::Mul(vgx, hn::ConvertTo(df, hn::Add(c, vbase))));
+        const auto old = hn::Load(df, row + c0);
+        hn::Store(hn::IfThenElse(hn::And(in_span, hn::Lt(d, old)), d, old), df, row + c0);
+    }
+}
+
+}  // namespace
+
+void RasterTile(const DepthTiles& job, uint32_t tile) {
+    const TileBins& bins = job.bins;
+    const uint32_t px0 = tile % bins.tiles_x * kTile, py0 = tile / bins.tiles_x * kTile;
+    const uint32_t px1 = std::min(px0 + kTile, job.width), py1 = std::min(py0 + kTile, job.height);
+    HWY_ALIGN float nearest[kTile * kTile];
+    std::fill(nearest, nearest + kTile * kTile, kFar);
+    const auto iota = hn::Iota(hn::ScalableTag<int32_t>(), 0);
+    const auto jota = hn::Iota(hn::ScalableTag<double>(), 0.0);
+
+    const uint64_t begin = bins.tileBegin(tile), end = bins.tileEnd(tile);
+    for (uint64_t i = begin; i < end; ++i) {
+        if (i + kPrefetchDistance < end) prefetch(&job.setup[bins.pair_triangle[i + kPrefetchDistance]]);
+        const DepthRasterTriangle& s = job.setup[bins.pair_triangle[i]];
+        const uint32_t x_lo = std::max<uint32_t>(s.x_lo, px0), x_hi = std::min<uint32_t>(s.x_hi, px1 - 1);
+        const uint32_t y_lo = std::max<uint32_t>(s.y_lo, py0), y_hi = std::min<uint32_t>(s.y_hi, py1 - 1);
+        if (x_lo > x_hi || y_lo > y_hi) continue;
+        if (hidden(nearest, s.lower_bound, x_lo - px0, x_hi - px0, y_lo - py0, y_hi - py0, iota)) continue;
+
+        // The edge functions of RasterTiles, from the centre of pixel (x_lo, y_lo).
+        const EdgeFunctions e(s);
+        EdgeRows edges[3];
+        for (int k = 0; k < 3; ++k) edges[k].start(e.inside(k, x_lo, y_lo), -e.ey[k] * kUnits, e.ex[k] * kUnits);
+        const int64_t columns = int64_t(x_hi - x_lo) + 1;
+        const int32_t column_base = int32_t(px0 - s.x_lo);
+        for (uint32_t rows = candidateRows(edges, y_hi - y_lo + 1, columns, jota); rows != 0; rows &= rows - 1) {
+            const uint32_t j = uint32_t(__builtin_ctz(rows));
+            int64_t first = 0, last = columns - 1;
+            for (const EdgeRows& edge : edges)
+                if (edge.sx != 0) edge.narrow(j, columns, first, last);
+            if (first > last) continue;
+            const uint32_t y = y_lo + j;
+            const float row_depth = addRn(s.z_ref, mulRn(s.gy, float(int32_t(y - s.y_lo))));
+            fillSpan(nearest + (y - py0) * kTile, uint32_t(x_lo - px0 + first), uint32_t(x_lo - px0 + last), row_depth,
+                     s.gx, column_base, iota);
+        }
+    }
+
+    for (uint32_t y = py0; y < py1; ++y) {
+        const float* row = nearest + (y - py0) * kTile;
+        float* out = job.depth + uint64_t(y) * job.width + px0;
+        for (uint32_t x = 0; x < px1 - px0; ++x) out[x] = row[x] < 1.0f ? row[x] : 1.0f;
+    }
+}
+
+}  // namespace occ::k::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace occ::k {
+
+namespace {
+using TileFunction = void (*)(const DepthTiles&, uint32_t);
+const TileFunction kTiles[kSimdLevels] = {HWY_CHOOSE_AVX3(RasterTile), HWY_CHOOSE_AVX2(RasterTile),
+                                          HWY_CHOOSE_SSE4(RasterTile), HWY_CHOOSE_FALLBACK(RasterTile)};
+}  // namespace
+
+void depthRasterTilesCpu(const DepthTiles& tiles) {
+    const TileFunction raster = pickSimd(kTiles);
+    tbb::parallel_for(0u, tiles.bins.tiles_x * tiles.bins.tiles_y, [&](uint32_t t) { raster(tiles, t); });
+}
+
+const char* depthRasterCpuTarget() {
+    SimdLevel level;
+    pickSimd(kTiles, &level);
+    return simdLevelName(level);
+}
+
+}  // namespace occ::k
+#endif
