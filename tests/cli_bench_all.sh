@@ -43,6 +43,17 @@ for heading in "## 1. Frame time per stage" "## 2. Culling accuracy" "## 3. Stre
   grep -q "^$heading" "$out/summary.md" || fail "summary.md lacks '$heading'"
 done
 
+# oc+lod against lod with drawing and without (the pipeline alone), per scene, in section 6 and
+# the headline table; the occlusion stage's ms and the raster's rate where oc+lod ran.
+[ "$(grep -c "^| engine grid .* | [0-9.]*x | \(yes\|no\) ([0-9.]* against [0-9.]*) | [0-9.]* | [0-9 ]* | [0-9.]* |$" "$out/summary.md")" -ge 1 ] ||
+  fail "section 6 lacks the grid's row without drawing"
+grep -q "^| plant .* | [0-9.]*x | \(yes\|no\) ([0-9.]* against [0-9.]*) | [0-9.]* | [0-9 ]* | [0-9.]* |$" "$out/summary.md" ||
+  fail "section 6 lacks the plant's row without drawing"
+grep -q "^| frame rate, oc+lod over lod alone, drawing on llvmpipe | [0-9.]*x (grid), [0-9.]*x (plant) |" "$out/summary.md" ||
+  fail "the headline lacks oc+lod over lod with drawing"
+grep -q "^| the same without drawing (.*) | [0-9.]*x (grid, occlusion [0-9.]* ms, raster [0-9.]* M tri/s per core), " "$out/summary.md" ||
+  fail "the headline lacks oc+lod over lod without drawing"
+
 # The numbers: 3 modes x 2 scenes; conservative culling; deltas smaller; the switch's one frame.
 [ "$(tail -n +2 "$out/breakdown.csv" | wc -l)" -eq 6 ] || fail "breakdown.csv: not 6 rows"
 # The hierarchy: 2 scenes x (orbit flat / hierarchy, walk flat / hierarchy / visibility-weighted), each

@@ -21,15 +21,26 @@ field() {  # field ROW COLUMN of massive.csv (rows from 1)
 grep -q "^bench massive: gen plant: " "$dir/stderr" || fail "no gen step"
 grep -q "^bench massive: prep: " "$dir/stderr" || fail "no prep step"
 [ -s "$out/scenes/plant_1000.oss" ] && [ -s "$out/scenes/plant_1000.bin" ] || fail "the scene is not in scenes/"
-[ "$(wc -l <"$out/massive.csv")" -eq 5 ] || fail "massive.csv does not have 4 runs"
+[ "$(wc -l <"$out/massive.csv")" -eq 7 ] || fail "massive.csv does not have 6 runs"
 [ "$(field 1 frames)" = 14 ] || fail "the walk ran $(field 1 frames) frames"
 [ "$(field 4 frames)" = 5 ] || fail "the exact prefix ran $(field 4 frames) frames, expected 4 + the first"
 [ "$(field 4 false_culls)" = 0 ] || fail "false culls: $(field 4 false_culls)"
 [ "$(field 4 exact_churn)" != n/a ] || fail "no exact churn"
-for r in 1 2 3 4; do
+for r in 1 2 3 4 5 6; do
   awk -v v="$(field $r peak_mb)" 'BEGIN { exit !(v > 1) }' || fail "run $r: no peak memory"
   awk -v v="$(field $r median_ms)" 'BEGIN { exit !(v > 0) }' || fail "run $r: no median frame time"
 done
+# The occlusion stage and the raster's rate where occlusion culling ran (the oc+lod walk, orbit and
+# drawn walk), none where it did not (lod); the drawn walk costs more than the same walk undrawn.
+for r in 1 3 5; do
+  awk -v v="$(field $r occlusion_ms)" 'BEGIN { exit !(v > 0) }' || fail "run $r: no occlusion ms"
+  awk -v v="$(field $r raster_mtri_per_s_per_core)" 'BEGIN { exit !(v > 0) }' || fail "run $r: no raster rate"
+done
+[ "$(field 2 raster_mtri_per_s_per_core)" = n/a ] || fail "lod alone has a raster rate: $(field 2 raster_mtri_per_s_per_core)"
+awk -v a="$(field 5 median_ms)" -v b="$(field 1 median_ms)" 'BEGIN { exit !(a > b) }' ||
+  fail "the drawn walk ($(field 5 median_ms) ms) is not slower than the undrawn one ($(field 1 median_ms) ms)"
+grep -q "with drawing: [0-9.]* ms against [0-9.]* ms" "$out/massive.md" || fail "no oc+lod against lod with drawing"
+grep -q "raster [0-9.]* M occluder triangles/s per core" "$out/massive.md" || fail "no raster rate in the summary"
 grep -q "gen: [0-9.]* s, [0-9]* MB peak; prep: [0-9.]* s, [0-9]* MB peak" "$out/massive.md" || fail "gen/prep cost missing"
 grep -q "made by this run" "$out/massive.md" || fail "the first run did not say it made the scene"
 

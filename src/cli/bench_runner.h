@@ -23,6 +23,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -232,6 +233,43 @@ struct RenderStats {
         double total = 0;
         for (size_t r : measured) total += frameMs(r);
         return total / double(measured.size());
+    }
+    // The median over the measured frames of the sum of `columns` (columns this run lacks count
+    // 0; NaN when no frame was measured).
+    double median(std::initializer_list<const char*> columns) const {
+        std::vector<double> v;
+        for (size_t r : measured) {
+            double sum = 0;
+            for (const char* c : columns)
+                if (csv.has(c)) sum += csv.num(r, c);
+            v.push_back(sum);
+        }
+        return medianOf(v);
+    }
+    double medianFrameMs() const {
+        std::vector<double> v;
+        for (size_t r : measured) v.push_back(frameMs(r));
+        return medianOf(v);
+    }
+    // The occlusion stage: choosing the occluders, their depth raster, the HZM build and the test.
+    double medianOcclusionMs() const {
+        return median({"ms_occluder_select", "ms_depth_raster", "ms_hzm_build", "ms_hzm_test"});
+    }
+    // The depth raster's occluder triangles per second per core (`cores` of them, as the render
+    // run had), median over the measured frames that rastered any; NaN when none did.
+    double medianRasterRatePerCore(unsigned cores) const {
+        std::vector<double> v;
+        if (!csv.has("occluder_triangles") || !csv.has("ms_depth_raster")) return NAN;
+        for (size_t r : measured) {
+            const double ms = csv.num(r, "ms_depth_raster"), tris = csv.num(r, "occluder_triangles");
+            if (ms > 0 && tris > 0) v.push_back(tris / (ms / 1000.0) / double(std::max(1u, cores)));
+        }
+        return medianOf(v);
+    }
+    static double medianOf(std::vector<double> v) {
+        if (v.empty()) return NAN;
+        std::sort(v.begin(), v.end());
+        return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
     }
     CsvTable csv;
     std::vector<size_t> display;   // rank 0's rows in frame order
