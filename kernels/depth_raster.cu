@@ -87,6 +87,8 @@ struct SetupTriangles {
         if (!(c0.drawn & v1.drawn & v2.drawn)) return;
         int64_t area2 = int64_t(v1.x - c0.x) * (v2.y - c0.y) - int64_t(v1.y - c0.y) * (v2.x - c0.x);
         if (area2 == 0) return;
+        // A back face of a closed mesh seen from outside: its front faces are nearer wherever it is.
+        if (area2 < 0 && edge_flags && (edge_flags[t] & kEdgeFlagSkipBackFace)) return;
         uint32_t flags = edge_flags ? edge_flags[t] & 7u : 0u;
         // A shared edge is inside the occluder's image only when the neighbour across it is
         // drawn too and faces the same way on screen: then the two lie on either side of it.
@@ -469,6 +471,24 @@ struct RasterTiles {
 };
 
 }  // namespace
+
+bool markClosedMesh(const uint32_t* triangles, uint32_t tri_count, const glm::vec3* positions, uint8_t* flags) {
+    if (tri_count < 4) return false;
+    for (uint32_t t = 0; t < tri_count; ++t)
+        if ((flags[t] & 7u) != 7u) return false;
+    // Six times the signed volume, about the first corner (smaller terms, less cancellation).
+    const glm::dvec3 o(positions[triangles[0]]);
+    double volume6 = 0.0;
+    for (uint32_t t = 0; t < tri_count; ++t) {
+        const glm::dvec3 a = glm::dvec3(positions[triangles[3 * t]]) - o;
+        const glm::dvec3 b = glm::dvec3(positions[triangles[3 * t + 1]]) - o;
+        const glm::dvec3 c = glm::dvec3(positions[triangles[3 * t + 2]]) - o;
+        volume6 += glm::dot(a, glm::cross(b, c));
+    }
+    if (!(volume6 > 0.0)) return false;
+    for (uint32_t t = 0; t < tri_count; ++t) flags[t] |= kEdgeFlagClosedMesh;
+    return true;
+}
 
 void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* flags, uint32_t* neighbours) {
     // One slot per undirected edge (smaller index, larger index) in an open-addressing hash

@@ -83,6 +83,27 @@ struct DepthRasterScratch {
 // neighbours[3t+e] is the other triangle using it; UINT32_MAX for edges not shared.
 void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* flags, uint32_t* neighbours = nullptr);
 
+// Bits of the per-triangle flag byte beyond sharedEdgeFlags' three shared-edge bits.
+// kEdgeFlagClosedMesh: the triangle's mesh is closed (every edge of every triangle shared, as
+// sharedEdgeFlags has it: each edge used by exactly two triangles, in opposite directions) and
+// wound counter-clockwise seen from outside (positive signed volume). markClosedMeshes sets it;
+// depthRaster ignores it.
+// kEdgeFlagSkipBackFace: depthRaster (and maskedDepthRaster) skip the triangle when it faces
+// away, i.e. is clockwise on screen with y up. gatherOccluders sets it on the triangles of
+// closed meshes whose object is not mirrored and whose world box does not hold the eye: from
+// outside a closed surface, every ray that meets it where it faces away met it nearer where it
+// faces the eye, so the front faces alone write the same nearest depths. Skipping occluder
+// triangles only ever loses occlusion, never culls more, so the rule is safe even where its
+// premises fail (a mesh that intersects itself, a camera inside a concave mesh's hollow).
+inline constexpr uint8_t kEdgeFlagSkipBackFace = 8;
+inline constexpr uint8_t kEdgeFlagClosedMesh = 16;
+
+// Sets kEdgeFlagClosedMesh on all tri_count flags when the mesh they describe (sharedEdgeFlags
+// already ran on them) is closed and outward, as above; leaves them as they are otherwise.
+// triangles: 3 * tri_count corners into positions (the mesh's own numbering). Host code.
+// Returns whether it set them.
+bool markClosedMesh(const uint32_t* triangles, uint32_t tri_count, const glm::vec3* positions, uint8_t* flags);
+
 // Conservative software depth rasterisation of occluder triangles into a W x H depth buffer,
 // W = camera.width, H = camera.height (each in [0, 32768], else std::invalid_argument; 0 draws
 // nothing).
@@ -111,7 +132,8 @@ void sharedEdgeFlags(const uint32_t* triangles, uint32_t tri_count, uint8_t* fla
 // nearly touch keep their margins.
 // Skipped, which only loses occlusion: triangles with a corner behind the near plane
 // (clip.w <= 0 or clip.z < -clip.w), a corner outside the guard band or deeper than
-// kDepthRasterMaxDepth, a NaN, or zero snapped area. Both windings are drawn. Without flags
+// kDepthRasterMaxDepth, a NaN, zero snapped area, or facing away (clockwise on screen) with
+// kEdgeFlagSkipBackFace in its flags. Both windings are drawn otherwise. Without flags
 // the margin holds on every edge, shared ones too: a centre within 1/64 pixel of the edge
 // between two triangles of one mesh then belongs to neither and stays far. Deterministic: the
 // result depends neither on the thread count nor on the back end.

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "occluder_gather.h"
 
+#include "depth_raster.h"
+
 #include "layout_access.h"
 #include "scan.h"
 
@@ -60,6 +62,9 @@ struct OffsetTriangles {
     uint32_t* out_triangles;
     uint8_t* out_flags;
     uint32_t* out_neighbours;
+    const glm::mat4* world;
+    glm::vec3 eye;
+    bool has_eye;
     OCC_HD void operator()(uint64_t tile) const {
         forEachRun(triangle_offsets, count, total, tile * kRunTile, tileEnd(tile, total),
                    [&](uint32_t j, uint64_t first, uint64_t length) {
@@ -72,7 +77,15 @@ struct OffsetTriangles {
                            const uint32_t across = edge_neighbours[3 * from + c];
                            out_neighbours[3 * to + c] = across == UINT32_MAX ? UINT32_MAX : across + first_triangle;
                        }
-                       for (uint64_t t = 0; t < length; ++t) out_flags[to + t] = edge_flags[from + t];
+                       const uint32_t id = ids[j];
+                       const Aabb& box = objects[id].aabb;
+                       const bool outside = !(eye.x >= box.min.x && eye.x <= box.max.x && eye.y >= box.min.y &&
+                                              eye.y <= box.max.y && eye.z >= box.min.z && eye.z <= box.max.z);
+                       const bool skip_back = has_eye && outside && glm::determinant(glm::mat3(world[id])) > 0.0f;
+                       for (uint64_t t = 0; t < length; ++t) {
+                           const uint8_t f = edge_flags[from + t];
+                           out_flags[to + t] = uint8_t((f & 7u) | (skip_back && (f & kEdgeFlagClosedMesh) ? kEdgeFlagSkipBackFace : 0u));
+                       }
                    });
     }
 };
@@ -80,7 +93,7 @@ struct OffsetTriangles {
 }  // namespace
 
 void gatherOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const glm::mat4> world, const MeshGeometry& meshes,
-                     DevicePtr<const uint32_t> ids, uint32_t count, OccluderGeometry& out) {
+                     DevicePtr<const uint32_t> ids, uint32_t count, OccluderGeometry& out, const glm::vec3* eye) {
     out.vertex_total = out.triangle_total = 0;
     if (count == 0) return;
     out.sizes.growTo(2 * uint64_t(count));
@@ -102,7 +115,8 @@ void gatherOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const glm::m
                 OffsetTriangles{raw(objects), raw(ids), offsets, offsets + count, count, out.triangle_total,
                                 raw(meshes.triangles), raw(meshes.edge_flags), raw(meshes.edge_neighbours),
                                 raw(meshes.triangle_first), raw(out.triangles.ptr()), raw(out.edge_flags.ptr()),
-                                raw(out.edge_neighbours.ptr())});
+                                raw(out.edge_neighbours.ptr()), raw(world), eye ? *eye : glm::vec3(0.0f),
+                                eye != nullptr});
 }
 
 namespace {

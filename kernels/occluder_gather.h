@@ -34,11 +34,16 @@ struct OccluderGeometry {
 // Gathers objects ids[0, count) (device memory, any order, count may be 0): occluder j's
 // vertices go after those of occluders 0..j-1, each multiplied by world[id] (as
 // glm::vec3(world * vec4(p, 1))), its triangles likewise with corners offset by its first
-// vertex, its edge flags copied and its edge neighbours offset by its first triangle (UINT32_MAX
+// vertex, its edge flags copied (see eye below) and its edge neighbours offset by its first triangle (UINT32_MAX
 // kept). objects and world have one entry per object. Everything runs on the device; the
 // host reads back only the two totals (24 bytes).
+// eye: null, or the camera's world position: then the triangles of closed meshes
+// (kEdgeFlagClosedMesh) of objects whose world box does not hold it and whose world matrix does
+// not mirror get kEdgeFlagSkipBackFace (depth_raster.h), and the raster skips their back faces.
+// The flags copied keep the three shared-edge bits and that one, nothing else.
 void gatherOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const glm::mat4> world, const MeshGeometry& meshes,
-                     DevicePtr<const uint32_t> ids, uint32_t count, OccluderGeometry& out);
+                     DevicePtr<const uint32_t> ids, uint32_t count, OccluderGeometry& out,
+                     const glm::vec3* eye = nullptr);
 
 // The depth raster skips a triangle whole when a corner is behind the near plane (it has no
 // screen position), so a floor or wall the camera stands on or beside would occlude nothing.

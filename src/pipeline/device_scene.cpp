@@ -171,6 +171,9 @@ DeviceScene DeviceScene::upload(const OssFile& file, bool hierarchy) {
             k::sharedEdgeFlags(triangles.data() + 3 * meshes[m].triangle_first, meshes[m].triangle_count,
                                edge_flags.data() + (meshes[m].triangle_first - base),
                                edge_neighbours.data() + 3 * (meshes[m].triangle_first - base));
+            k::markClosedMesh(triangles.data() + 3 * meshes[m].triangle_first, meshes[m].triangle_count,
+                              file.allPositions().data() + meshes[m].vertex_first,
+                              edge_flags.data() + (meshes[m].triangle_first - base));
         });
         k::copyToDevice(d.edge_flags.ptr() + base, edge_flags.data(), count);
         k::copyToDevice(d.edge_neighbours.ptr() + 3 * base, edge_neighbours.data(), 3 * count);

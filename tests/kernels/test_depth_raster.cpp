@@ -984,5 +984,76 @@ TEST_F(DepthRaster, ASeamNeedsIdenticalEndpointsOnEitherSide) {
     EXPECT_EQ(coveredOnSeam(quads(0, false, false)), 0);  // without seams the exact abutment is cracked too
 }
 
+// A closed box, its 12 triangles wound counter-clockwise seen from outside, placed by `place`.
+Mesh closedBox(const glm::mat4& place) {
+    Mesh mesh;
+    for (int i = 0; i < 8; ++i)
+        mesh.positions.push_back(glm::vec3(place * glm::vec4(i & 1 ? 1 : -1, i & 2 ? 1 : -1, i & 4 ? 1 : -1, 1)));
+    // Faces as corner quads (counter-clockwise from outside), two triangles each.
+    const uint32_t faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+    for (const auto& f : faces) mesh.triangles.insert(mesh.triangles.end(), {f[0], f[1], f[2], f[0], f[2], f[3]});
+    return mesh;
+}
+
+TEST(MarkClosedMesh, ABoxIsClosedAnOpenOneAndAnInsideOutOneAreNot) {
+    Mesh box = closedBox(glm::mat4(1.0f));
+    std::vector<uint8_t> flags = sharedFlags(box);
+    EXPECT_TRUE(markClosedMesh(box.triangles.data(), box.triangleCount(), box.positions.data(), flags.data()));
+    for (uint8_t f : flags) EXPECT_EQ(f, 7u | kEdgeFlagClosedMesh);
+    // Turned inside out: closed, but wound clockwise from outside.
+    Mesh inside_out = box;
+    for (size_t t = 0; t < inside_out.triangles.size(); t += 3) std::swap(inside_out.triangles[t + 1], inside_out.triangles[t + 2]);
+    flags = sharedFlags(inside_out);
+    EXPECT_FALSE(markClosedMesh(inside_out.triangles.data(), inside_out.triangleCount(), inside_out.positions.data(),
+                                flags.data()));
+    for (uint8_t f : flags) EXPECT_EQ(f, 7u);
+    // Without its last face: open.
+    Mesh open = box;
+    open.triangles.resize(open.triangles.size() - 6);
+    flags = sharedFlags(open);
+    EXPECT_FALSE(markClosedMesh(open.triangles.data(), open.triangleCount(), open.positions.data(), flags.data()));
+    for (uint8_t f : flags) EXPECT_EQ(f & kEdgeFlagClosedMesh, 0u);
+}
+
+TEST_F(DepthRaster, ATriangleThatMaySkipItsBackFaceDrawsOnlyItsFront) {
+    const Camera c = identityCamera(16, 16);
+    Mesh front;  // counter-clockwise on screen
+    front.add(atWindow(c, 1, 1, 0.5f), atWindow(c, 15, 1, 0.5f), atWindow(c, 1, 15, 0.5f));
+    Mesh back;  // the same, clockwise
+    back.add(atWindow(c, 1, 1, 0.5f), atWindow(c, 1, 15, 0.5f), atWindow(c, 15, 1, 0.5f));
+    const std::vector<uint8_t> skip = {kEdgeFlagSkipBackFace}, none = {0};
+    const std::vector<float> drawn = rasterize(front, c, none);
+    EXPECT_GT(std::count_if(drawn.begin(), drawn.end(), [](float d) { return d < 1.0f; }), 50);
+    EXPECT_EQ(rasterize(front, c, skip), drawn);
+    EXPECT_EQ(rasterize(back, c, none), drawn);
+    EXPECT_EQ(rasterize(back, c, skip), std::vector<float>(drawn.size(), 1.0f));
+}
+
+// From outside, a closed box's front faces alone write the depths the whole box writes, at
+// every pixel: skipping its back faces changes no bit, in any orientation.
+TEST_F(DepthRaster, SkippingTheBackFacesOfAClosedBoxSeenFromOutsideChangesNothing) {
+    std::mt19937 rng(41);
+    std::uniform_real_distribution<float> angle(0.0f, 6.2831853f), offset(-2.0f, 2.0f), size(0.3f, 3.0f);
+    DepthRasterScratch scratch;
+    const Camera c = perspectiveCamera(160, 120);
+    uint64_t covered = 0;
+    for (int i = 0; i < 40; ++i) {
+        glm::mat4 place = glm::translate(glm::mat4(1.0f), glm::vec3(offset(rng), offset(rng), -6.0f + offset(rng)));
+        place = glm::rotate(place, angle(rng), glm::normalize(glm::vec3(offset(rng), offset(rng), offset(rng)) + 0.01f));
+        place = glm::scale(place, glm::vec3(size(rng), size(rng), size(rng)));
+        const Mesh box = closedBox(place);
+        std::vector<uint8_t> flags = sharedFlags(box);
+        std::vector<uint32_t> neighbours(3 * size_t(box.triangleCount()));
+        sharedEdgeFlags(box.triangles.data(), box.triangleCount(), flags.data(), neighbours.data());
+        ASSERT_TRUE(markClosedMesh(box.triangles.data(), box.triangleCount(), box.positions.data(), flags.data()));
+        std::vector<uint8_t> skipping = flags;
+        for (uint8_t& f : skipping) f |= kEdgeFlagSkipBackFace;
+        const std::vector<float> all = rasterize(box, c, scratch, flags, neighbours, true);
+        EXPECT_EQ(rasterize(box, c, scratch, skipping, neighbours, true), all) << "box " << i;
+        covered += std::count_if(all.begin(), all.end(), [](float d) { return d < 1.0f; });
+    }
+    EXPECT_GT(covered, 40u * 200u);
+}
+
 }  // namespace
 }  // namespace occ::k

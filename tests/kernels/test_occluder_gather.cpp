@@ -1,12 +1,15 @@
 // SPDX-License-Identifier: MIT
 #include "occluder_gather.h"
 
+#include "depth_raster.h"
+
 #include "device_test_support.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace occ::k {
@@ -54,9 +57,9 @@ struct TwoMeshScene {
         return {positions_d.ptr(),      triangles_d.ptr(),     edge_flags_d.ptr(), edge_neighbours_d.ptr(),
                 vertex_first_d.ptr(),   triangle_first_d.ptr()};
     }
-    void gather(const std::vector<uint32_t>& ids, OccluderGeometry& out) const {
+    void gather(const std::vector<uint32_t>& ids, OccluderGeometry& out, const glm::vec3* eye = nullptr) const {
         const DeviceArray<uint32_t> ids_d = toDevice(ids);
-        gatherOccluders(objects_d.ptr(), world_d.ptr(), meshes(), ids_d.ptr(), uint32_t(ids.size()), out);
+        gatherOccluders(objects_d.ptr(), world_d.ptr(), meshes(), ids_d.ptr(), uint32_t(ids.size()), out, eye);
     }
 };
 
@@ -89,6 +92,33 @@ TEST_F(GatherOccluders, EachOccluderReadsItsOwnMesh) {
     EXPECT_EQ(toHost(out.edge_flags, 3), (std::vector<uint8_t>{4, 1, 0}));
     EXPECT_EQ(toHost(out.edge_neighbours, 9),
               (std::vector<uint32_t>{kNone, kNone, 1, 0, kNone, kNone, kNone, kNone, kNone}));
+}
+
+// Back faces may be skipped (kEdgeFlagSkipBackFace) only on closed meshes' triangles
+// (kEdgeFlagClosedMesh), of objects whose box does not hold the eye and that are not mirrored,
+// and only when the gather is given the eye; the closed-mesh bit itself is not passed on.
+TEST_F(GatherOccluders, BackFacesMaySkipOnlyOnClosedMeshesSeenFromOutsideUnmirrored) {
+    TwoMeshScene scene;
+    scene.edge_flags = {0, 4 | kEdgeFlagClosedMesh, 1 | kEdgeFlagClosedMesh};
+    scene.objects.push_back(TwoMeshScene::object(1, 4, 2));
+    scene.world.push_back(glm::scale(glm::mat4(1.0f), glm::vec3(-1, 1, 1)));  // object 3: mirrored
+    const std::pair<glm::vec3, glm::vec3> boxes[] = {
+        {{100, 100, 100}, {101, 101, 100}}, {{10, 0, 0}, {11, 1, 0}}, {{0, 0, -5}, {2, 2, -5}}, {{-1, 0, 0}, {0, 1, 0}}};
+    for (size_t i = 0; i < 4; ++i) scene.objects[i].aabb = Aabb{boxes[i].first, boxes[i].second};
+    scene.edge_flags_d = toDevice(scene.edge_flags);
+    scene.objects_d = toDevice(scene.objects);
+    scene.world_d = toDevice(scene.world);
+    const uint8_t skip = kEdgeFlagSkipBackFace;
+    OccluderGeometry out;
+    const glm::vec3 outside(5, 0.5f, 3);
+    scene.gather({0, 1, 2, 3}, out, &outside);
+    ASSERT_EQ(out.triangle_total, 7u);
+    EXPECT_EQ(toHost(out.edge_flags, 7), (std::vector<uint8_t>{0, 4 | skip, 1 | skip, 4 | skip, 1 | skip, 4, 1}));
+    const glm::vec3 in_object_1(10.5f, 0.5f, 0);
+    scene.gather({0, 1, 2, 3}, out, &in_object_1);
+    EXPECT_EQ(toHost(out.edge_flags, 7), (std::vector<uint8_t>{0, 4, 1, 4 | skip, 1 | skip, 4, 1}));
+    scene.gather({0, 1, 2, 3}, out);  // no eye: none
+    EXPECT_EQ(toHost(out.edge_flags, 7), (std::vector<uint8_t>{0, 4, 1, 4, 1, 4, 1}));
 }
 
 TEST_F(GatherOccluders, AnEmptyListGathersNothingAndResetsTheTotals) {
