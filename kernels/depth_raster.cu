@@ -72,6 +72,10 @@ struct SetupTriangles {
     const uint32_t* neighbours;  // may be null: 3 per triangle, the triangle across each edge
     uint32_t tri_count;
     DepthRasterTriangle* setup;
+    // Per triangle, 1 when setup[t] was written (the triangle is drawn and its box holds a pixel
+    // centre), else 0 and setup[t] left as it was: most occluder triangles are skipped or cover
+    // no centre, and the passes after this one read their byte, not their 64-byte line.
+    uint8_t* drawn;
     int64_t last_x, last_y;  // viewport size - 1
     // null, or per triangle the stored edges found shared across a seam (a second pass over
     // the triangles listed in `only`, which then take the tie rule there and no box margin)
@@ -81,7 +85,7 @@ struct SetupTriangles {
     OCC_HD void operator()(uint32_t i) const {
         const uint32_t t = only ? only[i] : i;
         // Most triangles of a detailed occluder cover no pixel centre: leave as early as possible.
-        setup[t].x_lo = 1, setup[t].x_hi = 0;
+        drawn[t] = 0;
         const DepthRasterVertex c0 = vertices[triangles[3 * t]], v1 = vertices[triangles[3 * t + 1]],
                                 v2 = vertices[triangles[3 * t + 2]];
         if (!(c0.drawn & v1.drawn & v2.drawn)) return;
@@ -161,14 +165,15 @@ struct SetupTriangles {
         s.z_ref = float(addRn(ref, double(push)));
         s.lower_bound = minf(c0.z, minf(c1.z, c2.z));
         setup[t] = s;
+        drawn[t] = 1;
     }
 };
 
-// Seams between occluders. A boundary edge is one of a triangle that covers a pixel centre's box
-// (x_lo <= x_hi) and that keeps the margin there; each is keyed by its two world-space endpoints
+// Seams between occluders. A boundary edge is one of a drawn triangle (one whose box holds a
+// pixel centre) that keeps the margin there; each is keyed by its two world-space endpoints
 // taken in either order, so that the two sides of a seam get the same key.
-OCC_HD inline uint32_t boundaryEdges(const DepthRasterTriangle& s) {
-    return s.x_lo > s.x_hi ? 0u : 7u & ~s.shared_edges;
+OCC_HD inline uint32_t boundaryEdges(const DepthRasterTriangle* setup, const uint8_t* drawn, uint32_t t) {
+    return drawn[t] ? 7u & ~setup[t].shared_edges : 0u;
 }
 
 // The vertex indices of stored edge k of triangle t: from stored corner k+1 to k+2.
@@ -222,22 +227,24 @@ OCC_HD inline uint64_t edgeKey(const glm::vec3& p, const glm::vec3& q) {
 
 struct CountBoundaryEdges {
     const DepthRasterTriangle* setup;
+    const uint8_t* drawn;
     uint32_t* counts;
     OCC_HD void operator()(uint32_t t) const {
-        const uint32_t bits = boundaryEdges(setup[t]);
+        const uint32_t bits = boundaryEdges(setup, drawn, t);
         counts[t] = (bits & 1u) + (bits >> 1 & 1u) + (bits >> 2 & 1u);
     }
 };
 
 struct EmitBoundaryEdges {
     const DepthRasterTriangle* setup;
+    const uint8_t* drawn;
     const uint32_t* triangles;
     const glm::vec3* positions;
     const uint32_t* first;
     uint32_t* ids;
     uint64_t* keys;
     OCC_HD void operator()(uint32_t t) const {
-        const uint32_t bits = boundaryEdges(setup[t]);
+        const uint32_t bits = boundaryEdges(setup, drawn, t);
         uint32_t at = first[t];
         for (uint32_t k = 0; k < 3; ++k) {
             if (!(bits >> k & 1u)) continue;
@@ -319,13 +326,14 @@ struct ChunkGrid {
 
 struct CountPerChunk {
     const DepthRasterTriangle* setup;
+    const uint8_t* drawn;
     uint64_t* counts;
     ChunkGrid grid;
 
     OCC_HD void operator()(uint32_t chunk) const {
         for (uint32_t t = grid.chunkBegin(chunk); t < grid.chunkEnd(chunk); ++t) {
+            if (!drawn[t]) continue;
             const DepthRasterTriangle& s = setup[t];
-            if (s.x_lo > s.x_hi) continue;
             for (uint32_t ty = s.y_lo >> grid.tile_h_log2; ty <= uint32_t(s.y_hi) >> grid.tile_h_log2; ++ty)
                 for (uint32_t tx = s.x_lo >> grid.tile_w_log2; tx <= uint32_t(s.x_hi) >> grid.tile_w_log2; ++tx)
                     ++counts[grid.cell(tx, ty, chunk)];
@@ -338,14 +346,15 @@ struct CountPerChunk {
 // [end of the previous tile's last cell, end of its own last cell).
 struct FillPerChunk {
     const DepthRasterTriangle* setup;
+    const uint8_t* drawn;
     uint64_t* cursor;
     uint32_t* pair_triangle;
     ChunkGrid grid;
 
     OCC_HD void operator()(uint32_t chunk) const {
         for (uint32_t t = grid.chunkBegin(chunk); t < grid.chunkEnd(chunk); ++t) {
+            if (!drawn[t]) continue;
             const DepthRasterTriangle& s = setup[t];
-            if (s.x_lo > s.x_hi) continue;
             for (uint32_t ty = s.y_lo >> grid.tile_h_log2; ty <= uint32_t(s.y_hi) >> grid.tile_h_log2; ++ty)
                 for (uint32_t tx = s.x_lo >> grid.tile_w_log2; tx <= uint32_t(s.x_hi) >> grid.tile_w_log2; ++tx)
                     pair_triangle[cursor[grid.cell(tx, ty, chunk)]++] = t;
@@ -547,7 +556,8 @@ void seams(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_c
     DepthRasterTriangle* const triangle_setup = raw(scratch.setup.ptr());
     scratch.edge_first.resize(uint64_t(tri_count) + 1);
     uint32_t* const edge_first = raw(scratch.edge_first.ptr());
-    thrust::for_each_n(thrust::device, first, tri_count, CountBoundaryEdges{triangle_setup, edge_first});
+    const uint8_t* const drawn = raw(scratch.drawn.ptr());
+    thrust::for_each_n(thrust::device, first, tri_count, CountBoundaryEdges{triangle_setup, drawn, edge_first});
     thrust::fill(thrust::device, edge_first + tri_count, edge_first + tri_count + 1, 0u);
     thrust::exclusive_scan(thrust::device, edge_first, edge_first + tri_count + 1, edge_first);
     const uint32_t count = readBack(DevicePtr<const uint32_t>(scratch.edge_first.ptr() + tri_count));
@@ -557,7 +567,7 @@ void seams(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_c
     uint32_t* const ids = raw(scratch.edge_ids.ptr());
     uint64_t* const keys = raw(scratch.edge_keys.ptr());
     thrust::for_each_n(thrust::device, first, tri_count,
-                       EmitBoundaryEdges{triangle_setup, triangles, positions, edge_first, ids, keys});
+                       EmitBoundaryEdges{triangle_setup, drawn, triangles, positions, edge_first, ids, keys});
     thrust::sort_by_key(thrust::device, keys, keys + count, ids);
     scratch.seam_edges.resize(3 * uint64_t(tri_count));
     uint8_t* const marks = raw(scratch.seam_edges.ptr());
@@ -589,11 +599,13 @@ void depthRasterSetup(const glm::vec3* positions, const uint32_t* triangles, uin
     countReadback(sizeof vertex_count);
     scratch.vertices.resize(vertex_count);
     scratch.setup.resize(tri_count);
+    scratch.drawn.resize(tri_count);
     ProjectVertices project{positions, raw(scratch.vertices.ptr()), {}, float(camera.width), float(camera.height)};
     for (int i = 0; i < 16; ++i) project.m[i] = camera.view_proj[i / 4][i % 4];
     thrust::for_each_n(thrust::device, first, vertex_count, project);
     const SetupTriangles setup{raw(scratch.vertices.ptr()), triangles, edge_flags, edge_neighbours, tri_count,
-                               raw(scratch.setup.ptr()), int64_t(camera.width) - 1, int64_t(camera.height) - 1};
+                               raw(scratch.setup.ptr()), raw(scratch.drawn.ptr()), int64_t(camera.width) - 1,
+                               int64_t(camera.height) - 1};
     thrust::for_each_n(thrust::device, first, tri_count, setup);
     if (with_seams) seams(positions, triangles, tri_count, setup, scratch);
 }
@@ -614,12 +626,14 @@ TileBins binTriangles(uint32_t tri_count, uint32_t width, uint32_t height, uint3
     thrust::fill(thrust::device, cells, cells + cell_count + 1, uint64_t(0));
     if (tri_count > 0) {
         const thrust::counting_iterator<uint32_t> first(0);
-        thrust::for_each_n(thrust::device, first, chunk_count, CountPerChunk{raw(scratch.setup.ptr()), cells, grid});
+        thrust::for_each_n(thrust::device, first, chunk_count,
+                           CountPerChunk{raw(scratch.setup.ptr()), raw(scratch.drawn.ptr()), cells, grid});
         // One more cell than there are, counting 0, so that the scan leaves the total there.
         thrust::exclusive_scan(thrust::device, cells, cells + cell_count + 1, cells);
         scratch.pair_triangle.resize(readBack(DevicePtr<const uint64_t>(scratch.cells.ptr() + cell_count)));
         thrust::for_each_n(thrust::device, first, chunk_count,
-                           FillPerChunk{raw(scratch.setup.ptr()), cells, raw(scratch.pair_triangle.ptr()), grid});
+                           FillPerChunk{raw(scratch.setup.ptr()), raw(scratch.drawn.ptr()), cells,
+                                        raw(scratch.pair_triangle.ptr()), grid});
     }
     return TileBins{tile_w_log2, tile_h_log2, tiles_x, tiles_y, chunk_count, cells, raw(scratch.pair_triangle.ptr())};
 }

@@ -56,7 +56,8 @@ struct DepthRasterTriangle;  // per-triangle setup, defined in depth_raster.cu
 // scratch per concurrent call.
 struct DepthRasterScratch {
     DeviceArray<DepthRasterVertex> vertices;  // largest index + 1
-    DeviceArray<DepthRasterTriangle> setup;   // tri_count
+    DeviceArray<DepthRasterTriangle> setup;   // tri_count (entries of undrawn triangles stale)
+    DeviceArray<uint8_t> drawn;               // tri_count: 1 where setup holds a drawn triangle
     DeviceArray<uint64_t> cells;              // (tiles x binning chunks) + 1 counts, then offsets
     DeviceArray<uint32_t> pair_triangle;      // one per (tile, triangle) pair, grouped by tile
     // Seams between occluders (see depthRaster): the boundary edges of drawn triangles, their
@@ -137,7 +138,7 @@ bool markClosedMesh(const uint32_t* triangles, uint32_t tri_count, const glm::ve
 // the margin holds on every edge, shared ones too: a centre within 1/64 pixel of the edge
 // between two triangles of one mesh then belongs to neither and stays far. Deterministic: the
 // result depends neither on the thread count nor on the back end.
-// Memory: scratch grows to 16 bytes per vertex, 76 per triangle, 4 per (32x32 tile, triangle)
+// Memory: scratch grows to 16 bytes per vertex, 77 per triangle, 4 per (32x32 tile, triangle)
 // pair of overlapping screen boxes, 8 per (tile, 4096 triangles), at most 32 MB, and 12 per
 // boundary edge of a drawn triangle.
 void depthRaster(DevicePtr<const glm::vec3> positions, DevicePtr<const uint32_t> triangles, uint32_t tri_count,

@@ -38,8 +38,8 @@ struct alignas(64) DepthRasterTriangle {
     // The nearest corner depth: below every depth the triangle writes, so a triangle whose box
     // is already at least that near everywhere changes nothing and can be passed over.
     float lower_bound;
-    // Pixels whose centres may be covered, inclusive, clamped to the viewport; the triangle is
-    // empty (skipped, or covers no centre) when x_lo > x_hi.
+    // Pixels whose centres may be covered, inclusive, clamped to the viewport (x_lo <= x_hi and
+    // y_lo <= y_hi: the setup writes only triangles that have one, DepthRasterScratch::drawn).
     uint16_t x_lo, y_lo, x_hi, y_hi;
     // Bit k set: edge k (opposite corner k) is shared within its mesh or across a seam, so it
     // takes the tie rule instead of the margin. Bit raster::kReversedBit: the stored corners 1
@@ -171,7 +171,8 @@ OCC_HD inline float planeDepth(const DepthRasterTriangle& s, uint32_t px, uint32
 
 // The front end both rasters share: projects, snaps and sets up the triangles as depthRaster's
 // contract says (skip rules, margins, shared edges, seams when `seams`) into scratch.vertices
-// and scratch.setup (tri_count entries; empty triangles have x_lo > x_hi). tri_count > 0.
+// and scratch.setup, with scratch.drawn[t] = 1 where setup[t] holds a triangle whose box has
+// a pixel centre and 0 where the triangle is skipped (setup[t] then stale). tri_count > 0.
 void depthRasterSetup(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
                       const uint8_t* edge_flags, const uint32_t* edge_neighbours, const Camera& camera,
                       DepthRasterScratch& scratch, bool seams);
