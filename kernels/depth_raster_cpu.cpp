@@ -2,9 +2,11 @@
 // The CPU's tile loop of the exact occluder raster (depthRaster, kernels/depth_raster.h): the
 // same bits as the one-thread-per-tile loop of depth_raster.cu (RasterTiles), faster.
 //  - A triangle's covered centres along each row of its box are one span, the intersection of
-//    its three edges' half-rows. Each edge's bound is floor((e - threshold) / |step_x|), kept
-//    from row to row as a quotient and remainder (one division per edge per triangle and tile
-//    instead of one per edge per row), so the span is exact integer arithmetic, as before.
+//    its three edges' half-rows. The rows where the edges' crossings (in doubles, with a bound
+//    on their error) leave no room for a centre are found for the whole box at once, a vector
+//    of rows at a time, and skipped (EdgeRows, candidateRows).
+//  - The other rows get their exact span in integers, searched from the approximate crossing
+//    (a step either side at most), instead of the scalar loop's three 64-bit divisions a row.
 //  - The span's depths are written a vector of columns at a time (the tile's 32 columns in 2,
 //    4 or 8 vectors), with the plane evaluated in the same float operations as the scalar loop.
 //  - The test that skips a triangle whose box is already nearer than its nearest corner runs a
