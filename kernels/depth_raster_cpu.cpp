@@ -45,6 +45,9 @@ using namespace raster;
 // alpha + beta * j, which doubles give to within `error`: enough to tell the rows where no
 // centre can be covered (most of them: on the plant walks, 9 rows in 10 of a box miss the
 // triangle, whose thin slivers have wide boxes), and to start the exact search of the others.
+// Bits 0 to count - 1 (count <= 32).
+inline uint32_t lowBits(uint32_t count) { return count >= 32 ? ~0u : (1u << count) - 1; }
+
 struct EdgeRows {
     int64_t n0 = 0, sx = 0, sy = 0;
     double alpha = 0.0, beta = 0.0, error = 0.0;
@@ -59,7 +62,6 @@ struct EdgeRows {
     }
     // The rows j in [0, rows) where the edge's half-row is not empty when sx == 0, as bits.
     uint32_t flatRows(uint32_t rows) const {
-        const uint32_t all = rows >= 32 ? ~0u : (1u << rows) - 1;
         int64_t from = 0, to = int64_t(rows) - 1;  // n0 + j * sy >= 0 for j in [from, to]
         if (sy > 0) {
             if (n0 < 0) from = (-n0 + sy - 1) / sy;
@@ -69,8 +71,7 @@ struct EdgeRows {
             to = -1;
         }
         if (from > to) return 0;
-        const uint32_t below_to = to >= 31 ? ~0u : (2u << to) - 1;
-        return all & below_to & ~((1u << from) - 1);
+        return lowBits(uint32_t(to) + 1) & ~lowBits(uint32_t(from));
     }
     // Narrows [first, last] (columns of the box, `columns` of them) to this edge's half of row
     // j, exactly in integers: from the approximate crossing, the smallest (sx > 0) or the
@@ -115,28 +116,33 @@ uint32_t candidateRows(const EdgeRows (&edges)[3], uint32_t rows, int64_t column
         const auto open = hn::Le(hn::Ceil(hn::Sub(lo, eps)), hn::Floor(hn::Add(hi, eps)));
         uint8_t out[8] = {};
         hn::StoreMaskBits(dd, open, out);
-        bits |= uint32_t(out[0] & ((n >= 8 ? 0x100u : 1u << n) - 1)) << j0;
+        bits |= (out[0] & lowBits(n)) << j0;
     }
-    bits &= rows >= 32 ? ~0u : (1u << rows) - 1;
+    bits &= lowBits(rows);
     for (const EdgeRows& e : edges)
         if (e.sx == 0) bits &= e.flatRows(rows);
     return bits;
 }
 
+// The lanes of the vector of tile columns starting at c0 that lie in [lo, hi]. iota: the lanes'
+// indices 0, 1, 2, ... (Highway's Iota goes through memory, hence made once per tile).
+template <class VI>
+auto columnsIn(VI iota, uint32_t c0, uint32_t lo, uint32_t hi) {
+    const hn::ScalableTag<float> df;
+    const hn::RebindToSigned<decltype(df)> di;
+    const auto c = hn::Add(iota, hn::Set(di, int32_t(c0)));
+    return hn::RebindMask(df, hn::And(hn::Gt(c, hn::Set(di, int32_t(lo) - 1)), hn::Lt(c, hn::Set(di, int32_t(hi) + 1))));
+}
+
 // Whether every pixel of the box (tile coordinates, inclusive) is already at or nearer than
-// `bound` (RasterTiles::hidden). iota: the lanes' indices 0, 1, 2, ... (Highway's Iota goes
-// through memory, hence made once per tile).
+// `bound` (RasterTiles::hidden).
 template <class VI>
 bool hidden(const float* nearest, float bound, uint32_t x_lo, uint32_t x_hi, uint32_t y_lo, uint32_t y_hi, VI iota) {
     const hn::ScalableTag<float> df;
-    const hn::RebindToSigned<decltype(df)> di;
     const uint32_t n = uint32_t(hn::Lanes(df));
     const auto vbound = hn::Set(df, bound);
-    const auto before = hn::Set(di, int32_t(x_lo) - 1), after = hn::Set(di, int32_t(x_hi) + 1);
-    const uint32_t c_lo = x_lo / n * n;
-    for (uint32_t c0 = c_lo; c0 <= x_hi; c0 += n) {
-        const auto c = hn::Add(iota, hn::Set(di, int32_t(c0)));
-        const auto in_box = hn::RebindMask(df, hn::And(hn::Gt(c, before), hn::Lt(c, after)));
+    for (uint32_t c0 = x_lo / n * n; c0 <= x_hi; c0 += n) {
+        const auto in_box = columnsIn(iota, c0, x_lo, x_hi);
         for (uint32_t y = y_lo; y <= y_hi; ++y)
             if (!hn::AllFalse(df, hn::And(in_box, hn::Gt(hn::Load(df, nearest + y * kTile + c0), vbound)))) return false;
     }
@@ -151,12 +157,10 @@ void fillSpan(float* row, uint32_t a, uint32_t b, float row_depth, float gx, int
     const hn::RebindToSigned<decltype(df)> di;
     const uint32_t n = uint32_t(hn::Lanes(df));
     const auto vrow = hn::Set(df, row_depth), vgx = hn::Set(df, gx);
-    const auto vbase = hn::Set(di, column_base);
-    const auto before = hn::Set(di, int32_t(a) - 1), after = hn::Set(di, int32_t(b) + 1);
     for (uint32_t c0 = a / n * n; c0 <= b; c0 += n) {
-        const auto c = hn::Add(iota, hn::Set(di, int32_t(c0)));
-        const auto in_span = hn::RebindMask(df, hn::And(hn::Gt(c, before), hn::Lt(c, after)));
-        const auto d = hn::Add(vrow, hn::Mul(vgx, hn::ConvertTo(df, hn::Add(c, vbase))));
+        const auto in_span = columnsIn(iota, c0, a, b);
+        const auto column = hn::Add(iota, hn::Set(di, column_base + int32_t(c0)));
+        const auto d = hn::Add(vrow, hn::Mul(vgx, hn::ConvertTo(df, column)));
         const auto old = hn::Load(df, row + c0);
         hn::Store(hn::IfThenElse(hn::And(in_span, hn::Lt(d, old)), d, old), df, row + c0);
     }

@@ -411,7 +411,7 @@ void Bench::breakdownAndFps(std::ostringstream& md, std::ostringstream& fps_md) 
 
     // The same walks without drawing: on a GPU drawing is nearly free and the frame is the
     // pipeline, so occlusion culling pays only if it costs less than the drawing it saves.
-    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+    const unsigned cores = RenderStats::cores();
     fps_md << "Without drawing (`render --no-display`, the pipeline alone: a fast GPU's case, where drawing what\n"
            << "is left costs next to nothing), median ms per frame over frames 1 on. *occlusion*: occluder choice +\n"
            << "depth raster + HZM build + HZM test; *raster rate*: occluder triangles per second per core of the\n"

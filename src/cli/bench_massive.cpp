@@ -54,8 +54,6 @@ struct WalkFigures {
     double peak_mb = NAN, seconds = NAN;
 };
 
-unsigned cores() { return std::max(1u, std::thread::hardware_concurrency()); }
-
 // Means over the frames from `from` on (the first ones stream the first view and warm the caches).
 WalkFigures figures(const fs::path& stats_csv, const RunResult& run, size_t from) {
     const RenderStats s(stats_csv);
@@ -100,7 +98,7 @@ WalkFigures figures(const fs::path& stats_csv, const RunResult& run, size_t from
         if (has_exact) false_culls += t.num(r, "false_culls"), acc += t.num(r, "culling_accuracy");
     }
     f.occlusion_ms = s.medianOcclusionMs();
-    f.raster_rate = s.medianRasterRatePerCore(cores());
+    f.raster_rate = s.medianRasterRatePerCore();
     if (later) {
         f.churn = churn / double(later);
         if (has_exact) f.exact_churn = exact / double(later);
@@ -234,7 +232,7 @@ private:
            << "at full detail) over the walk's first " << o_.exact_frames << " frames; the walk again with drawing "
            << "(`--headless`: OpenGL through EGL, on this machine's renderer)\n"
            << "- occlusion ms: occluder choice + depth raster + HZM build + HZM test; raster rate: occluder triangles "
-              "per second per core of the depth raster (" << cores() << " cores); both medians over frames 1 on\n"
+              "per second per core of the depth raster (" << RenderStats::cores() << " cores); both medians over frames 1 on\n"
            << "- frame 0 and 1 apart; median, p99, max and 'frames > 2x median' over frames 2 on; streamed share, "
               "visible, occluder triangles and raster ms over frames 10 on (the exact run: 1 on); churn over frames 1 on\n\n";
         md << "| run | frames | frame 0 ms | frame 1 ms | median ms | p99 ms | max ms | frames > 2x median | "

@@ -255,9 +255,11 @@ struct RenderStats {
     double medianOcclusionMs() const {
         return median({"ms_occluder_select", "ms_depth_raster", "ms_hzm_build", "ms_hzm_test"});
     }
+    // The cores a render run has (its kernels use all of them): the "per core" of the rates.
+    static unsigned cores() { return std::max(1u, std::thread::hardware_concurrency()); }
     // The depth raster's occluder triangles per second per core (`cores` of them, as the render
     // run had), median over the measured frames that rastered any; NaN when none did.
-    double medianRasterRatePerCore(unsigned cores) const {
+    double medianRasterRatePerCore(unsigned cores = RenderStats::cores()) const {
         std::vector<double> v;
         if (!csv.has("occluder_triangles") || !csv.has("ms_depth_raster")) return NAN;
         for (size_t r : measured) {

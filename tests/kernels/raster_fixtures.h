@@ -7,7 +7,9 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <cmath>
 #include <cstdint>
+#include <random>
 #include <vector>
 
 namespace occ::k::test {
@@ -54,5 +56,22 @@ struct Mesh {
     }
     uint32_t triangleCount() const { return uint32_t(triangles.size() / 3); }
 };
+
+// Random triangles of every size (up to max_size across), some behind the eye, across the near
+// plane or off screen.
+inline Mesh randomScene(std::mt19937& rng, uint32_t triangle_count, float max_size = 40.0f) {
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    std::uniform_real_distribution<float> log_size(std::log(0.01f), std::log(max_size));
+    std::uniform_real_distribution<float> distance(-2.0f, 60.0f);
+    Mesh mesh;
+    for (uint32_t t = 0; t < triangle_count; ++t) {
+        const float z = -distance(rng);
+        const glm::vec3 centre(unit(rng) * (0.7f * std::abs(z) + 1.0f), unit(rng) * (0.6f * std::abs(z) + 1.0f), z);
+        const float size = std::exp(log_size(rng));
+        auto corner = [&] { return centre + size * glm::vec3(unit(rng), unit(rng), unit(rng)); };
+        mesh.add(corner(), corner(), corner());
+    }
+    return mesh;
+}
 
 }  // namespace occ::k::test
