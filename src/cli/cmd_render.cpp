@@ -43,7 +43,7 @@ constexpr double kWindowOccluderMs = 10.0;
 
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto", budget = "auto";
-    std::string pace = "fast", lod = "budget", visibility_weighted = "off", hierarchy = "off", colours = "object";
+    std::string pace = "fast", lod = "budget", visibility_weighted = "off", hierarchy = "off", late_pass = "on", colours = "object";
     std::string raster = "exact";
     double path_fps = 60;
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
@@ -173,6 +173,9 @@ int runRender(RenderOptions o) {
     if (o.raster != "masked" && o.raster != "exact")
         throw UsageError("--raster " + o.raster + ": expected masked or exact");
     o.pipeline.raster = o.raster == "masked" ? OccluderRaster::Masked : OccluderRaster::Exact;
+    if (o.late_pass != "on" && o.late_pass != "off")
+        throw UsageError("--late-pass " + o.late_pass + ": expected on or off");
+    o.pipeline.late_pass = o.late_pass == "on";
     if (o.hierarchy != "on" && o.hierarchy != "off")
         throw UsageError("--hierarchy " + o.hierarchy + ": expected on or off");
     o.pipeline.hierarchy = o.hierarchy == "on";
@@ -580,6 +583,14 @@ Command addRenderCommand(CLI::App& app) {
         ->capture_default_str();
     sub->add_option("--lod-hysteresis", o->pipeline.lod_hysteresis,
                     "keep an object's last vertex count while Eq. 1's is within this fraction of it (0 = off)")
+        ->capture_default_str();
+    sub->add_option("--keep-visible", o->pipeline.keep_visible,
+                    "oc+lod: an object found visible stays drawn this many more frames while in the frustum, so\n"
+                    "cracks between occluders that open and close as the camera moves do not flicker it (0 = off)")
+        ->capture_default_str();
+    sub->add_option("--late-pass", o->late_pass,
+                    "oc+lod: where 16 or more objects show that the last two frames did not (a turn, a jump),\n"
+                    "raster the best of them too and test them again (niagara's two-phase culling)")
         ->capture_default_str();
     sub->add_option("--alpha", o->pipeline.alpha, "exponent of the LOD metric (Eq. 1)")->capture_default_str();
     return {sub, [o] { return runRender(*o); }};

@@ -129,6 +129,21 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     const size_t room = std::max<uint32_t>(1, n);
     in_frustum_.resize(room);
     occluded_.resize(room);
+    if ((options_.keep_visible > 0 || options_.late_pass) && options_.mode == CullMode::OcLod && !scene_.nodes) {
+        // One record per frame parity with a lag of 2: what the 3-rank switch's culling rank,
+        // which sees every other frame, records, so that one rank with lag 2 gives its answer.
+        last_visible_.resize(room * options_.pvs_occluder_lag);
+        k::deviceMemset(last_visible_.ptr(), 0, last_visible_.size() * sizeof(uint32_t));
+        dropped_.resize(room);
+        seen_.resize(room);
+        if (options_.late_pass) {
+            late_ids_.resize(room);
+            late_index_.resize(room);
+            late_occluders_.resize(room);
+            late_occluded_.resize(room);
+            late_depth_.resize(size_t(options.width) * options.height);
+        }
+    }
     frustum_ids_.resize(room);
     weights_.resize(std::max<uint32_t>(1, scene_.cos_count));
     occluders_.resize(room);
@@ -226,6 +241,11 @@ k::DevicePtr<const float> Pipeline::visibleShares(const k::Camera& camera, k::De
     visible_share_.growTo(std::max<uint32_t>(1, count));
     k::hzmVisibleShare(scene_.objects.ptr(), pvs, count, camera, hzmLevels(), visible_share_.ptr());
     return visible_share_.ptr();
+}
+
+k::DevicePtr<uint32_t> Pipeline::lastVisible(uint64_t frame) {
+    const size_t room = last_visible_.size() / options_.pvs_occluder_lag;
+    return last_visible_.ptr() + (frame % options_.pvs_occluder_lag) * room;
 }
 
 uint32_t Pipeline::hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out) {
@@ -408,6 +428,40 @@ private:
 
 }  // namespace
 
+// niagara's late pass (PipelineOptions::late_pass), after the HZM test of cullPass wrote
+// occluded_ for frustum_ids_.
+template <class StageClockT>
+void Pipeline::latePass(const k::Camera& camera, uint64_t frame, FrameStats& stats, StageClockT& clock) {
+    const uint32_t n = frustum_count_;
+    k::markNewlyVisible(frustum_ids_.ptr(), occluded_.ptr(), n, frame, 2 * options_.pvs_occluder_lag, lastVisible(frame),
+                        dropped_.ptr());
+    const uint32_t fresh = k::compactSelected(frustum_ids_.ptr(), dropped_.ptr(), n, 1, late_ids_.ptr());
+    if (fresh < PipelineOptions::kLatePassMinObjects || occluder_budget_ < 1) return;
+    k::compactIndices(dropped_.ptr(), n, 1, late_index_.ptr());
+    clock.lap(Stage::HzmTest);
+    const uint32_t chosen =
+        k::selectPvsOccluders(scene_.objects.ptr(), late_ids_.ptr(), fresh, in_frustum_.ptr(), camera, {}, 0,
+                              uint64_t(occluder_budget_), pvs_occluder_scratch_, late_occluders_.ptr());
+    clock.lap(Stage::OccluderSelect);
+    if (chosen == 0) return;
+    k::gatherOccluders(scene_.objects.ptr(), scene_.world.ptr(), scene_.meshes(), late_occluders_.ptr(), chosen,
+                       late_geometry_, &camera.eye);
+    k::appendNearClipped(late_geometry_, camera);
+    const k::OccluderGeometry& g = late_geometry_;
+    const auto raster = options_.raster == OccluderRaster::Masked ? k::maskedDepthRaster : k::depthRaster;
+    raster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(), g.edge_neighbours.ptr(),
+           camera, late_depth_.ptr(), raster_scratch_, /*seams=*/true);
+    stats.aos_size += chosen;
+    stats.occluder_triangles += g.triangle_total;
+    clock.lap(Stage::DepthRaster);
+    k::mergeNearest(hzm_.ptr(), late_depth_.ptr(), options_.width * options_.height);
+    k::hzmBuild(hzm_.ptr(), options_.width, options_.height);
+    clock.lap(Stage::HzmBuild);
+    // Only the new ones are tested again: what they hide of the old ones stays drawn.
+    k::hzmTest(scene_.objects.ptr(), late_ids_.ptr(), fresh, camera, hzmLevels(), late_occluded_.ptr());
+    k::scatterFlags(late_index_.ptr(), late_occluded_.ptr(), fresh, occluded_.ptr());
+}
+
 void Pipeline::frustumPass(const CameraPose& pose, FrameStats& stats) {
     StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
@@ -490,7 +544,19 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     uint32_t count = frustum_count_;
     k::DevicePtr<const uint32_t> pvs = frustum_ids_.ptr();
     if (options_.mode == CullMode::OcLod) {
-        count = scene_.nodes ? refineCut(camera, true, pvs_device_.ptr()) : hzmCull(camera, pvs_device_.ptr());
+        if (scene_.nodes) {
+            count = refineCut(camera, true, pvs_device_.ptr());
+        } else if (last_visible_.size() > 0) {
+            k::hzmTest(scene_.objects.ptr(), frustum_ids_.ptr(), frustum_count_, camera, hzmLevels(), occluded_.ptr());
+            if (options_.late_pass) latePass(camera, frame, stats, clock);
+            // What the HZM shows supplies later occluders; what it showed lately is drawn too.
+            seen_count_ = k::compactSelected(frustum_ids_.ptr(), occluded_.ptr(), frustum_count_, 0, seen_.ptr());
+            k::keepRecentlyVisible(frustum_ids_.ptr(), occluded_.ptr(), frustum_count_, frame, options_.keep_visible,
+                                   lastVisible(frame), dropped_.ptr());
+            count = k::compactSelected(frustum_ids_.ptr(), dropped_.ptr(), frustum_count_, 0, pvs_device_.ptr());
+        } else {
+            count = hzmCull(camera, pvs_device_.ptr());
+        }
         pvs = pvs_device_.ptr();
         clock.lap(Stage::HzmTest);
     }
@@ -548,9 +614,10 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
         h.device_pvs.growTo(std::max<uint32_t>(1, h.occluder_count));
         k::copyToDevice(h.device_pvs.ptr(), fine_cut_.data(), h.occluder_count);
     } else {
-        h.occluder_count = count;
-        h.device_pvs.growTo(std::max<uint32_t>(1, count));
-        k::copyOnDevice(h.device_pvs.ptr(), pvs, count);
+        const bool kept = options_.mode == CullMode::OcLod && last_visible_.size() > 0;
+        h.occluder_count = kept ? seen_count_ : count;
+        h.device_pvs.growTo(std::max<uint32_t>(1, h.occluder_count));
+        k::copyOnDevice(h.device_pvs.ptr(), kept ? k::DevicePtr<const uint32_t>(seen_.ptr()) : pvs, h.occluder_count);
     }
     h.lod.resize(pvs_.size());
     for (size_t j = 0; j < pvs_.size(); ++j) h.lod[j] = {pvs_[j], pvs_vc_[j]};

@@ -3,6 +3,7 @@
 
 #include "block_layout.h"
 #include "defragment.h"
+#include "keep_visible.h"
 #include "lod_hysteresis.h"
 #include "draw_commands.h"
 #include "reform.h"
@@ -89,6 +90,21 @@ struct PipelineOptions {
     // flicker by a few vertices every frame: fewer visible-set changes to send, stream and
     // reform. 0 = Eq. 1's count every frame.
     float lod_hysteresis = 0.1f;
+    // Beyond the papers, CHC++'s "assumed visible" (k::keepRecentlyVisible): in oc+lod an object
+    // the HZM test found visible stays in the visible set for this many more frames while it is
+    // in the frustum, so the cracks a conservative raster leaves between occluders, which open
+    // and close as the camera moves, do not make objects flicker in and out (0 = off; not with
+    // the hierarchy). Only what the HZM test found visible becomes a later frame's occluder.
+    uint32_t keep_visible = kDefaultKeepVisible;
+    static constexpr uint32_t kDefaultKeepVisible = 8;
+    // Beyond Peng & Cao, niagara's two-phase culling: in oc+lod (without the hierarchy), when at
+    // least kLatePassMinObjects objects the HZM test finds visible were visible in neither of the
+    // two frames before (whose visible sets gave this frame's occluders: a turn, a door opened,
+    // a jump), the best of them within the occluder budget are rastered too, merged into the
+    // depth buffer, the HZM rebuilt and those objects tested again. A turn's first frame then
+    // draws and streams what it shows, not everything the old occluders cannot hide.
+    bool late_pass = true;
+    static constexpr uint32_t kLatePassMinObjects = 16;
     float alpha = 3.0f;                  // Eq. 1 exponent
     float pet = 1.0f;                    // pixel error threshold
     LodRule lod = LodRule::Budget;
@@ -230,6 +246,9 @@ private:
     // The frustum objects the HZM does not prove hidden, into out (ascending); returns how many.
     void adaptOccluderBudget(const FrameStats& stats);
     uint32_t hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out);
+    k::DevicePtr<uint32_t> lastVisible(uint64_t frame);  // the record of frame's parity (lag 2)
+    template <class StageClockT>
+    void latePass(const k::Camera& camera, uint64_t frame, FrameStats& stats, StageClockT& clock);
     // With the hierarchy: the cut, into out (ascending node ids); returns its size. Needs
     // in_frustum_ for this camera; occlusion: also the HZM test, level by level.
     uint32_t refineCut(const k::Camera& camera, bool occlusion, k::DevicePtr<uint32_t> out);
@@ -252,6 +271,18 @@ private:
 
     // Device memory of the culling stages.
     k::DeviceArray<uint8_t> in_frustum_, occluded_;
+    // keep_visible: the frame + 1 each object was last found visible (0 = never), the frustum
+    // objects neither visible nor kept, and the HZM-visible ones (the later occluder candidates).
+    k::DeviceArray<uint32_t> last_visible_;
+    k::DeviceArray<uint8_t> dropped_;
+    k::DeviceArray<uint32_t> seen_;
+    uint32_t seen_count_ = 0;
+    // late_pass: the newly visible objects (ids, their places in frustum_ids_, their second
+    // test), the ones rastered, their geometry and depth buffer.
+    k::DeviceArray<uint32_t> late_ids_, late_index_, late_occluders_;
+    k::DeviceArray<uint8_t> late_occluded_;
+    k::OccluderGeometry late_geometry_;
+    k::DeviceArray<float> late_depth_;
     k::DeviceArray<uint32_t> frustum_ids_;
     uint32_t frustum_count_ = 0;
     k::DeviceArray<float> weights_;

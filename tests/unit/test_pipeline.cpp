@@ -11,9 +11,11 @@
 #include "test_support.h"
 #include "view/camera_path.h"
 
+#include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <iterator>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -203,6 +205,7 @@ TEST_F(PipelineFrames, TheMaskedRasterIsNeverNearerThanTheExactOneOnRecordedOccl
     const PipelineFixture& f = fixture();
     PipelineOptions options = smallOptions(StreamMode::Coherent);
     options.raster = OccluderRaster::Masked;
+    options.late_pass = false;  // level 0 is then the raster of occluderGeometry() alone
     Pipeline pipeline(*f.file, options);
     k::DepthRasterScratch scratch;
     const uint64_t texels = k::hzmTotalTexels(options.width, options.height);
@@ -394,7 +397,10 @@ TEST_F(PipelineFrames, TheFirstFrameAndAJumpCullAsASteadyFrameDoes) {
     Pipeline plain(*f.file, aos_only);
     const uint64_t aos_visible = plain.runFrame(inside, 0).objects_visible;
 
-    Pipeline pipeline(*f.file, smallOptions(StreamMode::Coherent));
+    // Culling alone: objects seen before the jump are not kept in the visible set after it.
+    PipelineOptions options = smallOptions(StreamMode::Coherent);
+    options.keep_visible = 0;
+    Pipeline pipeline(*f.file, options);
     const uint64_t first = pipeline.runFrame(inside, 0).objects_visible;
     const uint64_t steady = pipeline.runFrame(inside, 1).objects_visible;
     EXPECT_LT(first, aos_visible);
@@ -403,6 +409,46 @@ TEST_F(PipelineFrames, TheFirstFrameAndAJumpCullAsASteadyFrameDoes) {
     pipeline.runFrame(elsewhere, 2);
     pipeline.runFrame(elsewhere, 3);
     EXPECT_LE(double(pipeline.runFrame(inside, 4).objects_visible), 1.1 * double(steady));
+}
+
+// niagara's late pass: on a turn's first frame, objects the last frames' occluders cannot hide
+// are rastered too and tested again. It only ever removes newly visible objects that its own
+// raster hides (the full-resolution check of every frame is OcclusionCullsOnlyWhat...), and on
+// this walk's turns it removes some.
+TEST_F(PipelineFrames, ALatePassCullsOnlyNewlyVisibleObjectsOnATurn) {
+    const PipelineFixture& f = fixture();
+    PipelineOptions late = smallOptions(StreamMode::Coherent), early = late;
+    late.keep_visible = early.keep_visible = 0;
+    early.late_pass = false;
+    size_t turns = 0, culled_more = 0;
+    for (size_t start = 0; start + 4 < 24; start += 4) {
+        const CameraPose& a = f.cameras[start];
+        for (const float degrees : {40.0f, -40.0f, 70.0f}) {
+            CameraPose b = a;
+            const glm::vec3 view = glm::rotate(glm::mat4(1.0f), glm::radians(degrees), a.up) * glm::vec4(a.target - a.eye, 0.0f);
+            b.target = a.eye + view;
+            Pipeline with(*f.file, late), without(*f.file, early);
+            for (uint64_t frame = 0; frame < 3; ++frame) {
+                with.runFrame(a, frame);
+                without.runFrame(a, frame);
+                ASSERT_EQ(with.visibleObjects(), without.visibleObjects()) << "a steady frame " << frame;
+            }
+            const std::vector<uint32_t> before = with.visibleObjects();
+            with.runFrame(b, 3);
+            without.runFrame(b, 3);
+            const std::vector<uint32_t>& v = with.visibleObjects();
+            const std::vector<uint32_t>& w = without.visibleObjects();
+            ASSERT_TRUE(std::includes(w.begin(), w.end(), v.begin(), v.end())) << start << " " << degrees;
+            // What it removed was new: visible in neither of the two frames before.
+            std::vector<uint32_t> removed;
+            std::set_difference(w.begin(), w.end(), v.begin(), v.end(), std::back_inserter(removed));
+            for (const uint32_t id : removed)
+                ASSERT_FALSE(std::binary_search(before.begin(), before.end(), id)) << "object " << id;
+            ++turns;
+            culled_more += !removed.empty();
+        }
+    }
+    EXPECT_GT(culled_more, 0u) << "of " << turns << " turns";
 }
 
 // With occluder_ms the occluder budget follows the raster's measured speed: a time no raster
