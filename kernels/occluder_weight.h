@@ -20,7 +20,8 @@ namespace occ::k {
 //
 // objects holds every object (indexed by the ids in cos), cos has cos_count ids (may be 0),
 // in_frustum one byte per object (as frustumCull writes it), weight room for cos_count floats;
-// all in device memory. Candidates in parallel.
+// all in device memory. Candidates in parallel. Any id list and byte mask will do: the pipeline
+// passes the frustum's ids with a mask of COS membership where the COS is much larger.
 void occluderWeight(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> cos, uint32_t cos_count,
                     DevicePtr<const uint8_t> in_frustum, const Camera& camera, DevicePtr<float> weight);
 
