@@ -29,8 +29,14 @@ namespace {
 
 using namespace raster;
 
-// Triangles per binning chunk, and a cap on the tile x chunk count matrix (32 MB).
+// Triangles per binning chunk (a thread each), and a cap on the tile x chunk count matrix (32
+// MB). A GPU wants tens of thousands of threads: 32 triangles a chunk there, against 4 096 for
+// the CPU's few cores (the bins come out the same, each tile's triangles in index order).
+#if defined(__CUDACC__)
+constexpr uint64_t kChunkTriangles = 32;
+#else
 constexpr uint64_t kChunkTriangles = 4096;
+#endif
 constexpr uint64_t kMaxCountCells = uint64_t(1) << 22;
 
 // One thread per vertex: projection, the skip rules that concern one vertex, snapping.
@@ -377,10 +383,66 @@ OCC_HD inline void edgeSpan(int64_t e, int64_t step, int64_t threshold, int64_t&
     }
 }
 
-// One thread per tile: draws its triangles into a tile-sized buffer with edge functions in exact
-// integers and depth from the triangle's plane, then writes the tile out. The minimum makes the
-// order of triangles irrelevant.
-// The CUDA build's tile loop, and on the CPU the reference its SIMD loop is tested against.
+// Draws row y (in [s.y_lo, s.y_hi]) of set-up triangle s over columns [x_lo, x_hi] into out,
+// which holds the row's pixels from column x_lo on: each covered centre keeps the nearer of its
+// depth and the triangle's plane there. Edge functions in exact integers (so computing a row
+// on its own gives the same values as stepping to it), depth from the triangle's plane.
+OCC_HD inline void drawTriangleRow(const DepthRasterTriangle& s, uint32_t y, uint32_t x_lo, uint32_t x_hi,
+                                   float* out) {
+    // Edge k is the one opposite corner k, from corner k+1 to corner k+2:
+    // e_k(p) = (b - a) x (p - a), positive inside a counter-clockwise triangle.
+    // A centre is covered when e_k >= threshold_k for every k.
+    int64_t row[3], step_x[3], threshold[3];
+    const int64_t cx = int64_t(x_lo) * kUnits + kHalfPixel, cy = int64_t(y) * kUnits + kHalfPixel;
+    for (int k = 0; k < 3; ++k) {
+        const int a = (k + 1) % 3, b = (k + 2) % 3;
+        const int64_t ex = int64_t(s.x[b]) - s.x[a], ey = int64_t(s.y[b]) - s.y[a];
+        row[k] = ex * (cy - s.y[a]) - ey * (cx - s.x[a]);
+        step_x[k] = -ey * kUnits;
+        if (s.shared_edges >> k & 1u) {
+            // The top-left rule (D3D's), for counter-clockwise triangles with y up: a
+            // centre on the edge belongs to this triangle when the edge is a left edge
+            // (going down) or a top edge (horizontal, going left). The neighbour across
+            // it runs it the other way, its edge function exactly negated, so exactly
+            // one of the two covers each centre on it.
+            threshold[k] = ey < 0 || (ey == 0 && ex < 0) ? 0 : 1;
+        } else {
+            // distance = e / |edge|_2 >= margin, made integer by |edge|_1 >= |edge|_2
+            threshold[k] = kMargin * (abs64(ex) + abs64(ey));
+        }
+    }
+    const int64_t columns = int64_t(x_hi - x_lo) + 1;
+    const float row_depth = addRn(s.z_ref, mulRn(s.gy, float(int32_t(y - s.y_lo))));
+    const float gx = s.gx;
+    // out[x] and the plane's column term both start at x_lo.
+    const int32_t column0 = int32_t(x_lo - s.x_lo);
+    if (columns <= int64_t(kNarrowRow)) {
+        int64_t e0 = row[0], e1 = row[1], e2 = row[2];
+        for (int64_t x = 0; x < columns; ++x) {
+            // Without branches, since whether a centre is covered is close to
+            // random for the small triangles drawn here: all three
+            // e_k - threshold_k are non-negative when their OR is, and an
+            // uncovered centre's candidate is pushed beyond every depth.
+            const int64_t outside = (e0 - threshold[0]) | (e1 - threshold[1]) | (e2 - threshold[2]);
+            const float d = addRn(row_depth, mulRn(gx, float(column0 + int32_t(x))));
+            const float candidate = addRn(d, mulRn(float(uint64_t(outside) >> 63), kFar));
+            out[x] = candidate < out[x] ? candidate : out[x];
+            e0 += step_x[0], e1 += step_x[1], e2 += step_x[2];
+        }
+    } else {
+        int64_t first = 0, last = columns - 1;
+        for (int k = 0; k < 3; ++k) edgeSpan(row[k], step_x[k], threshold[k], first, last);
+        for (int64_t x = first; x <= last; ++x) {
+            const float d = addRn(row_depth, mulRn(gx, float(column0 + int32_t(x))));
+            out[x] = d < out[x] ? d : out[x];
+        }
+    }
+}
+
+// One thread per tile: draws its triangles into a tile-sized buffer, row by row
+// (drawTriangleRow), then writes the tile out. The minimum makes the order of triangles
+// irrelevant. On the CPU, the reference the SIMD loop is tested against; the CUDA build gives
+// a tile to a warp instead (rasterTilesWarp), drawing the same rows.
 struct RasterTiles {
     const DepthRasterTriangle* setup;
     TileBins bins;
@@ -415,60 +477,8 @@ struct RasterTiles {
             const uint32_t y_lo = s.y_lo > py0 ? s.y_lo : py0, y_hi = s.y_hi < py1 - 1 ? s.y_hi : py1 - 1;
             if (x_lo > x_hi || y_lo > y_hi) continue;
             if (hidden(nearest, s.lower_bound, x_lo - px0, x_hi - px0, y_lo - py0, y_hi - py0)) continue;
-
-            // Edge k is the one opposite corner k, from corner k+1 to corner k+2:
-            // e_k(p) = (b - a) x (p - a), positive inside a counter-clockwise triangle.
-            // A centre is covered when e_k >= threshold_k for every k.
-            int64_t row[3], step_x[3], step_y[3], threshold[3];
-            const int64_t cx = int64_t(x_lo) * kUnits + kHalfPixel, cy = int64_t(y_lo) * kUnits + kHalfPixel;
-            for (int k = 0; k < 3; ++k) {
-                const int a = (k + 1) % 3, b = (k + 2) % 3;
-                const int64_t ex = int64_t(s.x[b]) - s.x[a], ey = int64_t(s.y[b]) - s.y[a];
-                row[k] = ex * (cy - s.y[a]) - ey * (cx - s.x[a]);
-                step_x[k] = -ey * kUnits;
-                step_y[k] = ex * kUnits;
-                if (s.shared_edges >> k & 1u) {
-                    // The top-left rule (D3D's), for counter-clockwise triangles with y up: a
-                    // centre on the edge belongs to this triangle when the edge is a left edge
-                    // (going down) or a top edge (horizontal, going left). The neighbour across
-                    // it runs it the other way, its edge function exactly negated, so exactly
-                    // one of the two covers each centre on it.
-                    threshold[k] = ey < 0 || (ey == 0 && ex < 0) ? 0 : 1;
-                } else {
-                    // distance = e / |edge|_2 >= margin, made integer by |edge|_1 >= |edge|_2
-                    threshold[k] = kMargin * (abs64(ex) + abs64(ey));
-                }
-            }
-            const int64_t columns = int64_t(x_hi - x_lo) + 1;
-            for (uint32_t y = y_lo; y <= y_hi; ++y) {
-                const float row_depth = addRn(s.z_ref, mulRn(s.gy, float(int32_t(y - s.y_lo))));
-                // out[x] and the plane's column term both start at x_lo.
-                float* out = nearest + (y - py0) * kTile + (x_lo - px0);
-                const float gx = s.gx;
-                const int32_t column0 = int32_t(x_lo - s.x_lo);
-                if (columns <= int64_t(kNarrowRow)) {
-                    int64_t e0 = row[0], e1 = row[1], e2 = row[2];
-                    for (int64_t x = 0; x < columns; ++x) {
-                        // Without branches, since whether a centre is covered is close to
-                        // random for the small triangles drawn here: all three
-                        // e_k - threshold_k are non-negative when their OR is, and an
-                        // uncovered centre's candidate is pushed beyond every depth.
-                        const int64_t outside = (e0 - threshold[0]) | (e1 - threshold[1]) | (e2 - threshold[2]);
-                        const float d = addRn(row_depth, mulRn(gx, float(column0 + int32_t(x))));
-                        const float candidate = addRn(d, mulRn(float(uint64_t(outside) >> 63), kFar));
-                        out[x] = candidate < out[x] ? candidate : out[x];
-                        e0 += step_x[0], e1 += step_x[1], e2 += step_x[2];
-                    }
-                } else {
-                    int64_t first = 0, last = columns - 1;
-                    for (int k = 0; k < 3; ++k) edgeSpan(row[k], step_x[k], threshold[k], first, last);
-                    for (int64_t x = first; x <= last; ++x) {
-                        const float d = addRn(row_depth, mulRn(gx, float(column0 + int32_t(x))));
-                        out[x] = d < out[x] ? d : out[x];
-                    }
-                }
-                row[0] += step_y[0], row[1] += step_y[1], row[2] += step_y[2];
-            }
+            for (uint32_t y = y_lo; y <= y_hi; ++y)
+                drawTriangleRow(s, y, x_lo, x_hi, nearest + (y - py0) * kTile + (x_lo - px0));
         }
 
         for (uint32_t y = py0; y < py1; ++y)
@@ -478,6 +488,54 @@ struct RasterTiles {
             }
     }
 };
+
+#if defined(__CUDACC__)
+// The CUDA build's tile loop (issue 32): a warp per tile and a lane per tile row, the tile in
+// shared memory (one padded row per lane, so that the lanes' columns fall in distinct banks),
+// instead of a thread per tile with the whole tile in local memory (4 KiB of stack per thread:
+// about 1 GB reserved per process on a large GPU) and 32 times fewer threads. The warp walks its
+// tile's triangles together; a triangle every row of whose box already holds a nearer depth is
+// skipped by a warp vote (RasterTiles::hidden's rule, which never changes the result); each lane
+// draws its own row with drawTriangleRow, so the image is RasterTiles' bit for bit. The tile
+// goes out row by row, the lanes writing consecutive pixels.
+constexpr uint32_t kWarpsPerBlock = 4;
+
+__global__ void rasterTilesWarp(const DepthRasterTriangle* setup, TileBins bins, float* depth, uint32_t width,
+                                uint32_t height) {
+    __shared__ float tiles[kWarpsPerBlock][kTile][kTile + 1];
+    const uint32_t warp = threadIdx.x / 32, lane = threadIdx.x % 32;
+    const uint32_t tile = blockIdx.x * kWarpsPerBlock + warp;
+    if (tile >= bins.tiles_x * bins.tiles_y) return;  // the whole warp: tile depends on the warp alone
+    float(*const nearest)[kTile + 1] = tiles[warp];
+    for (uint32_t x = 0; x < kTile; ++x) nearest[lane][x] = kFar;
+    const uint32_t px0 = tile % bins.tiles_x * kTile, py0 = tile / bins.tiles_x * kTile;
+    const uint32_t px1 = px0 + kTile < width ? px0 + kTile : width;
+    const uint32_t py1 = py0 + kTile < height ? py0 + kTile : height;
+    const uint32_t y = py0 + lane;
+
+    const uint64_t begin = bins.tileBegin(tile), end = bins.tileEnd(tile);
+    for (uint64_t i = begin; i < end; ++i) {
+        const DepthRasterTriangle& s = setup[bins.pair_triangle[i]];
+        const uint32_t x_lo = s.x_lo > px0 ? s.x_lo : px0, x_hi = s.x_hi < px1 - 1 ? s.x_hi : px1 - 1;
+        const uint32_t y_lo = s.y_lo > py0 ? s.y_lo : py0, y_hi = s.y_hi < py1 - 1 ? s.y_hi : py1 - 1;
+        if (x_lo > x_hi || y_lo > y_hi) continue;  // the same for every lane
+        const bool mine = y >= y_lo && y <= y_hi;
+        uint32_t farther = 0;
+        if (mine)
+            for (uint32_t x = x_lo; x <= x_hi; ++x) farther += nearest[lane][x - px0] > s.lower_bound ? 1u : 0u;
+        if (__all_sync(0xffffffffu, farther == 0)) continue;
+        if (mine) drawTriangleRow(s, y, x_lo, x_hi, &nearest[lane][x_lo - px0]);
+    }
+    __syncwarp();
+    for (uint32_t r = 0; r < kTile; ++r) {
+        const uint32_t x = px0 + lane;
+        if (py0 + r < py1 && x < px1) {
+            const float d = nearest[r][lane];
+            depth[uint64_t(py0 + r) * width + x] = d < 1.0f ? d : 1.0f;
+        }
+    }
+}
+#endif
 
 }  // namespace
 
@@ -664,6 +722,18 @@ void rasterTilesScalar(const DepthTiles& t) {
                        RasterTiles{t.setup, t.bins, t.depth, t.width, t.height});
 }
 
+#if defined(__CUDACC__)
+void rasterTilesWarps(const DepthTiles& t) {
+    const uint32_t tiles = t.bins.tiles_x * t.bins.tiles_y;
+    if (tiles == 0) return;
+    rasterTilesWarp<<<(tiles + kWarpsPerBlock - 1) / kWarpsPerBlock, kWarpsPerBlock * 32>>>(t.setup, t.bins, t.depth,
+                                                                                          t.width, t.height);
+    const cudaError_t status = cudaGetLastError();
+    if (status != cudaSuccess)
+        throw std::runtime_error(std::string("CUDA: depthRaster's tile kernel: ") + cudaGetErrorString(status));
+}
+#endif
+
 }  // namespace
 
 void depthRaster(DevicePtr<const glm::vec3> position_memory, DevicePtr<const uint32_t> triangle_memory,
@@ -674,7 +744,7 @@ void depthRaster(DevicePtr<const glm::vec3> position_memory, DevicePtr<const uin
     const DepthTiles tiles = depthRasterFrontEnd(position_memory, triangle_memory, tri_count, flag_memory,
                                                  neighbour_memory, camera, depth_memory, scratch, with_seams);
 #if defined(__CUDACC__)
-    rasterTilesScalar(tiles);
+    rasterTilesWarps(tiles);
 #else
     depthRasterTilesCpu(tiles);
 #endif
