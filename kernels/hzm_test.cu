@@ -100,9 +100,17 @@ struct HzmOcclusion {
         // pops one texel and pushes at most 4, so it never holds more than 4 + 3 per level.
         // (More than 2x2 texels at `level` remain only at the top of a pyramid cut short, a side
         // over kHzmMaxSide; they are all pushed, and the stack is sized for that too.)
+        // A texel pushed is at level >= 1 of a pyramid at most 32768 pixels across: its x and y
+        // fit in 14 bits each and its level in 4, one word (a small stack frame on a GPU).
         struct Texel {
-            uint32_t level, x, y;
+            uint32_t bits;
+            Texel() = default;
+            OCC_HD Texel(uint32_t l, uint32_t x, uint32_t y) : bits(l << 28 | x << 14 | y) {}
+            OCC_HD uint32_t level() const { return bits >> 28; }
+            OCC_HD uint32_t x() const { return bits >> 14 & 0x3fffu; }
+            OCC_HD uint32_t y() const { return bits & 0x3fffu; }
         };
+        static_assert(kHzmMaxSide <= 2u << 14 && kHzmMaxLevels <= 16, "a pushed texel must fit one word");
         constexpr uint32_t kStack = 4 + 3 * kHzmMaxLevels + 64;
         Texel stack[kStack];
         uint32_t top = 0;
@@ -113,22 +121,22 @@ struct HzmOcclusion {
             for (uint32_t tx = x0 >> level; tx <= x1 >> level; ++tx)
                 if (!hidden(level, tx, ty)) {
                     if (level == 0 || top == kStack) return 0;
-                    stack[top++] = {level, tx, ty};
+                    stack[top++] = Texel(level, tx, ty);
                 }
         while (top > 0) {
             const Texel t = stack[--top];
-            const uint32_t l = t.level - 1;
+            const uint32_t l = t.level() - 1, tx = t.x(), ty = t.y();
             // Children of t at level l, clipped to the rectangle's texels there (which also
             // keeps them inside the level: the rectangle is inside the viewport).
-            const uint32_t cx0 = 2 * t.x > (x0 >> l) ? 2 * t.x : (x0 >> l);
-            const uint32_t cx1 = 2 * t.x + 1 < (x1 >> l) ? 2 * t.x + 1 : (x1 >> l);
-            const uint32_t cy0 = 2 * t.y > (y0 >> l) ? 2 * t.y : (y0 >> l);
-            const uint32_t cy1 = 2 * t.y + 1 < (y1 >> l) ? 2 * t.y + 1 : (y1 >> l);
+            const uint32_t cx0 = 2 * tx > (x0 >> l) ? 2 * tx : (x0 >> l);
+            const uint32_t cx1 = 2 * tx + 1 < (x1 >> l) ? 2 * tx + 1 : (x1 >> l);
+            const uint32_t cy0 = 2 * ty > (y0 >> l) ? 2 * ty : (y0 >> l);
+            const uint32_t cy1 = 2 * ty + 1 < (y1 >> l) ? 2 * ty + 1 : (y1 >> l);
             for (uint32_t cy = cy0; cy <= cy1; ++cy)
                 for (uint32_t cx = cx0; cx <= cx1; ++cx)
                     if (!hidden(l, cx, cy)) {
                         if (l == 0 || top == kStack) return 0;
-                        stack[top++] = {l, cx, cy};
+                        stack[top++] = Texel(l, cx, cy);
                     }
         }
         return 1;
