@@ -28,31 +28,45 @@ struct BoxImage {
 
 OCC_HD inline bool boxImage(const Aabb& box, const glm::mat4& view_proj, float near_plane, float w0, float h0,
                             BoxImage& image) {
-    float xmin = FLT_MAX, ymin = FLT_MAX, xmax = -FLT_MAX, ymax = -FLT_MAX, z_min = FLT_MAX;
     // The projection is linear, so corner c is the min corner's image plus the images of the
-    // box edges selected by its bits: 3 vector adds per corner instead of a matrix product
-    // (half the time of the whole test; the rounding differs by a few ulps of the terms).
+    // box edges selected by its bits: 3 adds per coordinate instead of a matrix product. The
+    // corners go into arrays, coordinate by coordinate, and every test and bound is taken over
+    // all eight without an early exit, so that the compiler can do the eight at once (the
+    // answer is the same as stopping at the first corner that fails).
     const glm::vec4 base = view_proj * glm::vec4(box.min, 1.0f);
     const glm::vec4 ex = view_proj[0] * (box.max.x - box.min.x);
     const glm::vec4 ey = view_proj[1] * (box.max.y - box.min.y);
     const glm::vec4 ez = view_proj[2] * (box.max.z - box.min.z);
+    float cx[8], cy[8], cz[8], cw[8];
     for (int c = 0; c < 8; ++c) {
-        const glm::vec4 clip = base + (c & 1 ? ex : glm::vec4(0.0f)) + (c & 2 ? ey : glm::vec4(0.0f)) +
-                               (c & 4 ? ez : glm::vec4(0.0f));
-        // Written so that NaN (from a NaN or infinite corner) lands on the visible side.
-        if (!(clip.w > near_plane) || !(clip.z >= -clip.w)) return false;
-        const float inv_w = 1.0f / clip.w;
-        const float x = (clip.x * inv_w * 0.5f + 0.5f) * w0;
-        const float y = (clip.y * inv_w * 0.5f + 0.5f) * h0;
-        const float z = clip.z * inv_w * 0.5f + 0.5f;
+        cx[c] = base.x + (c & 1 ? ex.x : 0.0f) + (c & 2 ? ey.x : 0.0f) + (c & 4 ? ez.x : 0.0f);
+        cy[c] = base.y + (c & 1 ? ex.y : 0.0f) + (c & 2 ? ey.y : 0.0f) + (c & 4 ? ez.y : 0.0f);
+        cz[c] = base.z + (c & 1 ? ex.z : 0.0f) + (c & 2 ? ey.z : 0.0f) + (c & 4 ? ez.z : 0.0f);
+        cw[c] = base.w + (c & 1 ? ex.w : 0.0f) + (c & 2 ? ey.w : 0.0f) + (c & 4 ? ez.w : 0.0f);
+    }
+    // Written so that NaN (from a NaN or infinite corner) lands on the visible side.
+    int behind = 0;
+    for (int c = 0; c < 8; ++c) behind |= !(cw[c] > near_plane) | !(cz[c] >= -cw[c]);
+    if (behind) return false;
+    float x[8], y[8], z[8];
+    int nan = 0;
+    for (int c = 0; c < 8; ++c) {
+        const float inv_w = 1.0f / cw[c];
+        x[c] = (cx[c] * inv_w * 0.5f + 0.5f) * w0;
+        y[c] = (cy[c] * inv_w * 0.5f + 0.5f) * h0;
+        z[c] = cz[c] * inv_w * 0.5f + 0.5f;
         // An infinite coordinate can still give a NaN here.
-        if (x != x || y != y || z != z) return false;
-        // Plain comparisons: g++ calls libm for fminf/fmaxf, which took a fifth of the time.
-        xmin = x < xmin ? x : xmin;
-        xmax = x > xmax ? x : xmax;
-        ymin = y < ymin ? y : ymin;
-        ymax = y > ymax ? y : ymax;
-        z_min = z < z_min ? z : z_min;
+        nan |= (x[c] != x[c]) | (y[c] != y[c]) | (z[c] != z[c]);
+    }
+    if (nan) return false;
+    // Plain comparisons: g++ calls libm for fminf/fmaxf, which took a fifth of the time.
+    float xmin = x[0], xmax = x[0], ymin = y[0], ymax = y[0], z_min = z[0];
+    for (int c = 1; c < 8; ++c) {
+        xmin = x[c] < xmin ? x[c] : xmin;
+        xmax = x[c] > xmax ? x[c] : xmax;
+        ymin = y[c] < ymin ? y[c] : ymin;
+        ymax = y[c] > ymax ? y[c] : ymax;
+        z_min = z[c] < z_min ? z[c] : z_min;
     }
     if (!(xmax >= 0.0f && xmin < w0 && ymax >= 0.0f && ymin < h0)) return false;
     // Clamp in float before converting: the bounds may be far outside the int range.
