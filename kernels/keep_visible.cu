@@ -17,19 +17,23 @@ struct KeepRecent {
     const uint32_t* ids;
     const uint8_t* occluded;
     uint32_t now;  // frame + 1
-    uint32_t keep_frames;
+    uint32_t keep_frames, step;
     uint32_t* last_visible;
+    uint32_t* returned;
     uint8_t* drop;
 
     OCC_HD void operator()(uint32_t j) const {
         const uint32_t id = ids[j];
+        const uint32_t seen = last_visible[id];
         if (occluded[j] == 0) {
+            if (seen != 0 && seen < now && now - seen > step && now - seen <= step + keep_frames) returned[id] = now;
             last_visible[id] = now;
             drop[j] = 0;
             return;
         }
-        const uint32_t seen = last_visible[id];
-        drop[j] = (seen != 0 && seen <= now && now - seen <= keep_frames) ? 0 : 1;
+        const uint32_t back = returned[id];
+        const bool flickers = back != 0 && back <= now && now - back <= kFlickerMemory;
+        drop[j] = (flickers && seen != 0 && seen <= now && now - seen <= keep_frames) ? 0 : 1;
     }
 };
 
@@ -73,13 +77,13 @@ void scatterFlags(DevicePtr<const uint32_t> indices, DevicePtr<const uint8_t> va
 }
 
 void keepRecentlyVisible(DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t> occluded, uint32_t count,
-                         uint64_t frame, uint32_t keep_frames, DevicePtr<uint32_t> last_visible,
-                         DevicePtr<uint8_t> drop) {
+                         uint64_t frame, uint32_t keep_frames, uint32_t step, DevicePtr<uint32_t> last_visible,
+                         DevicePtr<uint32_t> returned, DevicePtr<uint8_t> drop) {
     if (count == 0) return;
     const thrust::counting_iterator<uint32_t> first(0);
     thrust::for_each_n(thrust::device, first, count,
-                       KeepRecent{raw(ids), raw(occluded), uint32_t(frame + 1), keep_frames, raw(last_visible),
-                                  raw(drop)});
+                       KeepRecent{raw(ids), raw(occluded), uint32_t(frame + 1), keep_frames, step, raw(last_visible),
+                                  raw(returned), raw(drop)});
 }
 
 }  // namespace occ::k

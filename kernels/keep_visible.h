@@ -7,29 +7,34 @@
 
 namespace occ::k {
 
-// Beyond Peng & Cao, the "assumed visible" rule of CHC++ (Mattausch, Bittner and Wimmer 2008,
-// "CHC++: Coherent hierarchical culling revisited"): an object the HZM test found visible stays
-// in the visible set for keep_frames more frames while it is in the frustum, even where a later
-// HZM hides it. A conservative depth raster leaves a crack of up to a pixel where two occluders
-// meet without sharing an edge (inner coverage proves neither covers the pixel), and as the
-// camera moves by less than a pixel a frame such cracks open and close: on the plant walks
-// whole groups of distant objects show through one frame and hide the next. Keeping them turns
-// that flicker into one addition and one removal; culling stays conservative (nothing is
-// culled that the HZM test would keep).
+// Beyond Peng & Cao, after the "assumed visible" rule of CHC++ (Mattausch, Bittner and Wimmer
+// 2008, "CHC++: Coherent hierarchical culling revisited"), but only for objects that flicker. A
+// conservative depth raster leaves a crack of up to a pixel where two occluders meet without
+// sharing an edge (inner coverage proves neither covers the pixel), and as the camera moves by
+// less than a pixel a frame such cracks open and close: on the plant walks whole groups of
+// distant objects show through one frame and hide the next. An object that came back after
+// such a short gap stays in the visible set through the next gaps of up to keep_frames frames,
+// for kFlickerMemory frames after it last came back; an object that simply goes out of sight is
+// dropped at once (keeping every object CHC++'s way cost a few per cent of culling on the
+// walks). Culling stays conservative: nothing is culled that the HZM test would keep.
 //
-// For j < count, with id = ids[j] (an object index) and occluded[j] as hzmTest wrote it:
-// - occluded[j] == 0: last_visible[id] = frame + 1, drop[j] = 0;
-// - else drop[j] = 0 (kept) if last_visible[id] != 0 and frame + 1 - last_visible[id] <=
-//   keep_frames (the object was found visible at most keep_frames frames before `frame`),
-//   else drop[j] = 1.
-// last_visible holds one entry per object (0 = never seen; the caller zeroes it once) and
-// records frame + 1 modulo 2^32; a frame earlier than the one recorded keeps nothing. Only
-// visible objects update it: a kept object is not seen again by being kept. keep_frames == 0
-// keeps nothing (drop = occluded) but still records. All arrays in device memory; ids in
-// parallel.
+// Records per object (one entry each, 0 = never; the caller zeroes them once), frame + 1
+// modulo 2^32 of: last_visible, the last frame the object was found visible; returned, the last
+// frame it was found visible after a gap of more than `step` and at most step + keep_frames
+// frames (step: the frames between two culls of this record, 1, or 2 for a record per parity).
+// For j < count, with id = ids[j] (an object index), now = frame + 1 and occluded[j] as
+// hzmTest wrote it:
+// - occluded[j] == 0: drop[j] = 0; returned[id] = now if last_visible[id] != 0 and step <
+//   now - last_visible[id] <= step + keep_frames; then last_visible[id] = now;
+// - else drop[j] = 0 (kept) if both records are set, now - last_visible[id] <= keep_frames and
+//   now - returned[id] <= kFlickerMemory, else drop[j] = 1.
+// A frame earlier than the one recorded keeps nothing. Only visible objects update the
+// records: being kept is not being seen. keep_frames == 0 keeps nothing (drop = occluded) but
+// still records. All arrays in device memory; ids in parallel.
+inline constexpr uint32_t kFlickerMemory = 32;
 void keepRecentlyVisible(DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t> occluded, uint32_t count,
-                         uint64_t frame, uint32_t keep_frames, DevicePtr<uint32_t> last_visible,
-                         DevicePtr<uint8_t> drop);
+                         uint64_t frame, uint32_t keep_frames, uint32_t step, DevicePtr<uint32_t> last_visible,
+                         DevicePtr<uint32_t> returned, DevicePtr<uint8_t> drop);
 
 // The late pass's test (niagara's two-phase occlusion culling, Kapoulkine 2020): flags[j] = 1
 // for each j < count whose object ids[j] the HZM test found visible (occluded[j] == 0) and, as

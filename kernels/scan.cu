@@ -9,6 +9,7 @@
 #include <thrust/iterator/counting_iterator.h>
 #include <thrust/iterator/transform_iterator.h>
 #include <thrust/scan.h>
+#include <thrust/set_operations.h>
 
 namespace occ::k {
 
@@ -42,6 +43,14 @@ uint32_t compactSelected(DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t>
     if (count == 0) return 0;
     uint32_t* const end =
         thrust::copy_if(thrust::device, raw(ids), raw(ids) + count, raw(flags), raw(out), Equals{value});
+    countReadback(sizeof(uint32_t));
+    return uint32_t(end - raw(out));
+}
+
+uint32_t unionAscending(DevicePtr<const uint32_t> a, uint32_t a_count, DevicePtr<const uint32_t> b, uint32_t b_count,
+                        DevicePtr<uint32_t> out) {
+    uint32_t* const end =
+        thrust::set_union(thrust::device, raw(a), raw(a) + a_count, raw(b), raw(b) + b_count, raw(out));
     countReadback(sizeof(uint32_t));
     return uint32_t(end - raw(out));
 }

@@ -20,6 +20,12 @@ uint32_t compactIndices(DevicePtr<const uint8_t> flags, uint32_t count, uint8_t 
 uint32_t compactSelected(DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t> flags, uint32_t count, uint8_t value,
                          DevicePtr<uint32_t> out);
 
+// The union of two strictly ascending id lists a[0, a_count) and b[0, b_count), ascending and
+// each id once, into out (room for a_count + b_count, overlapping neither). Returns its length
+// (a 4-byte readback). Linear: a merge, not a sort.
+uint32_t unionAscending(DevicePtr<const uint32_t> a, uint32_t a_count, DevicePtr<const uint32_t> b, uint32_t b_count,
+                        DevicePtr<uint32_t> out);
+
 // Where every resident object's block of one frame sits in the active arrays, as the host keeps
 // it (the device gets only the blocks that changed). All pointers are host memory with `count`
 // entries (none read when count is 0, so HostLayout{} is the empty layout: "nothing resident",

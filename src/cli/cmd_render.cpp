@@ -585,8 +585,9 @@ Command addRenderCommand(CLI::App& app) {
                     "keep an object's last vertex count while Eq. 1's is within this fraction of it (0 = off)")
         ->capture_default_str();
     sub->add_option("--keep-visible", o->pipeline.keep_visible,
-                    "oc+lod: an object found visible stays drawn this many more frames while in the frustum, so\n"
-                    "cracks between occluders that open and close as the camera moves do not flicker it (0 = off)")
+                    "oc+lod: an object that came back into view after a gap of at most this many frames stays\n"
+                    "drawn through its next such gaps, so cracks between occluders that open and close as the\n"
+                    "camera moves do not make it flicker (0 = off)")
         ->capture_default_str();
     sub->add_option("--late-pass", o->late_pass,
                     "oc+lod: where 16 or more objects show that the last two frames did not (a turn, a jump),\n"

@@ -134,6 +134,8 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
         // which sees every other frame, records, so that one rank with lag 2 gives its answer.
         last_visible_.resize(room * options_.pvs_occluder_lag);
         k::deviceMemset(last_visible_.ptr(), 0, last_visible_.size() * sizeof(uint32_t));
+        returned_.resize(room * options_.pvs_occluder_lag);
+        k::deviceMemset(returned_.ptr(), 0, returned_.size() * sizeof(uint32_t));
         dropped_.resize(room);
         seen_.resize(room);
         if (options_.late_pass) {
@@ -257,9 +259,9 @@ k::DevicePtr<const float> Pipeline::visibleShares(const k::Camera& camera, k::De
     return visible_share_.ptr();
 }
 
-k::DevicePtr<uint32_t> Pipeline::lastVisible(uint64_t frame) {
-    const size_t room = last_visible_.size() / options_.pvs_occluder_lag;
-    return last_visible_.ptr() + (frame % options_.pvs_occluder_lag) * room;
+k::DevicePtr<uint32_t> Pipeline::lastVisible(uint64_t frame, k::DeviceArray<uint32_t>& record) {
+    const size_t room = record.size() / options_.pvs_occluder_lag;
+    return record.ptr() + (frame % options_.pvs_occluder_lag) * room;
 }
 
 uint32_t Pipeline::hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out) {
@@ -447,7 +449,7 @@ private:
 template <class StageClockT>
 void Pipeline::latePass(const k::Camera& camera, uint64_t frame, FrameStats& stats, StageClockT& clock) {
     const uint32_t n = frustum_count_;
-    k::markNewlyVisible(frustum_ids_.ptr(), occluded_.ptr(), n, frame, 2 * options_.pvs_occluder_lag, lastVisible(frame),
+    k::markNewlyVisible(frustum_ids_.ptr(), occluded_.ptr(), n, frame, 2 * options_.pvs_occluder_lag, lastVisible(frame, last_visible_),
                         dropped_.ptr());
     const uint32_t fresh = k::compactSelected(frustum_ids_.ptr(), dropped_.ptr(), n, 1, late_ids_.ptr());
     if (fresh < PipelineOptions::kLatePassMinObjects || occluder_budget_ < 1) return;
@@ -508,12 +510,19 @@ void Pipeline::occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& 
             if (frame >= 2 * lag && h.frame == frame - 2 * lag && !h.pvs.empty()) older = &h;
         }
     if (older && source_count > 0) {
-        // Both sets, one after the other; the choice takes an id listed twice once.
         occluder_candidates_.growTo(source_count + older->occluder_count);
-        k::copyOnDevice(occluder_candidates_.ptr(), source, source_count);
-        k::copyOnDevice(occluder_candidates_.ptr() + source_count, older->device_pvs.ptr(), older->occluder_count);
+        if (!scene_.nodes) {
+            // Both sets, each id once: the ranking then sorts about half as many keys (both
+            // are ascending without the hierarchy: compactions of the frustum's ids).
+            source_count = k::unionAscending(source, source_count, older->device_pvs.ptr(), older->occluder_count,
+                                             occluder_candidates_.ptr());
+        } else {
+            // Both sets, one after the other; the choice takes an id listed twice once.
+            k::copyOnDevice(occluder_candidates_.ptr(), source, source_count);
+            k::copyOnDevice(occluder_candidates_.ptr() + source_count, older->device_pvs.ptr(), older->occluder_count);
+            source_count += older->occluder_count;
+        }
         source = occluder_candidates_.ptr();
-        source_count += older->occluder_count;
     }
     if (!frustumIsFor(pose)) frustumPass(pose, stats);
     StageClock clock(stats);
@@ -566,7 +575,8 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
             // What the HZM shows supplies later occluders; what it showed lately is drawn too.
             seen_count_ = k::compactSelected(frustum_ids_.ptr(), occluded_.ptr(), frustum_count_, 0, seen_.ptr());
             k::keepRecentlyVisible(frustum_ids_.ptr(), occluded_.ptr(), frustum_count_, frame, options_.keep_visible,
-                                   lastVisible(frame), dropped_.ptr());
+                                   options_.pvs_occluder_lag, lastVisible(frame, last_visible_), lastVisible(frame, returned_),
+                                   dropped_.ptr());
             count = k::compactSelected(frustum_ids_.ptr(), dropped_.ptr(), frustum_count_, 0, pvs_device_.ptr());
         } else {
             count = hzmCull(camera, pvs_device_.ptr());

@@ -90,14 +90,13 @@ struct PipelineOptions {
     // flicker by a few vertices every frame: fewer visible-set changes to send, stream and
     // reform. 0 = Eq. 1's count every frame.
     float lod_hysteresis = 0.1f;
-    // Beyond the papers, CHC++'s "assumed visible" (k::keepRecentlyVisible): in oc+lod an object
-    // the HZM test found visible stays in the visible set for this many more frames while it is
-    // in the frustum, so the cracks a conservative raster leaves between occluders, which open
-    // and close as the camera moves, do not make objects flicker in and out (0 = off; not with
-    // the hierarchy). Only what the HZM test found visible becomes a later frame's occluder.
-    // 2 by default: the flicker is mostly a two-frame cycle, and each frame kept costs culling
-    // on a fast camera (docs/results.md: on the 30-frame orbit of the 10^5 plant, accuracy
-    // against exact 92.6 % with 2, 90.2 % with 4, 86.3 % with 8, 93.1 % with none).
+    // Beyond the papers, after CHC++'s "assumed visible" (k::keepRecentlyVisible): in oc+lod an
+    // object that came back into view after a gap of at most this many frames stays in the
+    // visible set through its next such gaps while it is in the frustum, so the cracks a
+    // conservative raster leaves between occluders, which open and close as the camera moves,
+    // do not make it flicker (0 = off; not with the hierarchy). Objects that simply go out of
+    // sight are dropped at once. Only what the HZM test found visible becomes a later frame's
+    // occluder. 2 by default: the flicker is mostly a two-frame cycle (docs/results.md).
     uint32_t keep_visible = kDefaultKeepVisible;
     static constexpr uint32_t kDefaultKeepVisible = 2;
     // Beyond Peng & Cao, niagara's two-phase culling: in oc+lod (without the hierarchy), when at
@@ -249,7 +248,8 @@ private:
     // The frustum objects the HZM does not prove hidden, into out (ascending); returns how many.
     void adaptOccluderBudget(const FrameStats& stats);
     uint32_t hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out);
-    k::DevicePtr<uint32_t> lastVisible(uint64_t frame);  // the record of frame's parity (lag 2)
+    // A per-object record's part for frame's parity (lag 2; the whole record with lag 1).
+    k::DevicePtr<uint32_t> lastVisible(uint64_t frame, k::DeviceArray<uint32_t>& record);
     template <class StageClockT>
     void latePass(const k::Camera& camera, uint64_t frame, FrameStats& stats, StageClockT& clock);
     // With the hierarchy: the cut, into out (ascending node ids); returns its size. Needs
@@ -276,7 +276,7 @@ private:
     k::DeviceArray<uint8_t> in_frustum_, occluded_;
     // keep_visible: the frame + 1 each object was last found visible (0 = never), the frustum
     // objects neither visible nor kept, and the HZM-visible ones (the later occluder candidates).
-    k::DeviceArray<uint32_t> last_visible_;
+    k::DeviceArray<uint32_t> last_visible_, returned_;  // returned_: k::keepRecentlyVisible's
     k::DeviceArray<uint8_t> dropped_;
     k::DeviceArray<uint32_t> seen_;
     uint32_t seen_count_ = 0;

@@ -13,45 +13,81 @@ using test::toDevice;
 using test::toHost;
 using KeepVisible = test::DeviceTest;
 
-// One frame of keepRecentlyVisible over ids with the HZM's verdicts; the record stays on the device.
+// One frame of keepRecentlyVisible over ids with the HZM's verdicts; the records stay on the device.
+struct Records {
+    DeviceArray<uint32_t> seen, returned;
+    explicit Records(size_t n) : seen(toDevice(std::vector<uint32_t>(n, 0))), returned(toDevice(std::vector<uint32_t>(n, 0))) {}
+};
+
 std::vector<uint8_t> keepFrame(const std::vector<uint32_t>& ids, const std::vector<uint8_t>& occluded, uint64_t frame,
-                               uint32_t keep, DeviceArray<uint32_t>& record) {
+                               uint32_t keep, Records& r, uint32_t step = 1) {
     const auto d_ids = toDevice(ids);
     const auto d_occluded = toDevice(occluded);
     auto drop = toDevice(std::vector<uint8_t>(ids.size(), 7));
-    keepRecentlyVisible(d_ids.ptr(), d_occluded.ptr(), uint32_t(ids.size()), frame, keep, record.ptr(), drop.ptr());
+    keepRecentlyVisible(d_ids.ptr(), d_occluded.ptr(), uint32_t(ids.size()), frame, keep, step, r.seen.ptr(),
+                        r.returned.ptr(), drop.ptr());
     return toHost(drop);
 }
 
-TEST_F(KeepVisible, AnObjectSeenStaysForKeepFramesThenDrops) {
-    auto record = toDevice(std::vector<uint32_t>(4, 0));
-    const std::vector<uint32_t> ids = {0, 2, 3};
-    // Frame 10: object 2 visible, 0 and 3 hidden and never seen.
-    EXPECT_EQ(keepFrame(ids, {1, 0, 1}, 10, 3, record), (std::vector<uint8_t>{1, 0, 1}));
-    EXPECT_EQ(toHost(record), (std::vector<uint32_t>{0, 0, 11, 0}));
-    // Frames 11 to 13: 2 hidden, kept (seen 1, 2, 3 frames before); 14: dropped.
-    for (uint64_t frame = 11; frame <= 13; ++frame)
-        EXPECT_EQ(keepFrame(ids, {1, 1, 1}, frame, 3, record), (std::vector<uint8_t>{1, 0, 1})) << frame;
-    EXPECT_EQ(keepFrame(ids, {1, 1, 1}, 14, 3, record), (std::vector<uint8_t>{1, 1, 1}));
-    // Being kept is not being seen: the record still says frame 10.
-    EXPECT_EQ(toHost(record)[2], 11u);
-    // Seen again at 20, hidden at 21: kept from the new sighting.
-    keepFrame(ids, {1, 0, 1}, 20, 3, record);
-    EXPECT_EQ(keepFrame(ids, {1, 1, 1}, 21, 3, record), (std::vector<uint8_t>{1, 0, 1}));
+TEST_F(KeepVisible, AnObjectThatGoesOutOfSightIsDroppedAtOnce) {
+    Records r(3);
+    EXPECT_EQ(keepFrame({0, 1, 2}, {0, 0, 1}, 10, 2, r), (std::vector<uint8_t>{0, 0, 1}));
+    EXPECT_EQ(toHost(r.seen), (std::vector<uint32_t>{11, 11, 0}));
+    EXPECT_EQ(keepFrame({0, 1, 2}, {1, 0, 1}, 11, 2, r), (std::vector<uint8_t>{1, 0, 1}));
+}
+
+TEST_F(KeepVisible, AFlickeringObjectIsKeptThroughShortGaps) {
+    Records r(1);
+    // Seen at 10, hidden at 11 (dropped: no flicker yet), seen again at 12 after a one-frame gap.
+    EXPECT_EQ(keepFrame({0}, {0}, 10, 2, r), (std::vector<uint8_t>{0}));
+    EXPECT_EQ(keepFrame({0}, {1}, 11, 2, r), (std::vector<uint8_t>{1}));
+    EXPECT_EQ(keepFrame({0}, {0}, 12, 2, r), (std::vector<uint8_t>{0}));
+    EXPECT_EQ(toHost(r.returned), (std::vector<uint32_t>{13}));
+    // From now on a gap of up to 2 frames is bridged; a third hidden frame drops it.
+    EXPECT_EQ(keepFrame({0}, {1}, 13, 2, r), (std::vector<uint8_t>{0}));
+    EXPECT_EQ(keepFrame({0}, {1}, 14, 2, r), (std::vector<uint8_t>{0}));
+    EXPECT_EQ(keepFrame({0}, {1}, 15, 2, r), (std::vector<uint8_t>{1}));
+    // Being kept is not being seen: the record still says frame 12.
+    EXPECT_EQ(toHost(r.seen), (std::vector<uint32_t>{13}));
+    // Back at 17 after a gap of 4 > 1 + 2 frames: not a flicker, so its memory is not refreshed,
+    // but the one from frame 12 still holds until 12 + kFlickerMemory.
+    EXPECT_EQ(keepFrame({0}, {0}, 17, 2, r), (std::vector<uint8_t>{0}));
+    EXPECT_EQ(toHost(r.returned), (std::vector<uint32_t>{13}));
+    EXPECT_EQ(keepFrame({0}, {1}, 18, 2, r), (std::vector<uint8_t>{0}));
+    // Long after its last return it is dropped at once again.
+    keepFrame({0}, {0}, 12 + kFlickerMemory, 2, r);
+    EXPECT_EQ(keepFrame({0}, {1}, 13 + kFlickerMemory, 2, r), (std::vector<uint8_t>{1}));
+}
+
+TEST_F(KeepVisible, AParityRecordCountsGapsInItsOwnSteps) {
+    Records r(1);
+    // Culled every other frame (step 2): seen at 10 and 14 with 12 hidden is a flicker.
+    keepFrame({0}, {0}, 10, 2, r, 2);
+    EXPECT_EQ(keepFrame({0}, {1}, 12, 2, r, 2), (std::vector<uint8_t>{1}));
+    keepFrame({0}, {0}, 14, 2, r, 2);
+    EXPECT_EQ(keepFrame({0}, {1}, 16, 2, r, 2), (std::vector<uint8_t>{0}));
+    // Seen at 16 would not be a gap at all with step 2 (frames 14 and 16 are consecutive culls).
+    Records q(1);
+    keepFrame({0}, {0}, 14, 2, q, 2);
+    keepFrame({0}, {0}, 16, 2, q, 2);
+    EXPECT_EQ(toHost(q.returned), (std::vector<uint32_t>{0}));
 }
 
 TEST_F(KeepVisible, ZeroKeepsNothingButStillRecords) {
-    auto record = toDevice(std::vector<uint32_t>(3, 0));
-    EXPECT_EQ(keepFrame({0, 1, 2}, {0, 1, 0}, 5, 0, record), (std::vector<uint8_t>{0, 1, 0}));
-    EXPECT_EQ(toHost(record), (std::vector<uint32_t>{6, 0, 6}));
-    EXPECT_EQ(keepFrame({0, 1, 2}, {1, 1, 1}, 6, 0, record), (std::vector<uint8_t>{1, 1, 1}));
+    Records r(3);
+    EXPECT_EQ(keepFrame({0, 1, 2}, {0, 1, 0}, 5, 0, r), (std::vector<uint8_t>{0, 1, 0}));
+    EXPECT_EQ(toHost(r.seen), (std::vector<uint32_t>{6, 0, 6}));
+    keepFrame({0, 1, 2}, {1, 1, 1}, 6, 0, r);
+    EXPECT_EQ(keepFrame({0, 1, 2}, {0, 1, 1}, 7, 0, r), (std::vector<uint8_t>{0, 1, 1}));
+    EXPECT_EQ(keepFrame({0, 1, 2}, {1, 1, 1}, 8, 0, r), (std::vector<uint8_t>{1, 1, 1}));
 }
 
 TEST_F(KeepVisible, AFrameEarlierThanTheRecordKeepsNothing) {
-    auto record = toDevice(std::vector<uint32_t>{31});  // seen at frame 30
-    EXPECT_EQ(keepFrame({0}, {1}, 29, 8, record), (std::vector<uint8_t>{1}));
-    // The same frame again (a re-run): it was seen in it, so it stays.
-    EXPECT_EQ(keepFrame({0}, {1}, 30, 8, record), (std::vector<uint8_t>{0}));
+    Records r(1);
+    keepFrame({0}, {0}, 30, 8, r);
+    keepFrame({0}, {1}, 31, 8, r);
+    keepFrame({0}, {0}, 32, 8, r);  // a flicker
+    EXPECT_EQ(keepFrame({0}, {1}, 29, 8, r), (std::vector<uint8_t>{1}));
 }
 
 TEST_F(KeepVisible, NewlyVisibleMeansVisibleAndUnseenWithinTheWindow) {

@@ -157,3 +157,17 @@ TEST_F(Compact, LargeRandomInputMatchesASerialFilter) {
     EXPECT_EQ(compact(flags, 2), indices);
     EXPECT_EQ(compact(flags, 2, ids), selected);
 }
+
+TEST_F(Compact, TheUnionOfTwoAscendingListsHasEachIdOnceInOrder) {
+    const auto run = [](const std::vector<uint32_t>& a, const std::vector<uint32_t>& b) {
+        const auto da = toDevice(a), db = toDevice(b);
+        auto out = toDevice(std::vector<uint32_t>(a.size() + b.size() + 1, 7u));
+        const uint32_t n = unionAscending(da.ptr(), uint32_t(a.size()), db.ptr(), uint32_t(b.size()), out.ptr());
+        return toHost(out, n);
+    };
+    EXPECT_EQ(run({1, 4, 9, 12}, {2, 4, 12, 30}), (std::vector<uint32_t>{1, 2, 4, 9, 12, 30}));
+    EXPECT_EQ(run({}, {3, 5}), (std::vector<uint32_t>{3, 5}));
+    EXPECT_EQ(run({3, 5}, {}), (std::vector<uint32_t>{3, 5}));
+    EXPECT_TRUE(run({}, {}).empty());
+    EXPECT_EQ(run({0, 1, 2}, {0, 1, 2}), (std::vector<uint32_t>{0, 1, 2}));
+}
