@@ -240,15 +240,19 @@ void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
     // raster's time, with the same culling (docs/results.md).
     if (options_.raster == OccluderRaster::Masked)
         k::sortFrontToBack(scene_.objects.ptr(), occluders_.ptr(), occluder_count_, camera, occluder_keys_);
-    k::gatherOccluders(scene_.objects.ptr(), scene_.world.ptr(), scene_.meshes(), occluders_.ptr(), occluder_count_,
-                       occluder_geometry_, &camera.eye);
-    k::appendNearClipped(occluder_geometry_, camera);
-    const k::OccluderGeometry& g = occluder_geometry_;
+    stats.aos_size = occluder_count_;
+    stats.occluder_triangles = rasterObjects(camera, occluders_.ptr(), occluder_count_, occluder_geometry_, hzm_.ptr());
+}
+
+uint64_t Pipeline::rasterObjects(const k::Camera& camera, k::DevicePtr<const uint32_t> ids, uint32_t count,
+                                 k::OccluderGeometry& geometry, k::DevicePtr<float> depth) {
+    k::gatherOccluders(scene_.objects.ptr(), scene_.world.ptr(), scene_.meshes(), ids, count, geometry, &camera.eye);
+    k::appendNearClipped(geometry, camera);
+    const k::OccluderGeometry& g = geometry;
     const auto raster = options_.raster == OccluderRaster::Masked ? k::maskedDepthRaster : k::depthRaster;
     raster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(), g.edge_neighbours.ptr(),
-           camera, hzm_.ptr(), raster_scratch_, /*seams=*/true);
-    stats.aos_size = occluder_count_;
-    stats.occluder_triangles = g.triangle_total;
+           camera, depth, raster_scratch_, /*seams=*/true);
+    return g.triangle_total;
 }
 
 k::DevicePtr<const float> Pipeline::visibleShares(const k::Camera& camera, k::DevicePtr<const uint32_t> pvs,
@@ -460,15 +464,8 @@ void Pipeline::latePass(const k::Camera& camera, uint64_t frame, FrameStats& sta
                               uint64_t(occluder_budget_), pvs_occluder_scratch_, late_occluders_.ptr());
     clock.lap(Stage::OccluderSelect);
     if (chosen == 0) return;
-    k::gatherOccluders(scene_.objects.ptr(), scene_.world.ptr(), scene_.meshes(), late_occluders_.ptr(), chosen,
-                       late_geometry_, &camera.eye);
-    k::appendNearClipped(late_geometry_, camera);
-    const k::OccluderGeometry& g = late_geometry_;
-    const auto raster = options_.raster == OccluderRaster::Masked ? k::maskedDepthRaster : k::depthRaster;
-    raster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(), g.edge_neighbours.ptr(),
-           camera, late_depth_.ptr(), raster_scratch_, /*seams=*/true);
     stats.aos_size += chosen;
-    stats.occluder_triangles += g.triangle_total;
+    stats.occluder_triangles += rasterObjects(camera, late_occluders_.ptr(), chosen, late_geometry_, late_depth_.ptr());
     clock.lap(Stage::DepthRaster);
     k::mergeNearest(hzm_.ptr(), late_depth_.ptr(), options_.width * options_.height);
     k::hzmBuild(hzm_.ptr(), options_.width, options_.height);

@@ -245,6 +245,10 @@ public:
 private:
     void chooseOccluders(const k::Camera& camera, k::DevicePtr<const uint32_t> source, uint32_t source_count);
     void rasterOccluders(const k::Camera& camera, FrameStats& stats);
+    // Gathers objects ids[0, count) at full detail, near-clips them and rasters them into depth
+    // (W x H, cleared first) with the chosen raster; returns the triangles rastered.
+    uint64_t rasterObjects(const k::Camera& camera, k::DevicePtr<const uint32_t> ids, uint32_t count,
+                           k::OccluderGeometry& geometry, k::DevicePtr<float> depth);
     // The frustum objects the HZM does not prove hidden, into out (ascending); returns how many.
     void adaptOccluderBudget(const FrameStats& stats);
     uint32_t hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out);
