@@ -83,13 +83,28 @@ struct SetupTriangles {
     // no centre, and the passes after this one read their byte, not their 64-byte line.
     uint8_t* drawn;
     int64_t last_x, last_y;  // viewport size - 1
-    // null, or per triangle the stored edges found shared across a seam (a second pass over
-    // the triangles listed in `only`, which then take the tie rule there and no box margin)
-    const uint8_t* seam_edges = nullptr;
+    // A second pass over some drawn triangles (seams): null, or the positions in the drawn
+    // list (DepthRasterScratch::drawn_ids, drawn_setup) of the triangles to set up again, with
+    // per position the stored edges found shared across a seam, which then take the tie rule
+    // and no box margin. The pass writes drawn_setup[position] instead of setup[t].
     const uint32_t* only = nullptr;
+    const uint32_t* drawn_ids = nullptr;
+    const uint8_t* seam_edges = nullptr;
+    DepthRasterTriangle* drawn_setup = nullptr;
+
+    // The pixels whose centres lie in the snapped box [x_min, x_max] x [y_min, y_max] shrunk by
+    // `margin`, within the viewport (empty when lo > hi).
+    OCC_HD void pixelBox(int64_t x_min, int64_t x_max, int64_t y_min, int64_t y_max, int64_t margin, int64_t& x_lo,
+                         int64_t& x_hi, int64_t& y_lo, int64_t& y_hi) const {
+        x_lo = max64(0, -floorDiv(-(x_min + margin - kHalfPixel), kUnits));
+        x_hi = min64(last_x, floorDiv(x_max - margin - kHalfPixel, kUnits));
+        y_lo = max64(0, -floorDiv(-(y_min + margin - kHalfPixel), kUnits));
+        y_hi = min64(last_y, floorDiv(y_max - margin - kHalfPixel, kUnits));
+    }
 
     OCC_HD void operator()(uint32_t i) const {
-        const uint32_t t = only ? only[i] : i;
+        const uint32_t position = only ? only[i] : 0u;
+        const uint32_t t = only ? drawn_ids[position] : i;
         // Most triangles of a detailed occluder cover no pixel centre: leave as early as possible.
         drawn[t] = 0;
         const DepthRasterVertex c0 = vertices[triangles[3 * t]], v1 = vertices[triangles[3 * t + 1]],
@@ -99,6 +114,13 @@ struct SetupTriangles {
         if (area2 == 0) return;
         // A back face of a closed mesh seen from outside: its front faces are nearer wherever it is.
         if (area2 < 0 && edge_flags && (edge_flags[t] & kEdgeFlagSkipBackFace)) return;
+        // Most triangles hold no pixel centre even without a margin: leave before the
+        // neighbours' corners are fetched.
+        const int64_t x_min = min64(c0.x, min64(v1.x, v2.x)), x_max = max64(c0.x, max64(v1.x, v2.x));
+        const int64_t y_min = min64(c0.y, min64(v1.y, v2.y)), y_max = max64(c0.y, max64(v1.y, v2.y));
+        int64_t x_lo, x_hi, y_lo, y_hi;
+        pixelBox(x_min, x_max, y_min, y_max, 0, x_lo, x_hi, y_lo, y_hi);
+        if (x_lo > x_hi || y_lo > y_hi) return;
         uint32_t flags = edge_flags ? edge_flags[t] & 7u : 0u;
         // A shared edge is inside the occluder's image only when the neighbour across it is
         // drawn too and faces the same way on screen: then the two lie on either side of it.
@@ -124,15 +146,11 @@ struct SetupTriangles {
         // box shrunk by the margin: 256*x + 128 in [min + margin, max - margin]. (The box side
         // at a corner is that far in when both edges at the corner keep the margin; shrinking
         // only triangles without a shared edge keeps it simple and loses next to nothing.)
-        const uint32_t seams = seam_edges ? seam_edges[t] : 0u;
-        const int64_t margin = flags || seams ? 0 : kMargin;
-        const int64_t x_min = min64(c0.x, min64(v1.x, v2.x)), x_max = max64(c0.x, max64(v1.x, v2.x));
-        const int64_t y_min = min64(c0.y, min64(v1.y, v2.y)), y_max = max64(c0.y, max64(v1.y, v2.y));
-        const int64_t x_lo = max64(0, -floorDiv(-(x_min + margin - kHalfPixel), kUnits));
-        const int64_t x_hi = min64(last_x, floorDiv(x_max - margin - kHalfPixel, kUnits));
-        const int64_t y_lo = max64(0, -floorDiv(-(y_min + margin - kHalfPixel), kUnits));
-        const int64_t y_hi = min64(last_y, floorDiv(y_max - margin - kHalfPixel, kUnits));
-        if (x_lo > x_hi || y_lo > y_hi) return;
+        const uint32_t seams = only ? seam_edges[position] : 0u;
+        if (!flags && !seams) {
+            pixelBox(x_min, x_max, y_min, y_max, kMargin, x_lo, x_hi, y_lo, y_hi);
+            if (x_lo > x_hi || y_lo > y_hi) return;
+        }
 
         // Both windings are drawn: store it counter-clockwise.
         const bool reversed = area2 < 0;
@@ -170,7 +188,7 @@ struct SetupTriangles {
         const float push = addRn(kDepthRasterEpsilon, mulRn(magnitude, 1.0f / (1 << 20)));
         s.z_ref = float(addRn(ref, double(push)));
         s.lower_bound = minf(c0.z, minf(c1.z, c2.z));
-        setup[t] = s;
+        (only ? drawn_setup[position] : setup[t]) = s;
         drawn[t] = 1;
     }
 };
@@ -178,9 +196,7 @@ struct SetupTriangles {
 // Seams between occluders. A boundary edge is one of a drawn triangle (one whose box holds a
 // pixel centre) that keeps the margin there; each is keyed by its two world-space endpoints
 // taken in either order, so that the two sides of a seam get the same key.
-OCC_HD inline uint32_t boundaryEdges(const DepthRasterTriangle* setup, const uint8_t* drawn, uint32_t t) {
-    return drawn[t] ? 7u & ~setup[t].shared_edges : 0u;
-}
+OCC_HD inline uint32_t boundaryEdges(const DepthRasterTriangle& s) { return 7u & ~s.shared_edges; }
 
 // The vertex indices of stored edge k of triangle t: from stored corner k+1 to k+2.
 OCC_HD inline void storedEdge(const uint32_t* triangles, const DepthRasterTriangle& s, uint32_t t, uint32_t k,
@@ -231,32 +247,41 @@ OCC_HD inline uint64_t edgeKey(const glm::vec3& p, const glm::vec3& q) {
     return h;
 }
 
-struct CountBoundaryEdges {
+// The passes from here on take the drawn triangles' list (DepthRasterScratch::drawn_ids and
+// drawn_setup): a triangle is its position i there, triangle drawn_ids[i] of the input.
+struct GatherDrawn {
     const DepthRasterTriangle* setup;
-    const uint8_t* drawn;
+    const uint32_t* drawn_ids;
+    DepthRasterTriangle* drawn_setup;
+    OCC_HD void operator()(uint32_t i) const { drawn_setup[i] = setup[drawn_ids[i]]; }
+};
+
+struct CountBoundaryEdges {
+    const DepthRasterTriangle* setup;  // drawn_setup
     uint32_t* counts;
-    OCC_HD void operator()(uint32_t t) const {
-        const uint32_t bits = boundaryEdges(setup, drawn, t);
-        counts[t] = (bits & 1u) + (bits >> 1 & 1u) + (bits >> 2 & 1u);
+    OCC_HD void operator()(uint32_t i) const {
+        const uint32_t bits = boundaryEdges(setup[i]);
+        counts[i] = (bits & 1u) + (bits >> 1 & 1u) + (bits >> 2 & 1u);
     }
 };
 
 struct EmitBoundaryEdges {
-    const DepthRasterTriangle* setup;
-    const uint8_t* drawn;
+    const DepthRasterTriangle* setup;  // drawn_setup
+    const uint32_t* drawn_ids;
     const uint32_t* triangles;
     const glm::vec3* positions;
     const uint32_t* first;
-    uint32_t* ids;
+    uint32_t* ids;  // 3 * position + stored edge
     uint64_t* keys;
-    OCC_HD void operator()(uint32_t t) const {
-        const uint32_t bits = boundaryEdges(setup, drawn, t);
-        uint32_t at = first[t];
+    OCC_HD void operator()(uint32_t i) const {
+        const uint32_t t = drawn_ids[i];
+        const uint32_t bits = boundaryEdges(setup[i]);
+        uint32_t at = first[i];
         for (uint32_t k = 0; k < 3; ++k) {
             if (!(bits >> k & 1u)) continue;
             uint32_t a, b;
-            storedEdge(triangles, setup[t], t, k, a, b);
-            ids[at] = 3 * t + k;
+            storedEdge(triangles, setup[i], t, k, a, b);
+            ids[at] = 3 * i + k;
             keys[at] = edgeKey(positions[a], positions[b]);
             ++at;
         }
@@ -267,23 +292,26 @@ struct EmitBoundaryEdges {
 // has the same two endpoints the other way round (the triangle across). Neighbours of equal
 // key are next to it; a run of equal keys is a handful of edges.
 struct MatchSeams {
-    const DepthRasterTriangle* setup;
+    const DepthRasterTriangle* setup;  // drawn_setup
+    const uint32_t* drawn_ids;
     const uint32_t* triangles;
     const glm::vec3* positions;
     const uint32_t* ids;
     const uint64_t* keys;
     uint32_t count;
-    uint8_t* seam_edges;  // written by the thread of the edge's only boundary entry: no races
+    uint8_t* seam_edges;  // 3 per position, each written by the thread of its only boundary entry
     OCC_HD bool across(uint32_t i, const glm::vec3& a, const glm::vec3& b) const {
-        const uint32_t t = ids[i] / 3, k = ids[i] % 3;
+        const uint32_t p = ids[i] / 3, k = ids[i] % 3;
         uint32_t c, d;
-        storedEdge(triangles, setup[t], t, k, c, d);
+        storedEdge(triangles, setup[p], drawn_ids[p], k, c, d);
         return samePoint(positions[c], b) && samePoint(positions[d], a);
     }
     OCC_HD void operator()(uint32_t i) const {
-        const uint32_t t = ids[i] / 3, k = ids[i] % 3;
+        // Most keys are unique: nothing to fetch then.
+        if (!(i > 0 && keys[i - 1] == keys[i]) && !(i + 1 < count && keys[i + 1] == keys[i])) return;
+        const uint32_t p = ids[i] / 3, k = ids[i] % 3;
         uint32_t ia, ib;
-        storedEdge(triangles, setup[t], t, k, ia, ib);
+        storedEdge(triangles, setup[p], drawn_ids[p], k, ia, ib);
         const glm::vec3 a = positions[ia], b = positions[ib];
         if (samePoint(a, b)) return;
         bool found = false;
@@ -291,20 +319,21 @@ struct MatchSeams {
         for (uint32_t j = i + 1; j < count && keys[j] == keys[i] && !found; ++j) found = across(j, a, b);
         // One byte per (triangle, edge), each written by this edge's thread alone; a second
         // pass packs them per triangle.
-        if (found) seam_edges[3 * t + k] = 1;
+        if (found) seam_edges[3 * p + k] = 1;
     }
 };
 
 // Per triangle, its three per-edge marks into the bits SetupTriangles takes.
 struct GatherSeamBits {
-    const uint8_t* marks;  // 3 per triangle
+    const uint8_t* marks;  // 3 per position
     uint8_t* bits;
-    OCC_HD void operator()(uint32_t t) const {
-        bits[t] = uint8_t(marks[3 * t] | marks[3 * t + 1] << 1 | marks[3 * t + 2] << 2);
+    OCC_HD void operator()(uint32_t i) const {
+        bits[i] = uint8_t(marks[3 * i] | marks[3 * i + 1] << 1 | marks[3 * i + 2] << 2);
     }
 };
 
-struct HasSeam {
+// Whether a triangle's byte is set (drawn, or has seam bits).
+struct ByteSet {
     const uint8_t* bits;
     OCC_HD bool operator()(uint32_t t) const { return bits[t] != 0; }
 };
@@ -317,7 +346,7 @@ struct HasSeam {
 // same slower: Thrust's TBB sort allocates and copies its temporaries on every call, which
 // with the sort itself was a quarter of a call on 1.7 M triangles.)
 struct ChunkGrid {
-    uint32_t tri_count, chunk_size, chunk_count, tiles_x;
+    uint32_t tri_count, chunk_size, chunk_count, tiles_x;  // tri_count: entries of the drawn list
     uint32_t tile_w_log2, tile_h_log2;
 
     OCC_HD uint32_t chunkBegin(uint32_t chunk) const {
@@ -331,15 +360,13 @@ struct ChunkGrid {
 };
 
 struct CountPerChunk {
-    const DepthRasterTriangle* setup;
-    const uint8_t* drawn;
+    const DepthRasterTriangle* setup;  // drawn_setup
     uint64_t* counts;
     ChunkGrid grid;
 
     OCC_HD void operator()(uint32_t chunk) const {
-        for (uint32_t t = grid.chunkBegin(chunk); t < grid.chunkEnd(chunk); ++t) {
-            if (!drawn[t]) continue;
-            const DepthRasterTriangle& s = setup[t];
+        for (uint32_t i = grid.chunkBegin(chunk); i < grid.chunkEnd(chunk); ++i) {
+            const DepthRasterTriangle& s = setup[i];
             for (uint32_t ty = s.y_lo >> grid.tile_h_log2; ty <= uint32_t(s.y_hi) >> grid.tile_h_log2; ++ty)
                 for (uint32_t tx = s.x_lo >> grid.tile_w_log2; tx <= uint32_t(s.x_hi) >> grid.tile_w_log2; ++tx)
                     ++counts[grid.cell(tx, ty, chunk)];
@@ -351,19 +378,17 @@ struct CountPerChunk {
 // chunk is done, cursor[cell] is the end of the cell, so a tile's triangles are
 // [end of the previous tile's last cell, end of its own last cell).
 struct FillPerChunk {
-    const DepthRasterTriangle* setup;
-    const uint8_t* drawn;
+    const DepthRasterTriangle* setup;  // drawn_setup
     uint64_t* cursor;
-    uint32_t* pair_triangle;
+    uint32_t* pair_triangle;  // positions in the drawn list
     ChunkGrid grid;
 
     OCC_HD void operator()(uint32_t chunk) const {
-        for (uint32_t t = grid.chunkBegin(chunk); t < grid.chunkEnd(chunk); ++t) {
-            if (!drawn[t]) continue;
-            const DepthRasterTriangle& s = setup[t];
+        for (uint32_t i = grid.chunkBegin(chunk); i < grid.chunkEnd(chunk); ++i) {
+            const DepthRasterTriangle& s = setup[i];
             for (uint32_t ty = s.y_lo >> grid.tile_h_log2; ty <= uint32_t(s.y_hi) >> grid.tile_h_log2; ++ty)
                 for (uint32_t tx = s.x_lo >> grid.tile_w_log2; tx <= uint32_t(s.x_hi) >> grid.tile_w_log2; ++tx)
-                    pair_triangle[cursor[grid.cell(tx, ty, chunk)]++] = t;
+                    pair_triangle[cursor[grid.cell(tx, ty, chunk)]++] = i;
         }
     }
 };
@@ -608,41 +633,43 @@ namespace {
 
 // Finds the seams (see depthRaster) among the set-up triangles and sets them up again with the
 // tie rule on those edges.
-void seams(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count, SetupTriangles setup,
-           DepthRasterScratch& scratch) {
+void seams(const glm::vec3* positions, const uint32_t* triangles, SetupTriangles setup, DepthRasterScratch& scratch) {
     const thrust::counting_iterator<uint32_t> first(0);
-    DepthRasterTriangle* const triangle_setup = raw(scratch.setup.ptr());
-    scratch.edge_first.resize(uint64_t(tri_count) + 1);
+    DepthRasterTriangle* const drawn_setup = raw(scratch.drawn_setup.ptr());
+    const uint32_t drawn_count = scratch.drawn_count;
+    const uint32_t* const drawn_ids = raw(scratch.drawn_ids.ptr());
+    scratch.edge_first.resize(uint64_t(drawn_count) + 1);
     uint32_t* const edge_first = raw(scratch.edge_first.ptr());
-    const uint8_t* const drawn = raw(scratch.drawn.ptr());
-    thrust::for_each_n(thrust::device, first, tri_count, CountBoundaryEdges{triangle_setup, drawn, edge_first});
-    thrust::fill(thrust::device, edge_first + tri_count, edge_first + tri_count + 1, 0u);
-    thrust::exclusive_scan(thrust::device, edge_first, edge_first + tri_count + 1, edge_first);
-    const uint32_t count = readBack(DevicePtr<const uint32_t>(scratch.edge_first.ptr() + tri_count));
+    thrust::for_each_n(thrust::device, first, drawn_count, CountBoundaryEdges{drawn_setup, edge_first});
+    thrust::fill(thrust::device, edge_first + drawn_count, edge_first + drawn_count + 1, 0u);
+    thrust::exclusive_scan(thrust::device, edge_first, edge_first + drawn_count + 1, edge_first);
+    const uint32_t count = readBack(DevicePtr<const uint32_t>(scratch.edge_first.ptr() + drawn_count));
     if (count < 2) return;
     scratch.edge_ids.resize(count);
     scratch.edge_keys.resize(count);
     uint32_t* const ids = raw(scratch.edge_ids.ptr());
     uint64_t* const keys = raw(scratch.edge_keys.ptr());
-    thrust::for_each_n(thrust::device, first, tri_count,
-                       EmitBoundaryEdges{triangle_setup, drawn, triangles, positions, edge_first, ids, keys});
+    thrust::for_each_n(thrust::device, first, drawn_count,
+                       EmitBoundaryEdges{drawn_setup, drawn_ids, triangles, positions, edge_first, ids, keys});
     thrust::sort_by_key(thrust::device, keys, keys + count, ids);
-    scratch.seam_edges.resize(3 * uint64_t(tri_count));
+    scratch.seam_edges.resize(3 * uint64_t(drawn_count));
     uint8_t* const marks = raw(scratch.seam_edges.ptr());
-    thrust::fill(thrust::device, marks, marks + 3 * uint64_t(tri_count), uint8_t(0));
+    thrust::fill(thrust::device, marks, marks + 3 * uint64_t(drawn_count), uint8_t(0));
     thrust::for_each_n(thrust::device, first, count,
-                       MatchSeams{triangle_setup, triangles, positions, ids, keys, count, marks});
-    scratch.seam_triangles.resize(std::max<uint32_t>(1, tri_count));
+                       MatchSeams{drawn_setup, drawn_ids, triangles, positions, ids, keys, count, marks});
+    scratch.seam_triangles.resize(std::max<uint32_t>(1, drawn_count));
     uint32_t* const affected = raw(scratch.seam_triangles.ptr());
-    DeviceArray<uint8_t>& bits_array = scratch.seam_bits;
-    bits_array.resize(std::max<uint32_t>(1, tri_count));
-    uint8_t* const bits = raw(bits_array.ptr());
-    thrust::for_each_n(thrust::device, first, tri_count, GatherSeamBits{marks, bits});
-    const uint32_t n = uint32_t(thrust::copy_if(thrust::device, first, first + tri_count, affected, HasSeam{bits}) - affected);
+    scratch.seam_bits.resize(std::max<uint32_t>(1, drawn_count));
+    uint8_t* const bits = raw(scratch.seam_bits.ptr());
+    thrust::for_each_n(thrust::device, first, drawn_count, GatherSeamBits{marks, bits});
+    const uint32_t n =
+        uint32_t(thrust::copy_if(thrust::device, first, first + drawn_count, affected, ByteSet{bits}) - affected);
     countReadback(sizeof n);
     if (n == 0) return;
-    setup.seam_edges = bits;
     setup.only = affected;
+    setup.drawn_ids = drawn_ids;
+    setup.seam_edges = bits;
+    setup.drawn_setup = drawn_setup;
     thrust::for_each_n(thrust::device, first, n, setup);
 }
 
@@ -665,7 +692,18 @@ void depthRasterSetup(const glm::vec3* positions, const uint32_t* triangles, uin
                                raw(scratch.setup.ptr()), raw(scratch.drawn.ptr()), int64_t(camera.width) - 1,
                                int64_t(camera.height) - 1};
     thrust::for_each_n(thrust::device, first, tri_count, setup);
-    if (with_seams) seams(positions, triangles, tri_count, setup, scratch);
+    // The list of drawn triangles, which every later pass walks instead of all of them (on the
+    // plant walks 3 occluder triangles in 4 hold no pixel centre). Seams only move margins of
+    // drawn triangles, so the list stays what it is.
+    scratch.drawn_ids.resize(tri_count);
+    uint32_t* const drawn_ids = raw(scratch.drawn_ids.ptr());
+    scratch.drawn_count = uint32_t(
+        thrust::copy_if(thrust::device, first, first + tri_count, drawn_ids, ByteSet{raw(scratch.drawn.ptr())}) - drawn_ids);
+    countReadback(sizeof scratch.drawn_count);
+    scratch.drawn_setup.resize(std::max<uint32_t>(1, scratch.drawn_count));
+    thrust::for_each_n(thrust::device, first, scratch.drawn_count,
+                       GatherDrawn{raw(scratch.setup.ptr()), drawn_ids, raw(scratch.drawn_setup.ptr())});
+    if (with_seams) seams(positions, triangles, setup, scratch);
 }
 
 TileBins binTriangles(uint32_t tri_count, uint32_t width, uint32_t height, uint32_t tile_w_log2,
@@ -674,23 +712,25 @@ TileBins binTriangles(uint32_t tri_count, uint32_t width, uint32_t height, uint3
     const uint32_t tiles_x = (width + tile_w - 1) / tile_w, tiles_y = (height + tile_h - 1) / tile_h;
     const uint32_t tile_count = tiles_x * tiles_y;
     // Enough chunks to keep every core busy, few enough that the count matrix stays small.
-    const uint64_t wanted_chunks = (tri_count + kChunkTriangles - 1) / kChunkTriangles;
+    // The drawn triangles are what is binned (tri_count 0: nothing was set up).
+    const uint32_t drawn = tri_count > 0 ? scratch.drawn_count : 0u;
+    const uint64_t wanted_chunks = (drawn + kChunkTriangles - 1) / kChunkTriangles;
     const uint32_t chunk_count = uint32_t(std::max<uint64_t>(1, std::min(wanted_chunks, kMaxCountCells / tile_count)));
-    const ChunkGrid grid{tri_count, (tri_count + chunk_count - 1) / chunk_count, chunk_count, tiles_x, tile_w_log2,
+    const ChunkGrid grid{drawn, (drawn + chunk_count - 1) / chunk_count, chunk_count, tiles_x, tile_w_log2,
                          tile_h_log2};
     const uint64_t cell_count = uint64_t(tile_count) * chunk_count;
     scratch.cells.resize(cell_count + 1);
     uint64_t* cells = raw(scratch.cells.ptr());
     thrust::fill(thrust::device, cells, cells + cell_count + 1, uint64_t(0));
-    if (tri_count > 0) {
+    if (drawn > 0) {
         const thrust::counting_iterator<uint32_t> first(0);
         thrust::for_each_n(thrust::device, first, chunk_count,
-                           CountPerChunk{raw(scratch.setup.ptr()), raw(scratch.drawn.ptr()), cells, grid});
+                           CountPerChunk{raw(scratch.drawn_setup.ptr()), cells, grid});
         // One more cell than there are, counting 0, so that the scan leaves the total there.
         thrust::exclusive_scan(thrust::device, cells, cells + cell_count + 1, cells);
         scratch.pair_triangle.resize(readBack(DevicePtr<const uint64_t>(scratch.cells.ptr() + cell_count)));
         thrust::for_each_n(thrust::device, first, chunk_count,
-                           FillPerChunk{raw(scratch.setup.ptr()), raw(scratch.drawn.ptr()), cells,
+                           FillPerChunk{raw(scratch.drawn_setup.ptr()), cells,
                                         raw(scratch.pair_triangle.ptr()), grid});
     }
     return TileBins{tile_w_log2, tile_h_log2, tiles_x, tiles_y, chunk_count, cells, raw(scratch.pair_triangle.ptr())};
@@ -714,7 +754,7 @@ DepthTiles depthRasterFrontEnd(DevicePtr<const glm::vec3> position_memory, Devic
                          camera, scratch, with_seams);
     static_assert(kTile == 1u << 5);
     const TileBins bins = binTriangles(tri_count, camera.width, camera.height, 5, 5, scratch);
-    return DepthTiles{raw(scratch.setup.ptr()), bins, raw(depth_memory), camera.width, camera.height};
+    return DepthTiles{raw(scratch.drawn_setup.ptr()), bins, raw(depth_memory), camera.width, camera.height};
 }
 
 void rasterTilesScalar(const DepthTiles& t) {

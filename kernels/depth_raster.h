@@ -58,16 +58,19 @@ struct DepthRasterScratch {
     DeviceArray<DepthRasterVertex> vertices;  // largest index + 1
     DeviceArray<DepthRasterTriangle> setup;   // tri_count (entries of undrawn triangles stale)
     DeviceArray<uint8_t> drawn;               // tri_count: 1 where setup holds a drawn triangle
+    DeviceArray<uint32_t> drawn_ids;          // tri_count: the drawn triangles, ascending
+    uint32_t drawn_count = 0;                 // entries of drawn_ids in use
+    DeviceArray<DepthRasterTriangle> drawn_setup;  // drawn_count: setup of drawn_ids[i], seams applied
     DeviceArray<uint64_t> cells;              // (tiles x binning chunks) + 1 counts, then offsets
-    DeviceArray<uint32_t> pair_triangle;      // one per (tile, triangle) pair, grouped by tile
+    DeviceArray<uint32_t> pair_triangle;      // one per (tile, triangle) pair, grouped by tile: drawn position
     // Seams between occluders (see depthRaster): the boundary edges of drawn triangles, their
     // keys, and per triangle the edges found shared across.
     DeviceArray<uint32_t> edge_first;         // tri_count + 1: exclusive scan of boundary edges
     DeviceArray<uint32_t> edge_ids;           // 3 * triangle + stored edge, one per boundary edge
     DeviceArray<uint64_t> edge_keys;          // hash of the edge's world endpoints, unordered
-    DeviceArray<uint8_t> seam_edges;          // 3 * tri_count: 1 where a stored edge is shared across
-    DeviceArray<uint8_t> seam_bits;           // tri_count: the same as bits per triangle
-    DeviceArray<uint32_t> seam_triangles;     // the triangles with such bits
+    DeviceArray<uint8_t> seam_edges;          // 3 per drawn triangle: 1 where a stored edge is shared across
+    DeviceArray<uint8_t> seam_bits;           // per drawn triangle: the same as bits
+    DeviceArray<uint32_t> seam_triangles;     // the drawn positions of triangles with such bits
 };
 
 // Marks the edges that a triangle list shares within itself, once per mesh: flags[t] gets bit e

@@ -49,7 +49,7 @@ MaskedBands maskedFrontEnd(DevicePtr<const glm::vec3> positions, DevicePtr<const
                          scratch, seams);
     // A band spans the viewport: 2^15 columns is the widest there is.
     const TileBins bins = binTriangles(tri_count, camera.width, camera.height, 15, kMaskedBandRowsLog2, scratch);
-    return MaskedBands{raw(scratch.setup.ptr()), bins, raw(depth), camera.width, camera.height};
+    return MaskedBands{raw(scratch.drawn_setup.ptr()), bins, raw(depth), camera.width, camera.height};
 }
 
 void rasterSubtiles(const MaskedBands& bands) {

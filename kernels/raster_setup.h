@@ -172,7 +172,10 @@ OCC_HD inline float planeDepth(const DepthRasterTriangle& s, uint32_t px, uint32
 // The front end both rasters share: projects, snaps and sets up the triangles as depthRaster's
 // contract says (skip rules, margins, shared edges, seams when `seams`) into scratch.vertices
 // and scratch.setup, with scratch.drawn[t] = 1 where setup[t] holds a triangle whose box has
-// a pixel centre and 0 where the triangle is skipped (setup[t] then stale). tri_count > 0.
+// a pixel centre and 0 where the triangle is skipped (setup[t] then stale), and those drawn
+// triangles listed in ascending order in scratch.drawn_ids (scratch.drawn_count), their setup
+// copied to scratch.drawn_setup in that order (seams applied there): the later passes read
+// that dense copy, not the sparse lines of scratch.setup. tri_count > 0.
 void depthRasterSetup(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
                       const uint8_t* edge_flags, const uint32_t* edge_neighbours, const Camera& camera,
                       DepthRasterScratch& scratch, bool seams);
@@ -183,7 +186,8 @@ void checkRasterViewport(const Camera& camera, const char* who);
 
 // Screen tiles of (1 << tile_w_log2) x (1 << tile_h_log2) pixels and the triangles overlapping
 // each, as binTriangles leaves them in the scratch: tile t = ty * tiles_x + tx lists the
-// indices pair_triangle[tileBegin(t), tileEnd(t)), in increasing triangle order.
+// positions in the drawn list (scratch.drawn_setup) pair_triangle[tileBegin(t), tileEnd(t)),
+// in increasing order.
 struct TileBins {
     uint32_t tile_w_log2, tile_h_log2, tiles_x, tiles_y, chunk_count;
     const uint64_t* cell_end;  // scratch.cells once binning is done
@@ -193,8 +197,9 @@ struct TileBins {
     OCC_HD uint64_t tileEnd(uint32_t tile) const { return cell_end[uint64_t(tile + 1) * chunk_count - 1]; }
 };
 
-// Bins the set-up triangles in scratch.setup (tri_count of them, may be 0) to the tiles of a
-// width x height viewport, by the pixel box of each (x_lo..x_hi, y_lo..y_hi). Deterministic.
+// Bins the drawn triangles of scratch.setup (those scratch.drawn_ids lists, as the setup left
+// it; none when tri_count is 0) to the tiles of a width x height viewport, by the pixel box of
+// each (x_lo..x_hi, y_lo..y_hi). Deterministic.
 TileBins binTriangles(uint32_t tri_count, uint32_t width, uint32_t height, uint32_t tile_w_log2,
                       uint32_t tile_h_log2, DepthRasterScratch& scratch);
 
