@@ -501,6 +501,7 @@ struct RasterTiles {
             const uint32_t x_lo = s.x_lo > px0 ? s.x_lo : px0, x_hi = s.x_hi < px1 - 1 ? s.x_hi : px1 - 1;
             const uint32_t y_lo = s.y_lo > py0 ? s.y_lo : py0, y_hi = s.y_hi < py1 - 1 ? s.y_hi : py1 - 1;
             if (x_lo > x_hi || y_lo > y_hi) continue;
+            if (!EdgeFunctions(s).mayCover(x_lo, x_hi, y_lo, y_hi)) continue;
             if (hidden(nearest, s.lower_bound, x_lo - px0, x_hi - px0, y_lo - py0, y_hi - py0)) continue;
             for (uint32_t y = y_lo; y <= y_hi; ++y)
                 drawTriangleRow(s, y, x_lo, x_hi, nearest + (y - py0) * kTile + (x_lo - px0));
@@ -543,7 +544,8 @@ __global__ void rasterTilesWarp(const DepthRasterTriangle* setup, TileBins bins,
         const DepthRasterTriangle& s = setup[bins.pair_triangle[i]];
         const uint32_t x_lo = s.x_lo > px0 ? s.x_lo : px0, x_hi = s.x_hi < px1 - 1 ? s.x_hi : px1 - 1;
         const uint32_t y_lo = s.y_lo > py0 ? s.y_lo : py0, y_hi = s.y_hi < py1 - 1 ? s.y_hi : py1 - 1;
-        if (x_lo > x_hi || y_lo > y_hi) continue;  // the same for every lane
+        // Both the same for every lane.
+        if (x_lo > x_hi || y_lo > y_hi || !EdgeFunctions(s).mayCover(x_lo, x_hi, y_lo, y_hi)) continue;
         const bool mine = y >= y_lo && y <= y_hi;
         uint32_t farther = 0;
         if (mine)

@@ -184,10 +184,11 @@ void RasterTile(const DepthTiles& job, uint32_t tile) {
         const uint32_t x_lo = std::max<uint32_t>(s.x_lo, px0), x_hi = std::min<uint32_t>(s.x_hi, px1 - 1);
         const uint32_t y_lo = std::max<uint32_t>(s.y_lo, py0), y_hi = std::min<uint32_t>(s.y_hi, py1 - 1);
         if (x_lo > x_hi || y_lo > y_hi) continue;
-        if (hidden(nearest, s.lower_bound, x_lo - px0, x_hi - px0, y_lo - py0, y_hi - py0, iota)) continue;
-
-        // The edge functions of RasterTiles, from the centre of pixel (x_lo, y_lo).
+        // The edge functions of RasterTiles.
         const EdgeFunctions e(s);
+        if (!e.mayCover(x_lo, x_hi, y_lo, y_hi)) continue;
+        if (hidden(nearest, s.lower_bound, x_lo - px0, x_hi - px0, y_lo - py0, y_hi - py0, iota)) continue;
+        // From the centre of pixel (x_lo, y_lo).
         EdgeRows edges[3];
         for (int k = 0; k < 3; ++k) edges[k].start(e.inside(k, x_lo, y_lo), -e.ey[k] * kUnits, e.ex[k] * kUnits);
         const int64_t columns = int64_t(x_hi - x_lo) + 1;

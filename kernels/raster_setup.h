@@ -158,6 +158,15 @@ struct EdgeFunctions {
     OCC_HD bool covers(int64_t px, int64_t py) const {
         return (inside(0, px, py) | inside(1, px, py) | inside(2, px, py)) >= 0;
     }
+    // Whether a centre of the pixel box [x_lo, x_hi] x [y_lo, y_hi] may be covered: false when,
+    // for some edge, even the box's corner farthest inside it is outside (inside() grows with x
+    // where ey < 0 and with y where ex > 0). Long thin triangles cross most tiles of their
+    // pixel box nowhere: on the 10^4 plant walk, 6 (tile, triangle) pairs in 10.
+    OCC_HD bool mayCover(int64_t x_lo, int64_t x_hi, int64_t y_lo, int64_t y_hi) const {
+        for (int k = 0; k < 3; ++k)
+            if (inside(k, ey[k] < 0 ? x_hi : x_lo, ex[k] > 0 ? y_hi : y_lo) < 0) return false;
+        return true;
+    }
 };
 
 // The plane's value at pixel (px, py) of the triangle's box, in the float arithmetic and order
