@@ -16,6 +16,10 @@
 #include <thrust/sort.h>
 #include <thrust/scan.h>
 
+#if !defined(__CUDACC__)
+#include <tbb/parallel_for.h>
+#endif
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -728,6 +732,22 @@ void seams(const glm::vec3* positions, const uint32_t* triangles, SetupTriangles
     thrust::for_each_n(thrust::device, first, n, setup);
 }
 
+#if !defined(__CUDACC__)
+// On the CPU, blocks of triangles in parallel, each looked at a vector at a time first
+// (setupCandidatesCpu): most occluder triangles hold no pixel centre, and leave there.
+void setupTrianglesCpu(const SetupTriangles& setup, uint32_t tri_count) {
+    constexpr uint32_t kBlock = 2048;
+    tbb::parallel_for(0u, (tri_count + kBlock - 1) / kBlock, [&](uint32_t block) {
+        const uint32_t begin = block * kBlock, end = std::min(tri_count, begin + kBlock);
+        std::fill(setup.drawn + begin, setup.drawn + end, uint8_t(0));
+        uint32_t candidates[kBlock];
+        const uint32_t n = setupCandidatesCpu(setup.vertices, setup.triangles, begin, end, int32_t(setup.last_x),
+                                              int32_t(setup.last_y), candidates);
+        for (uint32_t i = 0; i < n; ++i) setup(candidates[i]);
+    });
+}
+#endif
+
 }  // namespace
 
 void depthRasterSetup(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
@@ -746,7 +766,11 @@ void depthRasterSetup(const glm::vec3* positions, const uint32_t* triangles, uin
     const SetupTriangles setup{raw(scratch.vertices.ptr()), triangles, edge_flags, edge_neighbours, tri_count,
                                raw(scratch.setup.ptr()), raw(scratch.drawn.ptr()), int64_t(camera.width) - 1,
                                int64_t(camera.height) - 1};
+#if defined(__CUDACC__)
     thrust::for_each_n(thrust::device, first, tri_count, setup);
+#else
+    setupTrianglesCpu(setup, tri_count);
+#endif
     // The list of drawn triangles, which every later pass walks instead of all of them (on the
     // plant walks 3 occluder triangles in 4 hold no pixel centre). Seams only move margins of
     // drawn triangles, so the list stays what it is.

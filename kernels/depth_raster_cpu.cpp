@@ -168,6 +168,50 @@ void fillSpan(float* row, uint32_t a, uint32_t b, float row_depth, float gx, int
 
 }  // namespace
 
+uint32_t SetupCandidates(const DepthRasterVertex* vertices, const uint32_t* triangles, uint32_t begin, uint32_t end,
+                         int32_t last_x, int32_t last_y, uint32_t* out) {
+    static_assert(sizeof(DepthRasterVertex) == 16, "4 words a vertex: x, y, z, drawn");
+    const hn::ScalableTag<int32_t> di;
+    const hn::ScalableTag<uint32_t> du;
+    const uint32_t n = uint32_t(hn::Lanes(di));
+    const int32_t* const words = reinterpret_cast<const int32_t*>(vertices);
+    const auto iota = hn::Iota(di, 0);
+    const auto zero = hn::Zero(di);
+    const auto half = hn::Set(di, int32_t(kHalfPixel)), round_up = hn::Set(di, int32_t(kUnits - 1));
+    const auto vlast_x = hn::Set(di, last_x), vlast_y = hn::Set(di, last_y);
+    static_assert(kUnits == 256, "snapped units to pixels by a shift of 8");
+    uint32_t count = 0;
+    for (uint32_t t0 = begin; t0 < end; t0 += n) {
+        const uint32_t lanes = std::min(n, end - t0);
+        const auto live = hn::FirstN(di, lanes);
+        const auto t = hn::Add(iota, hn::Set(di, int32_t(t0)));
+        // Lanes past the end read triangle t0 again (Highway 1.0 has no masked gather).
+        const auto corner0 = hn::Mul(hn::IfThenElse(live, t, hn::Set(di, int32_t(t0))), hn::Set(di, 3));
+        hn::Vec<decltype(di)> x[3], y[3];
+        auto drawn = hn::Set(di, 1);
+        for (int c = 0; c < 3; ++c) {
+            const auto index =
+                hn::GatherIndex(di, reinterpret_cast<const int32_t*>(triangles), hn::Add(corner0, hn::Set(di, c)));
+            const auto word = hn::ShiftLeft<2>(index);  // 4 words a vertex
+            x[c] = hn::GatherIndex(di, words, word);
+            y[c] = hn::GatherIndex(di, words + 1, word);
+            drawn = hn::And(drawn, hn::GatherIndex(di, words + 3, word));
+        }
+        const auto x_min = hn::Min(x[0], hn::Min(x[1], x[2])), x_max = hn::Max(x[0], hn::Max(x[1], x[2]));
+        const auto y_min = hn::Min(y[0], hn::Min(y[1], y[2])), y_max = hn::Max(y[0], hn::Max(y[1], y[2]));
+        // SetupTriangles::pixelBox with no margin: the first centre at or after the minimum
+        // (a ceiling, by flooring after adding 255) and the last at or before the maximum.
+        const auto x_lo = hn::Max(zero, hn::ShiftRight<8>(hn::Add(hn::Sub(x_min, half), round_up)));
+        const auto x_hi = hn::Min(vlast_x, hn::ShiftRight<8>(hn::Sub(x_max, half)));
+        const auto y_lo = hn::Max(zero, hn::ShiftRight<8>(hn::Add(hn::Sub(y_min, half), round_up)));
+        const auto y_hi = hn::Min(vlast_y, hn::ShiftRight<8>(hn::Sub(y_max, half)));
+        const auto keep = hn::And(hn::And(live, hn::Gt(drawn, zero)),
+                                  hn::And(hn::Not(hn::Gt(x_lo, x_hi)), hn::Not(hn::Gt(y_lo, y_hi))));
+        count += uint32_t(hn::CompressStore(hn::BitCast(du, t), hn::RebindMask(du, keep), du, out + count));
+    }
+    return count;
+}
+
 void RasterTile(const DepthTiles& job, uint32_t tile) {
     const TileBins& bins = job.bins;
     const uint32_t px0 = tile % bins.tiles_x * kTile, py0 = tile / bins.tiles_x * kTile;
@@ -228,6 +272,16 @@ const TileFunction kTiles[kSimdLevels] = {HWY_CHOOSE_AVX3(RasterTile), HWY_CHOOS
 void depthRasterTilesCpu(const DepthTiles& tiles) {
     const TileFunction raster = pickSimd(kTiles);
     tbb::parallel_for(0u, tiles.bins.tiles_x * tiles.bins.tiles_y, [&](uint32_t t) { raster(tiles, t); });
+}
+
+uint32_t setupCandidatesCpu(const DepthRasterVertex* vertices, const uint32_t* triangles, uint32_t begin, uint32_t end,
+                            int32_t last_x, int32_t last_y, uint32_t* out) {
+    using CandidateFunction = uint32_t (*)(const DepthRasterVertex*, const uint32_t*, uint32_t, uint32_t, int32_t, int32_t,
+                                           uint32_t*);
+    static const CandidateFunction kCandidates[kSimdLevels] = {
+        HWY_CHOOSE_AVX3(SetupCandidates), HWY_CHOOSE_AVX2(SetupCandidates), HWY_CHOOSE_SSE4(SetupCandidates),
+        HWY_CHOOSE_FALLBACK(SetupCandidates)};
+    return pickSimd(kCandidates)(vertices, triangles, begin, end, last_x, last_y, out);
 }
 
 const char* depthRasterCpuTarget() {

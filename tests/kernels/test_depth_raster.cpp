@@ -3,6 +3,7 @@
 #include "hzm.h"
 #include "hzm_build.h"
 #include "occluder_gather.h"
+#include "simd_level.h"
 
 #include "device_test_support.h"
 #include "raster_fixtures.h"
@@ -15,7 +16,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <random>
+#include <set>
 #include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -913,6 +916,46 @@ TEST_F(DepthRaster, RandomScenesMatchScalarReferenceBitForBit) {
     }
 }
 
+// The CPU build's SIMD code (the setup's first look at each triangle, the tile loop) at every
+// instruction set this machine runs, against the per-pixel reference, with and without shared
+// edges: the copies Highway makes for narrower machines must draw what AVX-512 draws.
+TEST_F(DepthRaster, EverySimdLevelMatchesTheReferenceBitForBit) {
+    struct Restore {
+        ~Restore() { setSimdCeiling(SimdLevel::Avx512); }
+    } restore;
+    std::set<std::string> ran;
+    for (int level = 0; level < kSimdLevels; ++level) {
+        setSimdCeiling(SimdLevel(level));
+        const std::string target = depthRasterTarget();
+        if (target == "CUDA") return;
+        if (!ran.insert(target).second) continue;  // this CPU has no such level
+        std::mt19937 rng(101 + level);
+        DepthRasterScratch scratch;
+        const uint32_t sizes[][3] = {{77, 45, 3000}, {256, 256, 9000}, {31, 97, 4099}};
+        for (const auto& size : sizes) {
+            const Camera c = perspectiveCamera(size[0], size[1]);
+            const Mesh mesh = randomScene(rng, size[2]);
+            const std::vector<float> depth = rasterize(mesh, c, scratch);
+            EXPECT_EQ(depth, referenceRaster(mesh, c)) << target << " " << size[0] << "x" << size[1];
+            EXPECT_GT(coveredCount(depth), 0) << target;
+            const Mesh shared = randomSharedScene(rng, size[2] / 20);
+            const std::vector<uint8_t> flags = sharedFlags(shared);
+            EXPECT_EQ(rasterize(shared, c, scratch, flags), referenceRaster(shared, c, flags))
+                << target << " shared " << size[0] << "x" << size[1];
+        }
+        // Corners on pixel centres and half pixels: every rounding of the box tests shows.
+        for (uint32_t w : {8u, 33u}) {
+            const Camera c = identityCamera(w, w);
+            const Mesh grid = gridScene(rng, c, 400);
+            EXPECT_EQ(rasterize(grid, c, scratch), referenceRaster(grid, c)) << target << " grid " << w;
+            const Mesh halves = gridOnHalfPixels(rng, c, 40);
+            const std::vector<uint8_t> flags = sharedFlags(halves);
+            EXPECT_EQ(rasterize(halves, c, scratch, flags), referenceRaster(halves, c, flags))
+                << target << " half pixels " << w;
+        }
+    }
+    EXPECT_GE(ran.size(), 2u);  // at least one SIMD copy and the portable one
+}
 
 // Seams between occluders: every triangle of a tessellated wall on vertices of its own (as the
 // wall's quads would be if each were another object), rastered with seams, is the welded wall
