@@ -3,12 +3,15 @@
 
 #include "depth_raster.h"
 
+#include "device_access.h"
 #include "layout_access.h"
 #include "scan.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
+#include <thrust/functional.h>
 #include <thrust/iterator/counting_iterator.h>
+#include <thrust/transform_reduce.h>
 
 namespace occ::k {
 
@@ -121,20 +124,30 @@ void gatherOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const glm::m
 
 namespace {
 
+struct WidenByte {
+    OCC_HD uint64_t operator()(uint8_t x) const { return x; }
+};
+
 // clip.z + clip.w of a world point: >= 0 in front of the near plane (OpenGL clip space).
 struct NearDistance {
     glm::vec4 row;  // row 2 + row 3 of view_proj
     OCC_HD float operator()(const glm::vec3& p) const { return row.x * p.x + row.y * p.y + row.z * p.z + row.w; }
 };
 
-struct CountNearClipped {
+// Per vertex, 1 when it is in front of the near plane.
+struct NearSides {
     const glm::vec3* positions;
-    const uint32_t* triangles;
     NearDistance near;
+    uint8_t* front;
+    OCC_HD void operator()(uint64_t v) const { front[v] = near(positions[v]) > 0.0f ? 1u : 0u; }
+};
+
+struct CountNearClipped {
+    const uint8_t* front;
+    const uint32_t* triangles;
     uint32_t* counts;
     OCC_HD void operator()(uint32_t t) const {
-        uint32_t in = 0;
-        for (int c = 0; c < 3; ++c) in += near(positions[triangles[3 * t + c]]) > 0.0f ? 1u : 0u;
+        const uint32_t in = front[triangles[3 * t]] + front[triangles[3 * t + 1]] + front[triangles[3 * t + 2]];
         counts[t] = in == 1 ? 1u : in == 2 ? 2u : 0u;  // 0 and 3: nothing to add
     }
 };
@@ -205,11 +218,22 @@ uint64_t appendNearClipped(OccluderGeometry& g, const Camera& camera) {
     if (triangles == 0 || triangles > UINT32_MAX) return 0;
     const glm::mat4& m = camera.view_proj;  // m[column][row]
     const NearDistance near{glm::vec4(m[0][2] + m[0][3], m[1][2] + m[1][3], m[2][2] + m[2][3], m[3][2] + m[3][3])};
+    // Which side each vertex is on, once: when every vertex is on one side no triangle crosses
+    // (the usual case away from walls and floors), and the triangles' count reads a byte a
+    // corner instead of a position.
+    g.front.growTo(vertices);
+    uint8_t* const front = raw(g.front.ptr());
+    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), vertices,
+                       NearSides{raw(g.positions.ptr()), near, front});
+    const uint64_t in_front = thrust::transform_reduce(thrust::device, front, front + vertices, WidenByte{}, uint64_t(0),
+                                                       thrust::plus<uint64_t>());
+    countReadback(sizeof in_front);
+    if (in_front == 0 || in_front == vertices) return 0;
     g.sizes.growTo(triangles);
     g.offsets.growTo(triangles);
     const auto n = uint32_t(triangles);
     thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), n,
-                       CountNearClipped{raw(g.positions.ptr()), raw(g.triangles.ptr()), near, raw(g.sizes.ptr())});
+                       CountNearClipped{front, raw(g.triangles.ptr()), raw(g.sizes.ptr())});
     const uint64_t added = exclusiveScan(g.sizes.ptr(), n, g.offsets.ptr());
     if (added == 0) return 0;
     growKeeping(g.positions, vertices + 3 * added);

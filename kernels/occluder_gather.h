@@ -29,6 +29,7 @@ struct OccluderGeometry {
     uint64_t vertex_total = 0, triangle_total = 0;
     DeviceArray<uint32_t> sizes;            // scratch: per occluder, vertex then triangle counts
     DeviceArray<uint64_t> offsets;          // scratch: their exclusive scans
+    DeviceArray<uint8_t> front;             // scratch: per vertex, in front of the near plane
 };
 
 // Gathers objects ids[0, count) (device memory, any order, count may be 0): occluder j's
