@@ -741,8 +741,8 @@ void setupTrianglesCpu(const SetupTriangles& setup, uint32_t tri_count) {
         const uint32_t begin = block * kBlock, end = std::min(tri_count, begin + kBlock);
         std::fill(setup.drawn + begin, setup.drawn + end, uint8_t(0));
         uint32_t candidates[kBlock];
-        const uint32_t n = setupCandidatesCpu(setup.vertices, setup.triangles, begin, end, int32_t(setup.last_x),
-                                              int32_t(setup.last_y), candidates);
+        const uint32_t n = setupCandidatesCpu(setup.vertices, setup.triangles, setup.edge_flags, begin, end,
+                                              int32_t(setup.last_x), int32_t(setup.last_y), candidates);
         for (uint32_t i = 0; i < n; ++i) setup(candidates[i]);
     });
 }

@@ -168,18 +168,51 @@ void fillSpan(float* row, uint32_t a, uint32_t b, float row_depth, float gx, int
 
 }  // namespace
 
-uint32_t SetupCandidates(const DepthRasterVertex* vertices, const uint32_t* triangles, uint32_t begin, uint32_t end,
-                         int32_t last_x, int32_t last_y, uint32_t* out) {
+// The signed doubled area (v1 - v0) x (v2 - v0) of each lane's snapped triangle, exactly: the
+// differences fit 32 bits (corners within the guard band, 2^28 units), the products need 64,
+// made a pair of lanes at a time. Per 32-bit lane: all ones where the area is not 0, and where
+// it is negative.
+template <class DI, class V>
+void areaSigns(DI di, const V (&x)[3], const V (&y)[3], V& nonzero, V& negative) {
+    const V dx1 = hn::Sub(x[1], x[0]), dy1 = hn::Sub(y[1], y[0]);
+    const V dx2 = hn::Sub(x[2], x[0]), dy2 = hn::Sub(y[2], y[0]);
+#if HWY_TARGET == HWY_SCALAR
+    // One lane: no pairs to make.
+    const int64_t area = int64_t(hn::GetLane(dx1)) * hn::GetLane(dy2) - int64_t(hn::GetLane(dy1)) * hn::GetLane(dx2);
+    nonzero = hn::Set(di, area != 0 ? -1 : 0);
+    negative = hn::Set(di, area < 0 ? -1 : 0);
+#else
+    const hn::Repartition<int64_t, DI> dw;
+    // The odd lanes moved down into the even ones, which MulEven multiplies.
+    const auto odd = [&](V v) { return hn::BitCast(di, hn::ShiftRight<32>(hn::BitCast(dw, v))); };
+    const auto even_area = hn::Sub(hn::MulEven(dx1, dy2), hn::MulEven(dy1, dx2));
+    const auto odd_area = hn::Sub(hn::MulEven(odd(dx1), odd(dy2)), hn::MulEven(odd(dy1), odd(dx2)));
+    const auto zero = hn::Zero(dw);
+    // A 64-bit lane of all ones is two 32-bit lanes of all ones: take the even 32-bit lanes
+    // from the even areas and the odd ones from the odd areas.
+    nonzero = hn::OddEven(hn::BitCast(di, hn::VecFromMask(dw, hn::Ne(odd_area, zero))),
+                          hn::BitCast(di, hn::VecFromMask(dw, hn::Ne(even_area, zero))));
+    negative = hn::OddEven(hn::BitCast(di, hn::VecFromMask(dw, hn::Lt(odd_area, zero))),
+                           hn::BitCast(di, hn::VecFromMask(dw, hn::Lt(even_area, zero))));
+#endif
+}
+
+uint32_t SetupCandidates(const DepthRasterVertex* vertices, const uint32_t* triangles, const uint8_t* edge_flags,
+                         uint32_t begin, uint32_t end, int32_t last_x, int32_t last_y, uint32_t* out) {
     static_assert(sizeof(DepthRasterVertex) == 16, "4 words a vertex: x, y, z, drawn");
     const hn::ScalableTag<int32_t> di;
     const hn::ScalableTag<uint32_t> du;
+    const hn::Rebind<uint8_t, decltype(di)> d8;
     const uint32_t n = uint32_t(hn::Lanes(di));
     const int32_t* const words = reinterpret_cast<const int32_t*>(vertices);
     const auto iota = hn::Iota(di, 0);
     const auto zero = hn::Zero(di);
     const auto half = hn::Set(di, int32_t(kHalfPixel)), round_up = hn::Set(di, int32_t(kUnits - 1));
     const auto vlast_x = hn::Set(di, last_x), vlast_y = hn::Set(di, last_y);
+    const auto shared_bits = hn::Set(di, 7), back_face_bit = hn::Set(di, int32_t(kEdgeFlagSkipBackFace));
+    const auto margin = hn::Set(di, int32_t(kMargin));
     static_assert(kUnits == 256, "snapped units to pixels by a shift of 8");
+    HWY_ALIGN uint8_t flag_lanes[hn::MaxLanes(d8)] = {};
     uint32_t count = 0;
     for (uint32_t t0 = begin; t0 < end; t0 += n) {
         const uint32_t lanes = std::min(n, end - t0);
@@ -197,16 +230,29 @@ uint32_t SetupCandidates(const DepthRasterVertex* vertices, const uint32_t* tria
             y[c] = hn::GatherIndex(di, words + 1, word);
             drawn = hn::And(drawn, hn::GatherIndex(di, words + 3, word));
         }
+        auto flags = zero;
+        if (edge_flags) {
+            std::copy(edge_flags + t0, edge_flags + t0 + lanes, flag_lanes);
+            flags = hn::PromoteTo(di, hn::Load(d8, flag_lanes));
+        }
+        // SetupTriangles' tests in its order: corners drawn, a non-zero area, not a back face
+        // it may skip, a pixel centre in the box, shrunk by the margin when no edge is shared
+        // (sharing that the neighbours' test may take away, never add).
+        hn::Vec<decltype(di)> nonzero, negative;
+        areaSigns(di, x, y, nonzero, negative);
+        const auto back_face = hn::And(negative, hn::VecFromMask(di, hn::Ne(hn::And(flags, back_face_bit), zero)));
+        const auto pad = hn::IfThenElseZero(hn::Eq(hn::And(flags, shared_bits), zero), margin);
         const auto x_min = hn::Min(x[0], hn::Min(x[1], x[2])), x_max = hn::Max(x[0], hn::Max(x[1], x[2]));
         const auto y_min = hn::Min(y[0], hn::Min(y[1], y[2])), y_max = hn::Max(y[0], hn::Max(y[1], y[2]));
-        // SetupTriangles::pixelBox with no margin: the first centre at or after the minimum
-        // (a ceiling, by flooring after adding 255) and the last at or before the maximum.
-        const auto x_lo = hn::Max(zero, hn::ShiftRight<8>(hn::Add(hn::Sub(x_min, half), round_up)));
-        const auto x_hi = hn::Min(vlast_x, hn::ShiftRight<8>(hn::Sub(x_max, half)));
-        const auto y_lo = hn::Max(zero, hn::ShiftRight<8>(hn::Add(hn::Sub(y_min, half), round_up)));
-        const auto y_hi = hn::Min(vlast_y, hn::ShiftRight<8>(hn::Sub(y_max, half)));
-        const auto keep = hn::And(hn::And(live, hn::Gt(drawn, zero)),
-                                  hn::And(hn::Not(hn::Gt(x_lo, x_hi)), hn::Not(hn::Gt(y_lo, y_hi))));
+        // SetupTriangles::pixelBox: the first centre at or after the padded minimum (a ceiling,
+        // by flooring after adding 255) and the last at or before the padded maximum.
+        const auto x_lo = hn::Max(zero, hn::ShiftRight<8>(hn::Add(hn::Sub(hn::Add(x_min, pad), half), round_up)));
+        const auto x_hi = hn::Min(vlast_x, hn::ShiftRight<8>(hn::Sub(hn::Sub(x_max, pad), half)));
+        const auto y_lo = hn::Max(zero, hn::ShiftRight<8>(hn::Add(hn::Sub(hn::Add(y_min, pad), half), round_up)));
+        const auto y_hi = hn::Min(vlast_y, hn::ShiftRight<8>(hn::Sub(hn::Sub(y_max, pad), half)));
+        const auto keep = hn::And(hn::And(hn::And(live, hn::Gt(drawn, zero)),
+                                          hn::And(hn::Not(hn::Gt(x_lo, x_hi)), hn::Not(hn::Gt(y_lo, y_hi)))),
+                                  hn::And(hn::Ne(nonzero, zero), hn::Eq(back_face, zero)));
         count += uint32_t(hn::CompressStore(hn::BitCast(du, t), hn::RebindMask(du, keep), du, out + count));
     }
     return count;
@@ -274,14 +320,14 @@ void depthRasterTilesCpu(const DepthTiles& tiles) {
     tbb::parallel_for(0u, tiles.bins.tiles_x * tiles.bins.tiles_y, [&](uint32_t t) { raster(tiles, t); });
 }
 
-uint32_t setupCandidatesCpu(const DepthRasterVertex* vertices, const uint32_t* triangles, uint32_t begin, uint32_t end,
-                            int32_t last_x, int32_t last_y, uint32_t* out) {
-    using CandidateFunction = uint32_t (*)(const DepthRasterVertex*, const uint32_t*, uint32_t, uint32_t, int32_t, int32_t,
-                                           uint32_t*);
+uint32_t setupCandidatesCpu(const DepthRasterVertex* vertices, const uint32_t* triangles, const uint8_t* edge_flags,
+                            uint32_t begin, uint32_t end, int32_t last_x, int32_t last_y, uint32_t* out) {
+    using CandidateFunction = uint32_t (*)(const DepthRasterVertex*, const uint32_t*, const uint8_t*, uint32_t, uint32_t,
+                                           int32_t, int32_t, uint32_t*);
     static const CandidateFunction kCandidates[kSimdLevels] = {
         HWY_CHOOSE_AVX3(SetupCandidates), HWY_CHOOSE_AVX2(SetupCandidates), HWY_CHOOSE_SSE4(SetupCandidates),
         HWY_CHOOSE_FALLBACK(SetupCandidates)};
-    return pickSimd(kCandidates)(vertices, triangles, begin, end, last_x, last_y, out);
+    return pickSimd(kCandidates)(vertices, triangles, edge_flags, begin, end, last_x, last_y, out);
 }
 
 const char* depthRasterCpuTarget() {

@@ -223,12 +223,14 @@ struct DepthTiles {
 
 #if !defined(__CUDACC__)
 // The CPU's first look at triangles [begin, end) (kernels/depth_raster_cpu.cpp), a vector of
-// them at a time: writes to out, in increasing order, those whose three corners are drawn and
-// whose snapped box holds the centre of a pixel in [0, last_x] x [0, last_y], and returns how
-// many. Every triangle the setup draws is among them (its box test is the same with no
-// margin); on the 10^4 plant walk they are half of them, and a quarter is drawn.
-uint32_t setupCandidatesCpu(const DepthRasterVertex* vertices, const uint32_t* triangles, uint32_t begin, uint32_t end,
-                            int32_t last_x, int32_t last_y, uint32_t* out);
+// them at a time: writes to out, in increasing order, those whose three corners are drawn, whose
+// snapped area is not 0, that are not back faces they may skip (edge_flags, which may be null),
+// and whose snapped box holds the centre of a pixel in [0, last_x] x [0, last_y] (the box shrunk
+// by the margin when their flags share no edge), and returns how many. Every triangle the setup
+// draws is among them: these are its own tests, before the neighbours across shared edges may
+// take the sharing away.
+uint32_t setupCandidatesCpu(const DepthRasterVertex* vertices, const uint32_t* triangles, const uint8_t* edge_flags,
+                            uint32_t begin, uint32_t end, int32_t last_x, int32_t last_y, uint32_t* out);
 // The CPU's tile loop (kernels/depth_raster_cpu.cpp): every tile in parallel, in SIMD, the same
 // bits as the one-thread-per-tile loop of depth_raster.cu.
 void depthRasterTilesCpu(const DepthTiles& tiles);
