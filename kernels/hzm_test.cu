@@ -2,6 +2,7 @@
 #include "hzm_test.h"
 
 #include "device_access.h"
+#include "hzm_box_image.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/iterator/counting_iterator.h>
@@ -11,21 +12,22 @@
 
 #include <cfloat>
 
+#if !defined(__CUDACC__)
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#endif
+
 namespace occ::k {
 
 namespace {
 
 constexpr float kDepthEpsilon = 1e-6f;
 
-// A box's image as both tests read it: the level-0 pixel rectangle [x0, x1] x [y0, y1] its
-// corners' window rectangle touches, clipped to the viewport, and its nearest window depth.
-// False when no texel can say anything about the box: a corner on or behind the near plane, a
-// non-finite corner, or a rectangle entirely outside the viewport.
-struct BoxImage {
-    uint32_t x0, x1, y0, y1;
-    float z_min;
-};
-
+// A box's image as both tests read it (BoxImage). False when no texel can say anything about the
+// box: a corner on or behind the near plane, a non-finite corner, or a rectangle entirely outside
+// the viewport. The CPU build's hzmTest computes the same bits a vector of boxes at a time
+// (boxImagesCpu); keep the two in step.
 OCC_HD inline bool boxImage(const Aabb& box, const glm::mat4& view_proj, float near_plane, float w0, float h0,
                             BoxImage& image) {
     // The projection is linear, so corner c is the min corner's image plus the images of the
@@ -91,6 +93,11 @@ struct HzmOcclusion {
         const float w0 = float(hzm.width[0]), h0 = float(hzm.height[0]);
         BoxImage image;
         if (!boxImage(objects[ids[j]].aabb, view_proj, near_plane, w0, h0, image)) return 0;
+        return hidden(image);
+    }
+
+    // Whether the pyramid hides the box whose image this is.
+    OCC_HD uint8_t hidden(const BoxImage& image) const {
         const uint32_t x0 = image.x0, x1 = image.x1, y0 = image.y0, y1 = image.y1;
         const float z_min = image.z_min;
 
@@ -128,12 +135,12 @@ struct HzmOcclusion {
         constexpr uint32_t kStack = 4 + 3 * kHzmMaxLevels + 64;
         Texel stack[kStack];
         uint32_t top = 0;
-        const auto hidden = [&](uint32_t l, uint32_t x, uint32_t y) {
+        const auto settles = [&](uint32_t l, uint32_t x, uint32_t y) {
             return z_min > texels[hzm.offset[l] + uint64_t(y) * hzm.width[l] + x] + kDepthEpsilon;
         };
         for (uint32_t ty = y0 >> level; ty <= y1 >> level; ++ty)
             for (uint32_t tx = x0 >> level; tx <= x1 >> level; ++tx)
-                if (!hidden(level, tx, ty)) {
+                if (!settles(level, tx, ty)) {
                     if (level == 0 || top == kStack) return 0;
                     stack[top++] = Texel(level, tx, ty);
                 }
@@ -148,7 +155,7 @@ struct HzmOcclusion {
             const uint32_t cy1 = 2 * ty + 1 < (y1 >> l) ? 2 * ty + 1 : (y1 >> l);
             for (uint32_t cy = cy0; cy <= cy1; ++cy)
                 for (uint32_t cx = cx0; cx <= cx1; ++cx)
-                    if (!hidden(l, cx, cy)) {
+                    if (!settles(l, cx, cy)) {
                         if (l == 0 || top == kStack) return 0;
                         stack[top++] = Texel(l, cx, cy);
                     }
@@ -254,12 +261,39 @@ void hzmVisibleShare(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32
                                    fromEye(inverse[2] + inverse[3])});
 }
 
-void hzmTest(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count, const Camera& camera,
-             const HzmLevels& hzm, DevicePtr<uint8_t> occluded) {
+void hzmTestScalar(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
+                   const Camera& camera, const HzmLevels& hzm, DevicePtr<uint8_t> occluded) {
     if (count == 0) return;
     thrust::transform(thrust::device, thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(count),
                       raw(occluded),
                       HzmOcclusion{raw(objects), raw(ids), camera.view_proj, camera.near_plane, hzm, raw(hzm.data)});
+}
+
+void hzmTest(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count, const Camera& camera,
+             const HzmLevels& hzm, DevicePtr<uint8_t> occluded) {
+#if defined(__CUDACC__)
+    hzmTestScalar(objects, ids, count, camera, hzm, occluded);
+#else
+    if (count == 0) return;
+    if (hzm.level_count == 0) {
+        std::fill(raw(occluded), raw(occluded) + count, uint8_t(0));
+        return;
+    }
+    // Blocks of boxes in parallel, each block's images a SIMD vector of boxes at a time.
+    const HzmOcclusion test{raw(objects), raw(ids), camera.view_proj, camera.near_plane, hzm, raw(hzm.data)};
+    float m[16];
+    for (int i = 0; i < 16; ++i) m[i] = camera.view_proj[i / 4][i % 4];
+    constexpr uint32_t kBlock = 1024;
+    tbb::parallel_for(0u, (count + kBlock - 1) / kBlock, [&](uint32_t block) {
+        const uint32_t begin = block * kBlock, n = std::min(count - begin, kBlock);
+        BoxImage images[kBlock];
+        uint8_t valid[kBlock];
+        boxImagesCpu(raw(objects), raw(ids) + begin, n, m, camera.near_plane, float(hzm.width[0]),
+                     float(hzm.height[0]), images, valid);
+        uint8_t* const out = raw(occluded) + begin;
+        for (uint32_t i = 0; i < n; ++i) out[i] = valid[i] ? test.hidden(images[i]) : 0;
+    });
+#endif
 }
 
 }  // namespace occ::k

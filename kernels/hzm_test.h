@@ -42,6 +42,11 @@ namespace occ::k {
 void hzmTest(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count, const Camera& camera,
              const HzmLevels& hzm, DevicePtr<uint8_t> occluded);
 
+// hzmTest with one thread a box as the CUDA build runs it, whatever the build: on the CPU, the
+// reference that hzmTest's SIMD box images (kernels/hzm_test_cpu.cpp) must match bit for bit.
+void hzmTestScalar(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
+                   const Camera& camera, const HzmLevels& hzm, DevicePtr<uint8_t> occluded);
+
 // Visibility weighting (Charalambos 2006's q / alpha, estimated): for j < count, share[j] = the
 // share of objects[ids[j]]'s image an occlusion query of the box would find visible, sampled at
 // the finest level where the box's rectangle (as hzmTest projects it) spans at most 8 x 8

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "hzm_test.h"
+#include "simd_level.h"
 
 #include "device_test_support.h"
 
@@ -11,6 +12,7 @@
 #include <cstdint>
 #include <numbers>
 #include <random>
+#include <set>
 #include <vector>
 
 namespace occ::k {
@@ -301,6 +303,73 @@ TEST_F(HzmTest, RandomScenesAnswerExactlyAsLevel0Does) {
     EXPECT_GT(occluded_by_kernel, total / 10);
     EXPECT_LT(occluded_by_kernel, total * 9 / 10);
     EXPECT_EQ(occluded_by_kernel, occluded_at_level0);
+}
+
+// The CPU build's box images go a SIMD vector of boxes at a time (kernels/hzm_test_cpu.cpp): at
+// every instruction set this machine runs, hzmTest answers exactly as the one-box-a-thread loop
+// does and as level 0 does, on random scenes with boxes across the edges, across and behind the
+// near plane, huge, and with NaN and infinite corners, over counts that end mid-vector.
+TEST_F(HzmTest, EverySimdLevelAnswersAsTheScalarLoopAndLevel0) {
+    struct Restore {
+        ~Restore() { setSimdCeiling(SimdLevel::Avx512); }
+    } restore;
+    std::set<SimdLevel> ran;
+    for (int level = 0; level < kSimdLevels; ++level) {
+        setSimdCeiling(SimdLevel(level));
+        if (!ran.insert(simdLevel()).second) continue;  // this CPU has no such level
+        std::mt19937 rng(777 + level);
+        std::uniform_real_distribution<float> unit(0, 1);
+        uint64_t occluded = 0, total = 0;
+        for (int scene = 0; scene < 6; ++scene) {
+            const uint32_t width = 1 + rng() % 97, height = 1 + rng() % 61;
+            const Camera camera = straightAhead(width, height);
+            std::vector<float> depth(size_t(width) * height, scene % 2 ? windowDepth(camera, 10 + 20 * unit(rng)) : 1.0f);
+            for (int wall = 0; wall < 6; ++wall) {
+                const uint32_t x0 = rng() % width, y0 = rng() % height;
+                const uint32_t x1 = x0 + rng() % (width - x0), y1 = y0 + rng() % (height - y0);
+                const float d = windowDepth(camera, 2 + 20 * unit(rng));
+                for (uint32_t y = y0; y <= y1; ++y)
+                    for (uint32_t x = x0; x <= x1; ++x) depth[y * width + x] = std::min(depth[y * width + x], d);
+            }
+            const Pyramid pyramid = buildPyramid(depth, width, height);
+            const float aspect = float(width) / float(height);
+            std::vector<ObjectInfo> boxes;
+            const uint32_t count = 1500 + uint32_t(rng() % 17);  // not a whole number of vectors
+            for (uint32_t i = 0; i < count; ++i) {
+                const float dist = (i % 50 == 0 ? -5.0f : 0.5f) + 40 * unit(rng);  // some behind the eye
+                const glm::vec3 centre((unit(rng) * 2.4f - 1.2f) * dist * aspect, (unit(rng) * 2.4f - 1.2f) * dist, -dist);
+                glm::vec3 half = glm::vec3(unit(rng), unit(rng), unit(rng)) * (0.02f + 0.3f * dist * unit(rng));
+                if (i % 97 == 0) half *= 1e4f;  // far beyond the viewport
+                ObjectInfo box = boxObject(centre - half, centre + half);
+                if (i % 101 == 0) box.aabb.min.x = NAN;
+                if (i % 103 == 0) box.aabb.max.y = INFINITY;
+                boxes.push_back(box);
+            }
+            const DeviceArray<ObjectInfo> objects = toDevice(boxes);
+            std::vector<uint32_t> ids(count);
+            for (uint32_t j = 0; j < count; ++j) ids[j] = (j * 7919u) % count;  // scattered
+            const DeviceArray<uint32_t> ids_d = toDevice(ids);
+            DeviceArray<uint8_t> simd = test::filledDevice<uint8_t>(count, 7), scalar = test::filledDevice<uint8_t>(count, 9);
+            hzmTest(objects.ptr(), ids_d.ptr(), count, camera, pyramid.levels, simd.ptr());
+            hzmTestScalar(objects.ptr(), ids_d.ptr(), count, camera, pyramid.levels, scalar.ptr());
+            const std::vector<uint8_t> got = toHost(simd), want = toHost(scalar);
+            ASSERT_EQ(got, want) << simdLevelName(simdLevel()) << " scene " << scene;
+            for (uint32_t j = 0; j < count; ++j) {
+                const ObjectInfo& box = boxes[ids[j]];
+                if (box.aabb.min.x != box.aabb.min.x || std::isinf(box.aabb.max.y)) {
+                    EXPECT_EQ(got[j], 0) << "a box with a NaN or infinite corner is never culled";
+                    continue;
+                }
+                const Footprint f = footprint(box.aabb, camera, width, height);
+                ASSERT_EQ(got[j], referenceAtLevel0(f, depth, width)) << simdLevelName(simdLevel()) << " box " << j;
+                occluded += got[j];
+                ++total;
+            }
+        }
+        EXPECT_GT(occluded, total / 10) << simdLevelName(simdLevel());
+        EXPECT_LT(occluded, total * 9 / 10) << simdLevelName(simdLevel());
+    }
+    EXPECT_GE(ran.size(), 2u);
 }
 
 }  // namespace
