@@ -3,6 +3,8 @@
 
 #include "device_access.h"
 
+#include <algorithm>
+
 #include <thrust/copy.h>
 #include <thrust/count.h>
 #include <thrust/execution_policy.h>
@@ -83,8 +85,15 @@ uint32_t selectTopK(DevicePtr<const uint32_t> cos, DevicePtr<const float> weight
         thrust::copy_if(thrust::device, first_key, first_key + cos_count, raw(weight), key_data, IsPositive{});
     countReadback(sizeof(uint32_t));  // copy_if's count
     const auto positive = uint32_t(keys_end - key_data);
-    thrust::sort(thrust::device, key_data, keys_end);
     const uint32_t chosen = positive < k ? positive : k;
+#if defined(__CUDACC__)
+    thrust::sort(thrust::device, key_data, keys_end);
+#else
+    // Only the k smallest keys are read, in order: on the CPU a partial sort finds them (the keys
+    // are distinct, ids in their low bits, so these are the full sort's first k). Sorting all
+    // the frustum's candidates to take 16 was a third of the occluder choice on the 10^5 orbit.
+    std::partial_sort(key_data, key_data + chosen, keys_end);
+#endif
     thrust::transform(thrust::device, key_data, key_data + chosen, raw(aos), KeyToId{});
     return chosen;
 }
