@@ -22,7 +22,7 @@ namespace occ::k {
 
 namespace {
 
-constexpr float kDepthEpsilon = 1e-6f;
+constexpr float kDepthEpsilon = kHzmTestEpsilon;
 
 // A box's image as both tests read it (BoxImage). False when no texel can say anything about the
 // box: a corner on or behind the near plane, a non-finite corner, or a rectangle entirely outside
@@ -279,19 +279,24 @@ void hzmTest(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids,
         std::fill(raw(occluded), raw(occluded) + count, uint8_t(0));
         return;
     }
-    // Blocks of boxes in parallel, each block's images a SIMD vector of boxes at a time.
+    // Blocks of boxes in parallel, each block's images and first texels a SIMD vector of boxes at
+    // a time. The levels' sizes fit 32 bits: at most 4/3 of 32768^2 texels in all.
     const HzmOcclusion test{raw(objects), raw(ids), camera.view_proj, camera.near_plane, hzm, raw(hzm.data)};
     float m[16];
     for (int i = 0; i < 16; ++i) m[i] = camera.view_proj[i / 4][i % 4];
+    int32_t level_width[kHzmMaxLevels], level_offset[kHzmMaxLevels];
+    for (uint32_t l = 0; l < hzm.level_count; ++l) level_width[l] = int32_t(hzm.width[l]), level_offset[l] = int32_t(hzm.offset[l]);
     constexpr uint32_t kBlock = 1024;
     tbb::parallel_for(0u, (count + kBlock - 1) / kBlock, [&](uint32_t block) {
         const uint32_t begin = block * kBlock, n = std::min(count - begin, kBlock);
         BoxImage images[kBlock];
-        uint8_t valid[kBlock];
+        uint8_t valid[kBlock], settled[kBlock];
         boxImagesCpu(raw(objects), raw(ids) + begin, n, m, camera.near_plane, float(hzm.width[0]),
-                     float(hzm.height[0]), images, valid);
+                     float(hzm.height[0]), images, valid, raw(hzm.data), hzm.level_count, level_width, level_offset,
+                     settled);
+        // Most boxes are settled by their first texels, the rest go down the pyramid one by one.
         uint8_t* const out = raw(occluded) + begin;
-        for (uint32_t i = 0; i < n; ++i) out[i] = valid[i] ? test.hidden(images[i]) : 0;
+        for (uint32_t i = 0; i < n; ++i) out[i] = !valid[i] ? 0 : settled[i] ? 1 : test.hidden(images[i]);
     });
 #endif
 }

@@ -23,7 +23,8 @@ namespace occ::k::HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
 void BoxImages(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, const float* m, float near_plane,
-               float w0, float h0, BoxImage* images, uint8_t* valid) {
+               float w0, float h0, BoxImage* images, uint8_t* valid, const float* texels, uint32_t level_count,
+               const int32_t* level_width, const int32_t* level_offset, uint8_t* settled) {
     static_assert(sizeof(ObjectInfo) % sizeof(float) == 0 && offsetof(ObjectInfo, aabb) == 0,
                   "the box's six floats at the start of each object");
     const hn::ScalableTag<float> df;
@@ -37,7 +38,10 @@ void BoxImages(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, c
     HWY_ALIGN int32_t out_x0[hn::MaxLanes(di)], out_x1[hn::MaxLanes(di)], out_y0[hn::MaxLanes(di)],
         out_y1[hn::MaxLanes(di)];
     HWY_ALIGN float out_z[hn::MaxLanes(df)];
-    HWY_ALIGN int32_t out_ok[hn::MaxLanes(di)];
+    HWY_ALIGN int32_t out_ok[hn::MaxLanes(di)], out_settled[hn::MaxLanes(di)];
+    const hn::RebindToUnsigned<decltype(di)> du;
+    const auto izero = hn::Zero(di), ione = hn::Set(di, 1), top = hn::Set(di, int32_t(level_count) - 1);
+    const auto epsilon = hn::Set(df, kHzmTestEpsilon);
     for (uint32_t j0 = 0; j0 < count; j0 += n) {
         const uint32_t lanes = std::min(n, count - j0);
         // Lanes past the end read the first box of this vector again.
@@ -94,14 +98,53 @@ void BoxImages(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, c
         const auto y_lo = hn::Floor(hn::IfThenElse(hn::Gt(ymin, zero), ymin, zero));
         const auto y_hi = hn::Floor(hn::IfThenElse(hn::Lt(ymax, hn::Sub(vh0, one)), ymax, hn::Sub(vh0, one)));
         // Lanes that are not ok may hold anything (NaN, out of range): convert zeros there.
-        hn::Store(hn::ConvertTo(di, hn::IfThenElseZero(ok, x_lo)), di, out_x0);
-        hn::Store(hn::ConvertTo(di, hn::IfThenElseZero(ok, x_hi)), di, out_x1);
-        hn::Store(hn::ConvertTo(di, hn::IfThenElseZero(ok, y_lo)), di, out_y0);
-        hn::Store(hn::ConvertTo(di, hn::IfThenElseZero(ok, y_hi)), di, out_y1);
+        const auto x0 = hn::ConvertTo(di, hn::IfThenElseZero(ok, x_lo));
+        const auto x1 = hn::ConvertTo(di, hn::IfThenElseZero(ok, x_hi));
+        const auto y0 = hn::ConvertTo(di, hn::IfThenElseZero(ok, y_lo));
+        const auto y1 = hn::ConvertTo(di, hn::IfThenElseZero(ok, y_hi));
+        hn::Store(x0, di, out_x0);
+        hn::Store(x1, di, out_x1);
+        hn::Store(y0, di, out_y0);
+        hn::Store(y1, di, out_y1);
         hn::Store(zmin, df, out_z);
         hn::Store(hn::VecFromMask(di, hn::RebindMask(di, ok)), di, out_ok);
+
+        // HzmOcclusion::hidden's start level: ceil(log2(side)) (from the exponent of side - 1 as a
+        // float, exact: side <= 32768), one less unless 0, at most the top, then up while the
+        // image spans more than 2 texels (once at most, but checked).
+        const auto side = hn::Add(hn::Max(hn::Sub(x1, x0), hn::Sub(y1, y0)), ione);
+        const auto exponent = hn::Sub(
+            hn::BitCast(di, hn::ShiftRight<23>(hn::BitCast(du, hn::ConvertTo(df, hn::Sub(side, ione))))),
+            hn::Set(di, 126));
+        auto level = hn::IfThenElse(hn::Gt(side, ione), exponent, izero);
+        level = hn::IfThenElse(hn::Gt(level, izero), hn::Sub(level, ione), level);
+        level = hn::Min(level, top);
+        // Whether the image spans more than 2 texels across or down at level l.
+        const auto spans = [&](auto l) {
+            const auto ul = hn::BitCast(du, l);
+            const auto shifted = [&](auto v) { return hn::BitCast(di, hn::BitCast(du, v) >> ul); };
+            return hn::Or(hn::Gt(hn::Sub(shifted(x1), shifted(x0)), ione), hn::Gt(hn::Sub(shifted(y1), shifted(y0)), ione));
+        };
+        for (int step = 0; step < 2; ++step)
+            level = hn::IfThenElse(hn::And(hn::Lt(level, top), spans(level)), hn::Add(level, ione), level);
+        // Where it still spans more (the top of a pyramid cut short, or a third step needed) the
+        // test reads more than these 2x2 texels: not settled here.
+        const auto settled_level = hn::Not(spans(level));
+        // The (up to) 2x2 texels there; a side of one texel reads it twice.
+        const auto ul = hn::BitCast(du, level);
+        const auto tx0 = hn::BitCast(di, hn::BitCast(du, x0) >> ul), tx1 = hn::BitCast(di, hn::BitCast(du, x1) >> ul);
+        const auto ty0 = hn::BitCast(di, hn::BitCast(du, y0) >> ul), ty1 = hn::BitCast(di, hn::BitCast(du, y1) >> ul);
+        const auto row = hn::GatherIndex(di, level_width, level), first = hn::GatherIndex(di, level_offset, level);
+        auto hidden = hn::RebindMask(di, ok);
+        for (const auto& ty : {ty0, ty1})
+            for (const auto& tx : {tx0, tx1}) {
+                const auto texel = hn::GatherIndex(df, texels, hn::Add(first, hn::Add(hn::Mul(ty, row), tx)));
+                hidden = hn::And(hidden, hn::RebindMask(di, hn::Gt(zmin, hn::Add(texel, epsilon))));
+            }
+        hn::Store(hn::VecFromMask(di, hn::And(hidden, settled_level)), di, out_settled);
         for (uint32_t i = 0; i < lanes; ++i) {
             valid[j0 + i] = out_ok[i] != 0;
+            settled[j0 + i] = out_settled[i] != 0;
             images[j0 + i] = BoxImage{uint32_t(out_x0[i]), uint32_t(out_x1[i]), uint32_t(out_y0[i]), uint32_t(out_y1[i]),
                                       out_z[i]};
         }
@@ -115,12 +158,14 @@ HWY_AFTER_NAMESPACE();
 namespace occ::k {
 
 void boxImagesCpu(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, const float* view_proj,
-                  float near_plane, float w0, float h0, BoxImage* images, uint8_t* valid) {
+                  float near_plane, float w0, float h0, BoxImage* images, uint8_t* valid, const float* texels,
+                  uint32_t level_count, const int32_t* level_width, const int32_t* level_offset, uint8_t* settled) {
     using Function = void (*)(const ObjectInfo*, const uint32_t*, uint32_t, const float*, float, float, float, BoxImage*,
-                              uint8_t*);
+                              uint8_t*, const float*, uint32_t, const int32_t*, const int32_t*, uint8_t*);
     static const Function kImages[kSimdLevels] = {HWY_CHOOSE_AVX3(BoxImages), HWY_CHOOSE_AVX2(BoxImages),
                                                   HWY_CHOOSE_SSE4(BoxImages), HWY_CHOOSE_FALLBACK(BoxImages)};
-    pickSimd(kImages)(objects, ids, count, view_proj, near_plane, w0, h0, images, valid);
+    pickSimd(kImages)(objects, ids, count, view_proj, near_plane, w0, h0, images, valid, texels, level_count, level_width,
+                      level_offset, settled);
 }
 
 }  // namespace occ::k
