@@ -22,8 +22,6 @@ namespace occ::k {
 
 namespace {
 
-constexpr float kDepthEpsilon = kHzmTestEpsilon;
-
 // A box's image as both tests read it (BoxImage). False when no texel can say anything about the
 // box: a corner on or behind the near plane, a non-finite corner, or a rectangle entirely outside
 // the viewport. The CPU build's hzmTest computes the same bits a vector of boxes at a time
@@ -136,7 +134,7 @@ struct HzmOcclusion {
         Texel stack[kStack];
         uint32_t top = 0;
         const auto settles = [&](uint32_t l, uint32_t x, uint32_t y) {
-            return z_min > texels[hzm.offset[l] + uint64_t(y) * hzm.width[l] + x] + kDepthEpsilon;
+            return z_min > texels[hzm.offset[l] + uint64_t(y) * hzm.width[l] + x] + kHzmTestEpsilon;
         };
         for (uint32_t ty = y0 >> level; ty <= y1 >> level; ++ty)
             for (uint32_t tx = x0 >> level; tx <= x1 >> level; ++tx)
@@ -233,11 +231,11 @@ struct VisibleShare {
                 const uint32_t py0 = (ty << level) > y0 ? (ty << level) : y0;
                 const uint32_t py1 = ((ty + 1) << level) - 1 < y1 ? ((ty + 1) << level) - 1 : y1;
                 const double pixels = double(px1 - px0 + 1) * double(py1 - py0 + 1);
-                if (!(z_min > texel + kDepthEpsilon)) open += pixels;
+                if (!(z_min > texel + kHzmTestEpsilon)) open += pixels;
                 float depth;
                 if (!entryDepth(box, 0.5f * float(px0 + px1 + 1), 0.5f * float(py0 + py1 + 1), w0, h0, depth)) continue;
                 hit += pixels;
-                if (!(depth > texel + kDepthEpsilon)) hit_open += pixels;
+                if (!(depth > texel + kHzmTestEpsilon)) hit_open += pixels;
             }
         if (hit > 0) return float(hit_open / hit);
         const double all = double(x1 - x0 + 1) * double(y1 - y0 + 1);

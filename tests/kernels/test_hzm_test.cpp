@@ -255,6 +255,22 @@ uint8_t referenceAtLevel0(const Footprint& f, const std::vector<float>& depth, u
     return 1;
 }
 
+// A random level 0 for camera's viewport: far, or a back wall across the whole view, then a few
+// walls at random distances over random rectangles (nearest wins).
+std::vector<float> randomWalls(std::mt19937& rng, const Camera& camera, bool back_wall) {
+    std::uniform_real_distribution<float> unit(0, 1);
+    const uint32_t width = camera.width, height = camera.height;
+    std::vector<float> depth(size_t(width) * height, back_wall ? windowDepth(camera, 10 + 20 * unit(rng)) : 1.0f);
+    for (int wall = 0; wall < 6; ++wall) {
+        const uint32_t x0 = rng() % width, y0 = rng() % height;
+        const uint32_t x1 = x0 + rng() % (width - x0), y1 = y0 + rng() % (height - y0);
+        const float d = windowDepth(camera, 2 + 20 * unit(rng));
+        for (uint32_t y = y0; y <= y1; ++y)
+            for (uint32_t x = x0; x <= x1; ++x) depth[y * width + x] = std::min(depth[y * width + x], d);
+    }
+    return depth;
+}
+
 TEST_F(HzmTest, RandomScenesAnswerExactlyAsLevel0Does) {
     std::mt19937 rng(4242);
     std::uniform_real_distribution<float> unit(0, 1);
@@ -263,16 +279,7 @@ TEST_F(HzmTest, RandomScenesAnswerExactlyAsLevel0Does) {
         // Odd and even, tiny and non-power-of-two viewports.
         const uint32_t width = 1 + rng() % 97, height = 1 + rng() % 61;
         const Camera camera = straightAhead(width, height);
-        // Level 0: far, or in every other scene a back wall across the whole view, then a few
-        // walls at random distances over random rectangles (nearest wins).
-        std::vector<float> depth(size_t(width) * height, scene % 2 ? windowDepth(camera, 10 + 20 * unit(rng)) : 1.0f);
-        for (int wall = 0; wall < 6; ++wall) {
-            const uint32_t x0 = rng() % width, y0 = rng() % height;
-            const uint32_t x1 = x0 + rng() % (width - x0), y1 = y0 + rng() % (height - y0);
-            const float d = windowDepth(camera, 2 + 20 * unit(rng));
-            for (uint32_t y = y0; y <= y1; ++y)
-                for (uint32_t x = x0; x <= x1; ++x) depth[y * width + x] = std::min(depth[y * width + x], d);
-        }
+        const std::vector<float> depth = randomWalls(rng, camera, scene % 2 == 1);
         const Pyramid pyramid = buildPyramid(depth, width, height);
         const float aspect = float(width) / float(height);
         std::vector<ObjectInfo> boxes;
@@ -323,14 +330,7 @@ TEST_F(HzmTest, EverySimdLevelAnswersAsTheScalarLoopAndLevel0) {
         for (int scene = 0; scene < 6; ++scene) {
             const uint32_t width = 1 + rng() % 97, height = 1 + rng() % 61;
             const Camera camera = straightAhead(width, height);
-            std::vector<float> depth(size_t(width) * height, scene % 2 ? windowDepth(camera, 10 + 20 * unit(rng)) : 1.0f);
-            for (int wall = 0; wall < 6; ++wall) {
-                const uint32_t x0 = rng() % width, y0 = rng() % height;
-                const uint32_t x1 = x0 + rng() % (width - x0), y1 = y0 + rng() % (height - y0);
-                const float d = windowDepth(camera, 2 + 20 * unit(rng));
-                for (uint32_t y = y0; y <= y1; ++y)
-                    for (uint32_t x = x0; x <= x1; ++x) depth[y * width + x] = std::min(depth[y * width + x], d);
-            }
+            const std::vector<float> depth = randomWalls(rng, camera, scene % 2 == 1);
             const Pyramid pyramid = buildPyramid(depth, width, height);
             const float aspect = float(width) / float(height);
             std::vector<ObjectInfo> boxes;
