@@ -9,9 +9,8 @@
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
-#include <thrust/functional.h>
 #include <thrust/iterator/counting_iterator.h>
-#include <thrust/transform_reduce.h>
+#include <thrust/count.h>
 
 namespace occ::k {
 
@@ -124,10 +123,6 @@ void gatherOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const glm::m
 
 namespace {
 
-struct WidenByte {
-    OCC_HD uint64_t operator()(uint8_t x) const { return x; }
-};
-
 // clip.z + clip.w of a world point: >= 0 in front of the near plane (OpenGL clip space).
 struct NearDistance {
     glm::vec4 row;  // row 2 + row 3 of view_proj
@@ -225,8 +220,7 @@ uint64_t appendNearClipped(OccluderGeometry& g, const Camera& camera) {
     uint8_t* const front = raw(g.front.ptr());
     thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), vertices,
                        NearSides{raw(g.positions.ptr()), near, front});
-    const uint64_t in_front = thrust::transform_reduce(thrust::device, front, front + vertices, WidenByte{}, uint64_t(0),
-                                                       thrust::plus<uint64_t>());
+    const uint64_t in_front = uint64_t(thrust::count(thrust::device, front, front + vertices, uint8_t(1)));
     countReadback(sizeof in_front);
     if (in_front == 0 || in_front == vertices) return 0;
     g.sizes.growTo(triangles);
