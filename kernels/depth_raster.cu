@@ -5,6 +5,7 @@
 #include "device_access.h"
 
 #include "hzm.h"
+#include "occluder_gather.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/fill.h>
@@ -733,20 +734,44 @@ void seams(const glm::vec3* positions, const uint32_t* triangles, SetupTriangles
 }
 
 #if !defined(__CUDACC__)
-// On the CPU, blocks of triangles in parallel, each looked at a vector at a time first
-// (setupCandidatesCpu): most occluder triangles hold no pixel centre, and leave there.
-void setupTrianglesCpu(const SetupTriangles& setup, uint32_t tri_count) {
-    constexpr uint32_t kBlock = 2048;
-    tbb::parallel_for(0u, (tri_count + kBlock - 1) / kBlock, [&](uint32_t block) {
-        const uint32_t begin = block * kBlock, end = std::min(tri_count, begin + kBlock);
-        std::fill(setup.drawn + begin, setup.drawn + end, uint8_t(0));
-        uint32_t candidates[kBlock];
-        const uint32_t n = setupCandidatesCpu(setup.vertices, setup.triangles, setup.edge_flags, begin, end,
-                                              int32_t(setup.last_x), int32_t(setup.last_y), candidates);
-        for (uint32_t i = 0; i < n; ++i) setup(candidates[i]);
+// On the CPU, blocks of triangles, each looked at a vector at a time first (setupCandidatesCpu):
+// most occluder triangles hold no pixel centre, and leave there.
+constexpr uint32_t kSetupBlock = 2048;
+
+// Sets up triangles [begin, end), at most kSetupBlock of them.
+void setupBlockCpu(const SetupTriangles& setup, uint32_t begin, uint32_t end) {
+    std::fill(setup.drawn + begin, setup.drawn + end, uint8_t(0));
+    uint32_t candidates[kSetupBlock];
+    const uint32_t n = setupCandidatesCpu(setup.vertices, setup.triangles, setup.edge_flags, begin, end,
+                                          int32_t(setup.last_x), int32_t(setup.last_y), candidates);
+    for (uint32_t i = 0; i < n; ++i) setup(candidates[i]);
+}
+
+// Blocks of triangles [begin, end) in parallel.
+void setupTrianglesCpu(const SetupTriangles& setup, uint32_t begin, uint32_t end) {
+    tbb::parallel_for(0u, (end - begin + kSetupBlock - 1) / kSetupBlock, [&](uint32_t block) {
+        const uint32_t from = begin + block * kSetupBlock;
+        setupBlockCpu(setup, from, std::min(end, from + kSetupBlock));
     });
 }
 #endif
+
+// The list of drawn triangles, which every later pass walks instead of all of them (on the
+// plant walks 3 occluder triangles in 4 hold no pixel centre), their setup copied densely, then
+// the seams. Seams only move margins of drawn triangles, so the list stays what it is.
+void listDrawnTriangles(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
+                        const SetupTriangles& setup, DepthRasterScratch& scratch, bool with_seams) {
+    const thrust::counting_iterator<uint32_t> first(0);
+    scratch.drawn_ids.resize(tri_count);
+    uint32_t* const drawn_ids = raw(scratch.drawn_ids.ptr());
+    scratch.drawn_count = uint32_t(
+        thrust::copy_if(thrust::device, first, first + tri_count, drawn_ids, ByteSet{raw(scratch.drawn.ptr())}) - drawn_ids);
+    countReadback(sizeof scratch.drawn_count);
+    scratch.drawn_setup.resize(std::max<uint32_t>(1, scratch.drawn_count));
+    thrust::for_each_n(thrust::device, first, scratch.drawn_count,
+                       GatherDrawn{raw(scratch.setup.ptr()), drawn_ids, raw(scratch.drawn_setup.ptr())});
+    if (with_seams) seams(positions, triangles, setup, scratch);
+}
 
 }  // namespace
 
@@ -769,20 +794,9 @@ void depthRasterSetup(const glm::vec3* positions, const uint32_t* triangles, uin
 #if defined(__CUDACC__)
     thrust::for_each_n(thrust::device, first, tri_count, setup);
 #else
-    setupTrianglesCpu(setup, tri_count);
+    setupTrianglesCpu(setup, 0, tri_count);
 #endif
-    // The list of drawn triangles, which every later pass walks instead of all of them (on the
-    // plant walks 3 occluder triangles in 4 hold no pixel centre). Seams only move margins of
-    // drawn triangles, so the list stays what it is.
-    scratch.drawn_ids.resize(tri_count);
-    uint32_t* const drawn_ids = raw(scratch.drawn_ids.ptr());
-    scratch.drawn_count = uint32_t(
-        thrust::copy_if(thrust::device, first, first + tri_count, drawn_ids, ByteSet{raw(scratch.drawn.ptr())}) - drawn_ids);
-    countReadback(sizeof scratch.drawn_count);
-    scratch.drawn_setup.resize(std::max<uint32_t>(1, scratch.drawn_count));
-    thrust::for_each_n(thrust::device, first, scratch.drawn_count,
-                       GatherDrawn{raw(scratch.setup.ptr()), drawn_ids, raw(scratch.drawn_setup.ptr())});
-    if (with_seams) seams(positions, triangles, setup, scratch);
+    listDrawnTriangles(positions, triangles, tri_count, setup, scratch, with_seams);
 }
 
 TileBins binTriangles(uint32_t tri_count, uint32_t width, uint32_t height, uint32_t tile_w_log2,
@@ -877,6 +891,162 @@ void depthRasterScalar(DevicePtr<const glm::vec3> position_memory, DevicePtr<con
     if (camera.width == 0 || camera.height == 0) return;
     rasterTilesScalar(depthRasterFrontEnd(position_memory, triangle_memory, tri_count, flag_memory, neighbour_memory,
                                           camera, depth_memory, scratch, with_seams));
+}
+
+#if !defined(__CUDACC__)
+namespace {
+
+// Occluder triangles per chunk of rasterOccluders' CPU front end (whole occluders; a larger one
+// is a chunk of its own): small enough that a chunk's vertices, triangles and setup flags stay
+// in the core's caches between its steps, large enough to amortise a task.
+constexpr uint64_t kOccluderChunkTriangles = 4096;
+
+// Sets up triangles [first, first + count) on this thread, a block at a time.
+void setupRangeCpu(const SetupTriangles& setup, uint32_t first, uint32_t count) {
+    for (uint32_t b = first; b < first + count; b += kSetupBlock) setupBlockCpu(setup, b, std::min(first + count, b + kSetupBlock));
+}
+
+// Asks for the first `lines` cache lines of [p, p + bytes).
+inline void prefetchLines(const void* p, uint64_t bytes, uint64_t lines) {
+    const char* const c = static_cast<const char*>(p);
+    for (uint64_t b = 0; b < std::min(bytes, 64 * lines); b += 64) prefetch(c + b);
+}
+
+// Grows a to at least n entries, keeping its contents.
+template <class T>
+void growKeepingAll(DeviceArray<T>& a, uint64_t n) {
+    if (a.size() < n) a.resizeKeep(n + n / 2);
+}
+
+}  // namespace
+#endif
+
+uint64_t rasterOccluders(DevicePtr<const ObjectInfo> object_memory, DevicePtr<const glm::mat4> world_memory,
+                         const MeshGeometry& meshes, DevicePtr<const uint32_t> id_memory, uint32_t count,
+                         const Camera& camera, OccluderGeometry& g, DevicePtr<float> depth, DepthRasterScratch& scratch) {
+    checkRasterViewport(camera, "rasterOccluders");
+    const auto threeCalls = [&] {
+        gatherOccluders(object_memory, world_memory, meshes, id_memory, count, g, &camera.eye);
+        appendNearClipped(g, camera);
+        depthRaster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(),
+                    g.edge_neighbours.ptr(), camera, depth, scratch, /*seams=*/true);
+        return g.triangle_total;
+    };
+#if defined(__CUDACC__)
+    return threeCalls();
+#else
+    if (count == 0 || camera.width == 0 || camera.height == 0) return threeCalls();
+    const ObjectInfo* const objects = raw(object_memory);
+    const glm::mat4* const world = raw(world_memory);
+    const uint32_t* const ids = raw(id_memory);
+    // Sizes, offsets and chunks on the host (a few thousand occluders).
+    g.offsets.growTo(2 * uint64_t(count));
+    uint64_t* const vertex_offsets = raw(g.offsets.ptr());
+    uint64_t* const triangle_offsets = vertex_offsets + count;
+    std::vector<uint32_t>& chunks = scratch.occluder_chunks;  // first occluder of each, then count
+    chunks.clear();
+    uint64_t vertex_total = 0, triangle_total = 0, in_chunk = 0;
+    for (uint32_t j = 0; j < count; ++j) {
+        const ObjectInfo& o = objects[ids[j]];
+        if (j == 0 || in_chunk >= kOccluderChunkTriangles) chunks.push_back(j), in_chunk = 0;
+        vertex_offsets[j] = vertex_total, triangle_offsets[j] = triangle_total;
+        vertex_total += o.vertex_count, triangle_total += o.triangle_count;
+        in_chunk += o.triangle_count;
+    }
+    chunks.push_back(count);
+    // depthRaster takes 32-bit counts (and appendNearClipped up to 2^32 triangles): beyond a
+    // quarter of that, the three calls answer as they do.
+    if (vertex_total > UINT32_MAX / 4 || triangle_total > UINT32_MAX / 4) return threeCalls();
+    g.vertex_total = vertex_total, g.triangle_total = triangle_total;
+    g.positions.growTo(vertex_total);
+    g.triangles.growTo(3 * triangle_total);
+    g.edge_flags.growTo(triangle_total);
+    g.edge_neighbours.growTo(3 * triangle_total);
+    g.front.growTo(vertex_total);
+    scratch.vertices.growTo(vertex_total);
+    scratch.setup.growTo(triangle_total);
+    scratch.drawn.growTo(triangle_total);
+    const auto last_x = int64_t(camera.width) - 1, last_y = int64_t(camera.height) - 1;
+    ProjectVertices project{raw(g.positions.ptr()), raw(scratch.vertices.ptr()), {}, float(camera.width),
+                            float(camera.height)};
+    for (int i = 0; i < 16; ++i) project.m[i] = camera.view_proj[i / 4][i % 4];
+    const SetupTriangles setup{raw(scratch.vertices.ptr()), raw(g.triangles.ptr()), raw(g.edge_flags.ptr()),
+                               raw(g.edge_neighbours.ptr()), uint32_t(triangle_total), raw(scratch.setup.ptr()),
+                               raw(scratch.drawn.ptr()), last_x, last_y};
+    const glm::vec4 near_row = nearPlaneRow(camera.view_proj);
+    glm::vec3* const positions = raw(g.positions.ptr());
+    uint8_t* const front = raw(g.front.ptr());
+    const glm::vec3* const mesh_positions = raw(meshes.positions);
+    const uint64_t* const vertex_first = raw(meshes.vertex_first);
+    const uint64_t* const triangle_first = raw(meshes.triangle_first);
+    const size_t chunk_count = chunks.size() - 1;
+    scratch.occluder_chunk_front.assign(chunk_count, 0);
+    uint64_t* const chunk_front = scratch.occluder_chunk_front.data();
+    // Per chunk, occluder by occluder: its vertices to world space, their side of the near plane
+    // and their projection, its triangles copied, then set up, each step reading what the last
+    // one wrote while it is in cache.
+    tbb::parallel_for(size_t(0), chunk_count, [&](size_t c) {
+        uint64_t in_front = 0;
+        for (uint32_t j = chunks[c]; j < chunks[c + 1]; ++j) {
+            // Each occluder's mesh starts where the hardware's prefetcher has no stream yet: ask
+            // for the start of the one after next (a fifth off this pass on the 10^5 orbit), and
+            // for the records of the one after that.
+            if (j + 4 < count) prefetch(objects + ids[j + 4]), prefetch(world + ids[j + 4]);
+            if (j + 2 < count) {
+                const ObjectInfo& next = objects[ids[j + 2]];
+                const uint64_t first_triangle = triangle_first[next.mesh];
+                prefetchLines(mesh_positions + vertex_first[next.mesh], 12 * uint64_t(next.vertex_count), 8);
+                prefetchLines(raw(meshes.triangles) + 3 * first_triangle, 12 * uint64_t(next.triangle_count), 8);
+                prefetchLines(raw(meshes.edge_neighbours) + 3 * first_triangle, 12 * uint64_t(next.triangle_count), 8);
+                prefetch(raw(meshes.edge_flags) + first_triangle);
+            }
+            const uint32_t id = ids[j];
+            const ObjectInfo& o = objects[id];
+            const glm::mat4 m = world[id];
+            const glm::vec3* const src = mesh_positions + vertex_first[o.mesh];
+            const uint64_t base = vertex_offsets[j];
+            for (uint32_t v = 0; v < o.vertex_count; ++v) {
+                const glm::vec3 p = occluderVertex(m, src[v]);
+                positions[base + v] = p;
+                const bool ahead = inFrontOfNearPlane(near_row, p);
+                front[base + v] = ahead ? 1u : 0u;
+                in_front += ahead ? 1u : 0u;
+                project(uint32_t(base + v));
+            }
+            copyOccluderTriangles(raw(meshes.triangles), raw(meshes.edge_flags), raw(meshes.edge_neighbours),
+                                  triangle_first[o.mesh], triangle_offsets[j], o.triangle_count, uint32_t(base),
+                                  uint32_t(triangle_offsets[j]), occluderSkipsBackFaces(o.aabb, m, camera.eye, true),
+                                  raw(g.triangles.ptr()), raw(g.edge_flags.ptr()), raw(g.edge_neighbours.ptr()));
+            setupRangeCpu(setup, uint32_t(triangle_offsets[j]), o.triangle_count);
+        }
+        chunk_front[c] = in_front;
+    });
+    uint64_t in_front = 0;
+    for (size_t c = 0; c < chunk_count; ++c) in_front += chunk_front[c];
+    // The parts of triangles across the near plane, appended: projected and set up on their own
+    // (their edges are all boundaries, so they need no neighbour).
+    const uint64_t added = appendNearClippedSides(g, camera, in_front);
+    const auto tri_count = uint32_t(g.triangle_total);
+    SetupTriangles final_setup = setup;
+    if (added > 0) {
+        growKeepingAll(scratch.vertices, g.vertex_total);
+        growKeepingAll(scratch.setup, g.triangle_total);
+        growKeepingAll(scratch.drawn, g.triangle_total);
+        ProjectVertices more = project;
+        more.positions = raw(g.positions.ptr());
+        more.vertices = raw(scratch.vertices.ptr());
+        for (uint64_t v = vertex_total; v < g.vertex_total; ++v) more(uint32_t(v));
+        final_setup = SetupTriangles{raw(scratch.vertices.ptr()), raw(g.triangles.ptr()), raw(g.edge_flags.ptr()),
+                                     raw(g.edge_neighbours.ptr()), tri_count, raw(scratch.setup.ptr()),
+                                     raw(scratch.drawn.ptr()), last_x, last_y};
+        setupTrianglesCpu(final_setup, uint32_t(triangle_total), tri_count);
+    }
+    listDrawnTriangles(raw(g.positions.ptr()), raw(g.triangles.ptr()), tri_count, final_setup, scratch, /*seams=*/true);
+    static_assert(kTile == 1u << 5);
+    const TileBins bins = binTriangles(tri_count, camera.width, camera.height, 5, 5, scratch);
+    depthRasterTilesCpu(DepthTiles{raw(scratch.drawn_setup.ptr()), bins, raw(depth), camera.width, camera.height});
+    return g.triangle_total;
+#endif
 }
 
 const char* depthRasterTarget() {

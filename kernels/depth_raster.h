@@ -4,6 +4,8 @@
 #include "device_memory.h"
 #include "kernel_types.h"
 
+#include <vector>
+
 namespace occ::k {
 
 // The rules of the occluder depth rasteriser, shared with the tests and with whoever reasons
@@ -72,6 +74,10 @@ struct DepthRasterScratch {
     DeviceArray<uint8_t> seam_edges;          // 3 per drawn triangle: 1 where a stored edge is shared across
     DeviceArray<uint8_t> seam_bits;           // per drawn triangle: the same as bits
     DeviceArray<uint32_t> seam_triangles;     // the drawn positions of triangles with such bits
+    // rasterOccluders' CPU front end: the first occluder of each chunk, then the count; per
+    // chunk, its vertices in front of the near plane.
+    std::vector<uint32_t> occluder_chunks;
+    std::vector<uint64_t> occluder_chunk_front;
 };
 
 // Marks the edges that a triangle list shares within itself, once per mesh: flags[t] gets bit e

@@ -45,7 +45,7 @@ struct TransformVertices {
                        const glm::mat4 m = world[id];
                        const glm::vec3* src = positions + vertex_first[objects[id].mesh] + first;
                        glm::vec3* dst = out + offsets[j] + first;
-                       for (uint64_t v = 0; v < length; ++v) dst[v] = glm::vec3(m * glm::vec4(src[v], 1.0f));
+                       for (uint64_t v = 0; v < length; ++v) dst[v] = occluderVertex(m, src[v]);
                    });
     }
 };
@@ -70,24 +70,12 @@ struct OffsetTriangles {
     OCC_HD void operator()(uint64_t tile) const {
         forEachRun(triangle_offsets, count, total, tile * kRunTile, tileEnd(tile, total),
                    [&](uint32_t j, uint64_t first, uint64_t length) {
-                       const uint64_t from = triangle_first[objects[ids[j]].mesh] + first;
-                       const uint64_t to = triangle_offsets[j] + first;
-                       const uint32_t base = uint32_t(vertex_offsets[j]);
-                       const uint32_t first_triangle = uint32_t(triangle_offsets[j]);
-                       for (uint64_t c = 0; c < 3 * length; ++c) {
-                           out_triangles[3 * to + c] = triangles[3 * from + c] + base;
-                           const uint32_t across = edge_neighbours[3 * from + c];
-                           out_neighbours[3 * to + c] = across == UINT32_MAX ? UINT32_MAX : across + first_triangle;
-                       }
                        const uint32_t id = ids[j];
-                       const Aabb& box = objects[id].aabb;
-                       const bool outside = !(eye.x >= box.min.x && eye.x <= box.max.x && eye.y >= box.min.y &&
-                                              eye.y <= box.max.y && eye.z >= box.min.z && eye.z <= box.max.z);
-                       const bool skip_back = has_eye && outside && glm::determinant(glm::mat3(world[id])) > 0.0f;
-                       for (uint64_t t = 0; t < length; ++t) {
-                           const uint8_t f = edge_flags[from + t];
-                           out_flags[to + t] = uint8_t((f & 7u) | (skip_back && (f & kEdgeFlagClosedMesh) ? kEdgeFlagSkipBackFace : 0u));
-                       }
+                       copyOccluderTriangles(triangles, edge_flags, edge_neighbours,
+                                             triangle_first[objects[id].mesh] + first, triangle_offsets[j] + first,
+                                             length, uint32_t(vertex_offsets[j]), uint32_t(triangle_offsets[j]),
+                                             occluderSkipsBackFaces(objects[id].aabb, world[id], eye, has_eye),
+                                             out_triangles, out_flags, out_neighbours);
                    });
     }
 };
@@ -125,16 +113,16 @@ namespace {
 
 // clip.z + clip.w of a world point: >= 0 in front of the near plane (OpenGL clip space).
 struct NearDistance {
-    glm::vec4 row;  // row 2 + row 3 of view_proj
+    glm::vec4 row;  // nearPlaneRow
     OCC_HD float operator()(const glm::vec3& p) const { return row.x * p.x + row.y * p.y + row.z * p.z + row.w; }
 };
 
 // Per vertex, 1 when it is in front of the near plane.
 struct NearSides {
     const glm::vec3* positions;
-    NearDistance near;
+    glm::vec4 row;
     uint8_t* front;
-    OCC_HD void operator()(uint64_t v) const { front[v] = near(positions[v]) > 0.0f ? 1u : 0u; }
+    OCC_HD void operator()(uint64_t v) const { front[v] = inFrontOfNearPlane(row, positions[v]) ? 1u : 0u; }
 };
 
 struct CountNearClipped {
@@ -209,20 +197,26 @@ void growKeeping(DeviceArray<T>& a, uint64_t n) {
 }  // namespace
 
 uint64_t appendNearClipped(OccluderGeometry& g, const Camera& camera) {
-    const uint64_t triangles = g.triangle_total, vertices = g.vertex_total;
-    if (triangles == 0 || triangles > UINT32_MAX) return 0;
-    const glm::mat4& m = camera.view_proj;  // m[column][row]
-    const NearDistance near{glm::vec4(m[0][2] + m[0][3], m[1][2] + m[1][3], m[2][2] + m[2][3], m[3][2] + m[3][3])};
+    const uint64_t vertices = g.vertex_total;
+    if (g.triangle_total == 0 || g.triangle_total > UINT32_MAX) return 0;
     // Which side each vertex is on, once: when every vertex is on one side no triangle crosses
     // (the usual case away from walls and floors), and the triangles' count reads a byte a
     // corner instead of a position.
     g.front.growTo(vertices);
     uint8_t* const front = raw(g.front.ptr());
     thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), vertices,
-                       NearSides{raw(g.positions.ptr()), near, front});
+                       NearSides{raw(g.positions.ptr()), nearPlaneRow(camera.view_proj), front});
     const uint64_t in_front = uint64_t(thrust::count(thrust::device, front, front + vertices, uint8_t(1)));
     countReadback(sizeof in_front);
+    return appendNearClippedSides(g, camera, in_front);
+}
+
+uint64_t appendNearClippedSides(OccluderGeometry& g, const Camera& camera, uint64_t in_front) {
+    const uint64_t triangles = g.triangle_total, vertices = g.vertex_total;
+    if (triangles == 0 || triangles > UINT32_MAX) return 0;
     if (in_front == 0 || in_front == vertices) return 0;
+    const NearDistance near{nearPlaneRow(camera.view_proj)};
+    const uint8_t* const front = raw(g.front.ptr());
     g.sizes.growTo(triangles);
     g.offsets.growTo(triangles);
     const auto n = uint32_t(triangles);

@@ -246,12 +246,14 @@ void Pipeline::rasterOccluders(const k::Camera& camera, FrameStats& stats) {
 
 uint64_t Pipeline::rasterObjects(const k::Camera& camera, k::DevicePtr<const uint32_t> ids, uint32_t count,
                                  k::OccluderGeometry& geometry, k::DevicePtr<float> depth) {
+    if (options_.raster == OccluderRaster::Exact)
+        return k::rasterOccluders(scene_.objects.ptr(), scene_.world.ptr(), scene_.meshes(), ids, count, camera, geometry,
+                                  depth, raster_scratch_);
     k::gatherOccluders(scene_.objects.ptr(), scene_.world.ptr(), scene_.meshes(), ids, count, geometry, &camera.eye);
     k::appendNearClipped(geometry, camera);
     const k::OccluderGeometry& g = geometry;
-    const auto raster = options_.raster == OccluderRaster::Masked ? k::maskedDepthRaster : k::depthRaster;
-    raster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(), g.edge_neighbours.ptr(),
-           camera, depth, raster_scratch_, /*seams=*/true);
+    k::maskedDepthRaster(g.positions.ptr(), g.triangles.ptr(), uint32_t(g.triangle_total), g.edge_flags.ptr(),
+                         g.edge_neighbours.ptr(), camera, depth, raster_scratch_, /*seams=*/true);
     return g.triangle_total;
 }
 

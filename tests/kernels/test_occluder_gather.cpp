@@ -4,11 +4,14 @@
 #include "depth_raster.h"
 
 #include "device_test_support.h"
+#include "raster_fixtures.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <cstring>
+#include <random>
 #include <utility>
 #include <vector>
 
@@ -147,6 +150,160 @@ TEST_F(GatherOccluders, AReusedOutputHoldsOnlyTheLatestGather) {
     EXPECT_EQ(toHost(out.positions, 3), (std::vector<glm::vec3>{{100, 100, 100}, {101, 100, 100}, {100, 101, 100}}));
     EXPECT_EQ(toHost(out.triangles, 3), (std::vector<uint32_t>{0, 1, 2}));
     EXPECT_EQ(toHost(out.edge_neighbours, 3), (std::vector<uint32_t>{kNone, kNone, kNone}));
+}
+
+// A scene for rasterOccluders: closed spheres (back faces skippable), open grids (shared edges)
+// and triangle soups, instanced many times under random world matrices, some mirrored, some
+// across the near plane, one around the eye.
+struct RandomOccluderScene {
+    std::vector<glm::vec3> positions;
+    std::vector<uint32_t> triangles;
+    std::vector<uint8_t> edge_flags;
+    std::vector<uint32_t> edge_neighbours;
+    std::vector<uint64_t> vertex_first, triangle_first;
+    std::vector<ObjectInfo> objects;
+    std::vector<glm::mat4> world;
+    bool closed = false;  // whether markClosedMesh took the sphere
+
+    void addMesh(const std::vector<glm::vec3>& p, const std::vector<uint32_t>& t) {
+        vertex_first.push_back(positions.size());
+        triangle_first.push_back(triangles.size() / 3);
+        const auto count = uint32_t(t.size() / 3);
+        std::vector<uint8_t> flags(count);
+        std::vector<uint32_t> across(3 * size_t(count));
+        sharedEdgeFlags(t.data(), count, flags.data(), across.data());
+        closed = markClosedMesh(t.data(), count, p.data(), flags.data()) || closed;
+        positions.insert(positions.end(), p.begin(), p.end());
+        triangles.insert(triangles.end(), t.begin(), t.end());
+        edge_flags.insert(edge_flags.end(), flags.begin(), flags.end());
+        edge_neighbours.insert(edge_neighbours.end(), across.begin(), across.end());
+    }
+    // A latitude-longitude sphere of radius 1, wound counter-clockwise seen from outside.
+    void addSphere(uint32_t rings, uint32_t segments) {
+        std::vector<glm::vec3> p{{0, 1, 0}};
+        for (uint32_t r = 1; r < rings; ++r)
+            for (uint32_t s = 0; s < segments; ++s) {
+                const float theta = 3.14159265f * float(r) / float(rings), phi = 6.2831853f * float(s) / float(segments);
+                p.emplace_back(std::sin(theta) * std::cos(phi), std::cos(theta), -std::sin(theta) * std::sin(phi));
+            }
+        p.emplace_back(0, -1, 0);
+        const auto at = [&](uint32_t r, uint32_t s) { return 1 + (r - 1) * segments + s % segments; };
+        const auto south = uint32_t(p.size() - 1);
+        std::vector<uint32_t> t;
+        for (uint32_t s = 0; s < segments; ++s) {
+            t.insert(t.end(), {0, at(1, s), at(1, s + 1)});
+            for (uint32_t r = 1; r + 1 < rings; ++r)
+                t.insert(t.end(), {at(r, s), at(r + 1, s), at(r + 1, s + 1), at(r, s), at(r + 1, s + 1), at(r, s + 1)});
+            t.insert(t.end(), {at(rings - 1, s), south, at(rings - 1, s + 1)});
+        }
+        addMesh(p, t);
+    }
+    // An n x n grid of quads in the unit square of z = 0.
+    void addGrid(uint32_t n) {
+        std::vector<glm::vec3> p;
+        for (uint32_t y = 0; y <= n; ++y)
+            for (uint32_t x = 0; x <= n; ++x) p.emplace_back(float(x) / float(n), float(y) / float(n), 0.0f);
+        std::vector<uint32_t> t;
+        for (uint32_t y = 0; y < n; ++y)
+            for (uint32_t x = 0; x < n; ++x) {
+                const uint32_t a = y * (n + 1) + x;
+                t.insert(t.end(), {a, a + 1, a + n + 2, a, a + n + 2, a + n + 1});
+            }
+        addMesh(p, t);
+    }
+    void addObject(uint32_t mesh, const glm::mat4& m) {
+        ObjectInfo o{};
+        o.mesh = mesh;
+        const uint64_t end_v = mesh + 1 < vertex_first.size() ? vertex_first[mesh + 1] : positions.size();
+        const uint64_t end_t = mesh + 1 < triangle_first.size() ? triangle_first[mesh + 1] : triangles.size() / 3;
+        o.vertex_count = uint32_t(end_v - vertex_first[mesh]);
+        o.triangle_count = uint32_t(end_t - triangle_first[mesh]);
+        o.aabb = Aabb{glm::vec3(1e30f), glm::vec3(-1e30f)};
+        for (uint64_t v = vertex_first[mesh]; v < end_v; ++v) {
+            const glm::vec3 w = occluderVertex(m, positions[v]);
+            o.aabb.min = glm::min(o.aabb.min, w), o.aabb.max = glm::max(o.aabb.max, w);
+        }
+        objects.push_back(o);
+        world.push_back(m);
+    }
+};
+
+template <class T>
+bool sameBits(const std::vector<T>& a, const std::vector<T>& b) {
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
+}
+
+// rasterOccluders (the CPU's one-pass front end) against the three calls it stands for: the
+// same geometry and the same depth image, bit for bit, over several chunks of occluders, with
+// near-plane crossings, mirrored and skippable objects, reusing its buffers between calls.
+TEST_F(GatherOccluders, RasterOccludersEqualsGatherNearClipAndDepthRaster) {
+    RandomOccluderScene scene;
+    scene.addSphere(12, 16);
+    scene.addGrid(10);
+    const test::Mesh soup = [] {
+        std::mt19937 rng(3);
+        return test::randomScene(rng, 150, 2.0f);
+    }();
+    scene.addMesh(soup.positions, soup.triangles);
+    ASSERT_TRUE(scene.closed);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f), depth_of(0.2f, 30.0f), size_of(0.2f, 4.0f);
+    for (uint32_t i = 0; i < 400; ++i) {
+        const float z = -depth_of(rng);
+        const glm::vec3 at(unit(rng) * 0.7f * -z, unit(rng) * 0.6f * -z, z);
+        glm::mat4 m = glm::translate(glm::mat4(1.0f), at);
+        m = glm::rotate(m, 3.0f * unit(rng), glm::normalize(glm::vec3(unit(rng), unit(rng), unit(rng)) + 0.01f));
+        glm::vec3 scale(size_of(rng));
+        if (i % 7 == 3) scale.x = -scale.x;  // mirrored
+        scene.addObject(i % 3, glm::scale(m, scale));
+    }
+    scene.addObject(0, glm::scale(glm::mat4(1.0f), glm::vec3(3.0f)));  // a sphere around the eye
+    const DeviceArray<glm::vec3> positions_d = toDevice(scene.positions);
+    const DeviceArray<uint32_t> triangles_d = toDevice(scene.triangles);
+    const DeviceArray<uint8_t> flags_d = toDevice(scene.edge_flags);
+    const DeviceArray<uint32_t> neighbours_d = toDevice(scene.edge_neighbours);
+    const DeviceArray<uint64_t> vertex_first_d = toDevice(scene.vertex_first), triangle_first_d = toDevice(scene.triangle_first);
+    const DeviceArray<ObjectInfo> objects_d = toDevice(scene.objects);
+    const DeviceArray<glm::mat4> world_d = toDevice(scene.world);
+    const MeshGeometry meshes{positions_d.ptr(),      triangles_d.ptr(),     flags_d.ptr(), neighbours_d.ptr(),
+                              vertex_first_d.ptr(),   triangle_first_d.ptr()};
+    const Camera c = test::perspectiveCamera(160, 128, 0.5f, 100.0f);
+    std::vector<uint32_t> all(scene.objects.size());  // shuffled below
+    for (uint32_t i = 0; i < all.size(); ++i) all[i] = i;
+    std::shuffle(all.begin(), all.end(), rng);
+    const std::vector<uint32_t> some(all.begin(), all.begin() + 120);
+    const std::vector<uint32_t> far(all.begin() + 1, all.begin() + 200);
+    OccluderGeometry fused, split;
+    DepthRasterScratch fused_scratch, split_scratch;
+    DeviceArray<float> fused_depth(c.width * c.height), split_depth(c.width * c.height);
+    uint64_t clipped_runs = 0;
+    for (const std::vector<uint32_t>* ids : {&std::as_const(all), &some, &far, &std::as_const(all)}) {
+        const DeviceArray<uint32_t> ids_d = toDevice(*ids);
+        const auto count = uint32_t(ids->size());
+        const uint64_t n = rasterOccluders(objects_d.ptr(), world_d.ptr(), meshes, ids_d.ptr(), count, c, fused,
+                                           fused_depth.ptr(), fused_scratch);
+        gatherOccluders(objects_d.ptr(), world_d.ptr(), meshes, ids_d.ptr(), count, split, &c.eye);
+        const uint64_t gathered = split.triangle_total;
+        clipped_runs += appendNearClipped(split, c) > 0 ? 1 : 0;
+        depthRaster(split.positions.ptr(), split.triangles.ptr(), uint32_t(split.triangle_total), split.edge_flags.ptr(),
+                    split.edge_neighbours.ptr(), c, split_depth.ptr(), split_scratch, /*seams=*/true);
+        ASSERT_GT(gathered, 4 * 4096u) << "several chunks";
+        ASSERT_EQ(n, split.triangle_total);
+        ASSERT_EQ(fused.vertex_total, split.vertex_total);
+        ASSERT_EQ(fused.triangle_total, split.triangle_total);
+        EXPECT_TRUE(sameBits(toHost(fused.positions, fused.vertex_total), toHost(split.positions, split.vertex_total)));
+        EXPECT_EQ(toHost(fused.triangles, 3 * n), toHost(split.triangles, 3 * n));
+        EXPECT_EQ(toHost(fused.edge_flags, n), toHost(split.edge_flags, n));
+        EXPECT_EQ(toHost(fused.edge_neighbours, 3 * n), toHost(split.edge_neighbours, 3 * n));
+        ASSERT_EQ(fused_scratch.drawn_count, split_scratch.drawn_count);
+        EXPECT_GT(fused_scratch.drawn_count, 1000u);
+        EXPECT_EQ(toHost(fused_scratch.drawn_ids, fused_scratch.drawn_count),
+                  toHost(split_scratch.drawn_ids, split_scratch.drawn_count));
+        const std::vector<float> a = toHost(fused_depth, c.width * c.height), b = toHost(split_depth, c.width * c.height);
+        EXPECT_TRUE(sameBits(a, b));
+        EXPECT_GT(std::count_if(a.begin(), a.end(), [](float d) { return d < 1.0f; }), int64_t(c.width * c.height / 4));
+    }
+    EXPECT_GE(clipped_runs, 2u) << "the sphere around the eye crosses the near plane";
 }
 
 }  // namespace
