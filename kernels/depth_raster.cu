@@ -3,6 +3,7 @@
 #include "raster_setup.h"
 
 #include "device_access.h"
+#include "for_each_index.h"
 
 #include "hzm.h"
 #include "occluder_gather.h"
@@ -700,37 +701,42 @@ void seams(const glm::vec3* positions, const uint32_t* triangles, SetupTriangles
     const uint32_t* const drawn_ids = raw(scratch.drawn_ids.ptr());
     scratch.edge_first.resize(uint64_t(drawn_count) + 1);
     uint32_t* const edge_first = raw(scratch.edge_first.ptr());
-    thrust::for_each_n(thrust::device, first, drawn_count, CountBoundaryEdges{drawn_setup, edge_first});
-    thrust::fill(thrust::device, edge_first + drawn_count, edge_first + drawn_count + 1, 0u);
-    thrust::exclusive_scan(thrust::device, edge_first, edge_first + drawn_count + 1, edge_first);
+    forEachIndex(drawn_count, CountBoundaryEdges{drawn_setup, edge_first});
+    withPolicy(drawn_count, [&](auto policy) {
+        thrust::fill(policy, edge_first + drawn_count, edge_first + drawn_count + 1, 0u);
+        thrust::exclusive_scan(policy, edge_first, edge_first + drawn_count + 1, edge_first);
+    });
     const uint32_t count = readBack(DevicePtr<const uint32_t>(scratch.edge_first.ptr() + drawn_count));
     if (count < 2) return;
     scratch.edge_ids.resize(count);
     scratch.edge_keys.resize(count);
     uint32_t* const ids = raw(scratch.edge_ids.ptr());
     uint64_t* const keys = raw(scratch.edge_keys.ptr());
-    thrust::for_each_n(thrust::device, first, drawn_count,
+    forEachIndex(drawn_count,
                        EmitBoundaryEdges{drawn_setup, drawn_ids, triangles, positions, edge_first, ids, keys});
     const uint32_t grouped = groupEqualKeys(keys, ids, count, scratch);
     scratch.seam_edges.resize(3 * uint64_t(drawn_count));
     uint8_t* const marks = raw(scratch.seam_edges.ptr());
-    thrust::fill(thrust::device, marks, marks + 3 * uint64_t(drawn_count), uint8_t(0));
-    thrust::for_each_n(thrust::device, first, grouped,
+    withPolicy(3 * uint64_t(drawn_count),
+               [&](auto policy) { thrust::fill(policy, marks, marks + 3 * uint64_t(drawn_count), uint8_t(0)); });
+    forEachIndex(grouped,
                        MatchSeams{drawn_setup, drawn_ids, triangles, positions, ids, keys, grouped, marks});
     scratch.seam_triangles.resize(std::max<uint32_t>(1, drawn_count));
     uint32_t* const affected = raw(scratch.seam_triangles.ptr());
     scratch.seam_bits.resize(std::max<uint32_t>(1, drawn_count));
     uint8_t* const bits = raw(scratch.seam_bits.ptr());
-    thrust::for_each_n(thrust::device, first, drawn_count, GatherSeamBits{marks, bits});
-    const uint32_t n =
-        uint32_t(thrust::copy_if(thrust::device, first, first + drawn_count, affected, ByteSet{bits}) - affected);
+    forEachIndex(drawn_count, GatherSeamBits{marks, bits});
+    const uint32_t n = uint32_t(withPolicy(drawn_count, [&](auto policy) {
+                                    return thrust::copy_if(policy, first, first + drawn_count, affected, ByteSet{bits});
+                                }) -
+                                affected);
     countReadback(sizeof n);
     if (n == 0) return;
     setup.only = affected;
     setup.drawn_ids = drawn_ids;
     setup.seam_edges = bits;
     setup.drawn_setup = drawn_setup;
-    thrust::for_each_n(thrust::device, first, n, setup);
+    forEachIndex(n, setup);
 }
 
 #if !defined(__CUDACC__)
@@ -738,13 +744,17 @@ void seams(const glm::vec3* positions, const uint32_t* triangles, SetupTriangles
 // most occluder triangles hold no pixel centre, and leave there.
 constexpr uint32_t kSetupBlock = 2048;
 
-// Sets up triangles [begin, end), at most kSetupBlock of them.
-void setupBlockCpu(const SetupTriangles& setup, uint32_t begin, uint32_t end) {
+// Sets up triangles [begin, end), at most kSetupBlock of them; appends those drawn to `listed`
+// when it is not null.
+void setupBlockCpu(const SetupTriangles& setup, uint32_t begin, uint32_t end, std::vector<uint32_t>* listed = nullptr) {
     std::fill(setup.drawn + begin, setup.drawn + end, uint8_t(0));
     uint32_t candidates[kSetupBlock];
     const uint32_t n = setupCandidatesCpu(setup.vertices, setup.triangles, setup.edge_flags, begin, end,
                                           int32_t(setup.last_x), int32_t(setup.last_y), candidates);
-    for (uint32_t i = 0; i < n; ++i) setup(candidates[i]);
+    for (uint32_t i = 0; i < n; ++i) {
+        setup(candidates[i]);
+        if (listed && setup.drawn[candidates[i]]) listed->push_back(candidates[i]);
+    }
 }
 
 // Blocks of triangles [begin, end) in parallel.
@@ -768,7 +778,7 @@ void listDrawnTriangles(const glm::vec3* positions, const uint32_t* triangles, u
         thrust::copy_if(thrust::device, first, first + tri_count, drawn_ids, ByteSet{raw(scratch.drawn.ptr())}) - drawn_ids);
     countReadback(sizeof scratch.drawn_count);
     scratch.drawn_setup.resize(std::max<uint32_t>(1, scratch.drawn_count));
-    thrust::for_each_n(thrust::device, first, scratch.drawn_count,
+    forEachIndex(scratch.drawn_count,
                        GatherDrawn{raw(scratch.setup.ptr()), drawn_ids, raw(scratch.drawn_setup.ptr())});
     if (with_seams) seams(positions, triangles, setup, scratch);
 }
@@ -814,13 +824,14 @@ TileBins binTriangles(uint32_t tri_count, uint32_t width, uint32_t height, uint3
     const uint64_t cell_count = uint64_t(tile_count) * chunk_count;
     scratch.cells.resize(cell_count + 1);
     uint64_t* cells = raw(scratch.cells.ptr());
-    thrust::fill(thrust::device, cells, cells + cell_count + 1, uint64_t(0));
+    withPolicy(cell_count + 1, [&](auto policy) { thrust::fill(policy, cells, cells + cell_count + 1, uint64_t(0)); });
     if (drawn > 0) {
         const thrust::counting_iterator<uint32_t> first(0);
         thrust::for_each_n(thrust::device, first, chunk_count,
                            CountPerChunk{raw(scratch.drawn_setup.ptr()), cells, grid});
         // One more cell than there are, counting 0, so that the scan leaves the total there.
-        thrust::exclusive_scan(thrust::device, cells, cells + cell_count + 1, cells);
+        withPolicy(cell_count + 1,
+                   [&](auto policy) { thrust::exclusive_scan(policy, cells, cells + cell_count + 1, cells); });
         scratch.pair_triangle.resize(readBack(DevicePtr<const uint64_t>(scratch.cells.ptr() + cell_count)));
         thrust::for_each_n(thrust::device, first, chunk_count,
                            FillPerChunk{raw(scratch.drawn_setup.ptr()), cells,
@@ -901,9 +912,11 @@ namespace {
 // in the core's caches between its steps, large enough to amortise a task.
 constexpr uint64_t kOccluderChunkTriangles = 4096;
 
-// Sets up triangles [first, first + count) on this thread, a block at a time.
-void setupRangeCpu(const SetupTriangles& setup, uint32_t first, uint32_t count) {
-    for (uint32_t b = first; b < first + count; b += kSetupBlock) setupBlockCpu(setup, b, std::min(first + count, b + kSetupBlock));
+// Sets up triangles [first, first + count) on this thread, a block at a time, appending those
+// drawn to `listed`.
+void setupRangeCpu(const SetupTriangles& setup, uint32_t first, uint32_t count, std::vector<uint32_t>& listed) {
+    for (uint32_t b = first; b < first + count; b += kSetupBlock)
+        setupBlockCpu(setup, b, std::min(first + count, b + kSetupBlock), &listed);
 }
 
 // Asks for the first `lines` cache lines of [p, p + bytes).
@@ -980,13 +993,20 @@ uint64_t rasterOccluders(DevicePtr<const ObjectInfo> object_memory, DevicePtr<co
     const uint64_t* const vertex_first = raw(meshes.vertex_first);
     const uint64_t* const triangle_first = raw(meshes.triangle_first);
     const size_t chunk_count = chunks.size() - 1;
-    scratch.occluder_chunk_front.assign(chunk_count, 0);
-    uint64_t* const chunk_front = scratch.occluder_chunk_front.data();
+    // Per chunk, the triangles it drew and those across the near plane (with how many corners
+    // in front), ascending; kept with their capacity from call to call.
+    if (scratch.occluder_chunk_lists.size() < chunk_count) scratch.occluder_chunk_lists.resize(chunk_count);
     // Per chunk, occluder by occluder: its vertices to world space, their side of the near plane
     // and their projection, its triangles copied, then set up, each step reading what the last
     // one wrote while it is in cache.
+    OccluderVertexJob job_template{};
+    for (int i = 0; i < 16; ++i) job_template.view_proj[i] = project.m[i];
+    job_template.width = float(camera.width), job_template.height = float(camera.height);
+    for (int i = 0; i < 4; ++i) job_template.near_row[i] = near_row[i];
     tbb::parallel_for(size_t(0), chunk_count, [&](size_t c) {
-        uint64_t in_front = 0;
+        OccluderVertexJob vertex_job = job_template;
+        DepthRasterScratch::ChunkLists& lists = scratch.occluder_chunk_lists[c];
+        lists.drawn.clear(), lists.crossing.clear(), lists.crossing_front.clear();
         for (uint32_t j = chunks[c]; j < chunks[c + 1]; ++j) {
             // Each occluder's mesh starts where the hardware's prefetcher has no stream yet: ask
             // for the start of the one after next (a fifth off this pass on the 10^5 orbit), and
@@ -1005,7 +1025,11 @@ uint64_t rasterOccluders(DevicePtr<const ObjectInfo> object_memory, DevicePtr<co
             const glm::mat4 m = world[id];
             const glm::vec3* const src = mesh_positions + vertex_first[o.mesh];
             const uint64_t base = vertex_offsets[j];
-            for (uint32_t v = 0; v < o.vertex_count; ++v) {
+            uint32_t in_front = 0;
+            for (int e = 0; e < 16; ++e) vertex_job.world[e] = m[e / 4][e % 4];
+            const uint32_t simd = transformProjectCpu(vertex_job, src, o.vertex_count, positions + base,
+                                                      raw(scratch.vertices.ptr()) + base, front + base, in_front);
+            for (uint32_t v = simd; v < o.vertex_count; ++v) {
                 const glm::vec3 p = occluderVertex(m, src[v]);
                 positions[base + v] = p;
                 const bool ahead = inFrontOfNearPlane(near_row, p);
@@ -1013,21 +1037,46 @@ uint64_t rasterOccluders(DevicePtr<const ObjectInfo> object_memory, DevicePtr<co
                 in_front += ahead ? 1u : 0u;
                 project(uint32_t(base + v));
             }
+            const auto first = uint32_t(triangle_offsets[j]);
             copyOccluderTriangles(raw(meshes.triangles), raw(meshes.edge_flags), raw(meshes.edge_neighbours),
-                                  triangle_first[o.mesh], triangle_offsets[j], o.triangle_count, uint32_t(base),
-                                  uint32_t(triangle_offsets[j]), occluderSkipsBackFaces(o.aabb, m, camera.eye, true),
-                                  raw(g.triangles.ptr()), raw(g.edge_flags.ptr()), raw(g.edge_neighbours.ptr()));
-            setupRangeCpu(setup, uint32_t(triangle_offsets[j]), o.triangle_count);
+                                  triangle_first[o.mesh], first, o.triangle_count, uint32_t(base), first,
+                                  occluderSkipsBackFaces(o.aabb, m, camera.eye, true), raw(g.triangles.ptr()),
+                                  raw(g.edge_flags.ptr()), raw(g.edge_neighbours.ptr()));
+            setupRangeCpu(setup, first, o.triangle_count, lists.drawn);
+            // Across the near plane (only where the occluder's vertices lie on both sides):
+            // appendNearClipped's CountNearClipped.
+            if (in_front != 0 && in_front != o.vertex_count) {
+                const uint32_t* const corners = raw(g.triangles.ptr());
+                for (uint32_t t = first; t < first + o.triangle_count; ++t) {
+                    const uint32_t ahead =
+                        front[corners[3 * t]] + front[corners[3 * t + 1]] + front[corners[3 * t + 2]];
+                    if (ahead == 1 || ahead == 2) lists.crossing.push_back(t), lists.crossing_front.push_back(uint8_t(ahead));
+                }
+            }
         }
-        chunk_front[c] = in_front;
     });
-    uint64_t in_front = 0;
-    for (size_t c = 0; c < chunk_count; ++c) in_front += chunk_front[c];
+    // The drawn list, chunk after chunk (ascending), and the crossing triangles likewise.
+    uint64_t drawn_total = 0, crossing_total = 0;
+    for (size_t c = 0; c < chunk_count; ++c) {
+        drawn_total += scratch.occluder_chunk_lists[c].drawn.size();
+        crossing_total += scratch.occluder_chunk_lists[c].crossing.size();
+    }
+    std::vector<uint32_t>& crossing = scratch.occluder_crossing;
+    std::vector<uint8_t>& crossing_front = scratch.occluder_crossing_front;
+    crossing.clear(), crossing_front.clear();
+    if (crossing_total > 0)
+        for (size_t c = 0; c < chunk_count; ++c) {
+            const DepthRasterScratch::ChunkLists& lists = scratch.occluder_chunk_lists[c];
+            crossing.insert(crossing.end(), lists.crossing.begin(), lists.crossing.end());
+            crossing_front.insert(crossing_front.end(), lists.crossing_front.begin(), lists.crossing_front.end());
+        }
     // The parts of triangles across the near plane, appended: projected and set up on their own
     // (their edges are all boundaries, so they need no neighbour).
-    const uint64_t added = appendNearClippedSides(g, camera, in_front);
+    const uint64_t added = appendNearClippedList(g, camera, crossing.data(), crossing_front.data(), crossing_total);
     const auto tri_count = uint32_t(g.triangle_total);
     SetupTriangles final_setup = setup;
+    std::vector<uint32_t>& appended_drawn = scratch.occluder_crossing;  // reused: the crossing list is done
+    appended_drawn.clear();
     if (added > 0) {
         growKeepingAll(scratch.vertices, g.vertex_total);
         growKeepingAll(scratch.setup, g.triangle_total);
@@ -1039,9 +1088,20 @@ uint64_t rasterOccluders(DevicePtr<const ObjectInfo> object_memory, DevicePtr<co
         final_setup = SetupTriangles{raw(scratch.vertices.ptr()), raw(g.triangles.ptr()), raw(g.edge_flags.ptr()),
                                      raw(g.edge_neighbours.ptr()), tri_count, raw(scratch.setup.ptr()),
                                      raw(scratch.drawn.ptr()), last_x, last_y};
-        setupTrianglesCpu(final_setup, uint32_t(triangle_total), tri_count);
+        setupRangeCpu(final_setup, uint32_t(triangle_total), uint32_t(added), appended_drawn);
     }
-    listDrawnTriangles(raw(g.positions.ptr()), raw(g.triangles.ptr()), tri_count, final_setup, scratch, /*seams=*/true);
+    scratch.drawn_count = uint32_t(drawn_total + appended_drawn.size());
+    scratch.drawn_ids.resize(std::max<uint32_t>(1, scratch.drawn_count));
+    uint32_t* at = raw(scratch.drawn_ids.ptr());
+    for (size_t c = 0; c < chunk_count; ++c) {
+        const std::vector<uint32_t>& d = scratch.occluder_chunk_lists[c].drawn;
+        at = std::copy(d.begin(), d.end(), at);
+    }
+    std::copy(appended_drawn.begin(), appended_drawn.end(), at);
+    scratch.drawn_setup.resize(std::max<uint32_t>(1, scratch.drawn_count));
+    forEachIndex(scratch.drawn_count,
+                 GatherDrawn{raw(scratch.setup.ptr()), raw(scratch.drawn_ids.ptr()), raw(scratch.drawn_setup.ptr())});
+    seams(raw(g.positions.ptr()), raw(g.triangles.ptr()), final_setup, scratch);
     static_assert(kTile == 1u << 5);
     const TileBins bins = binTriangles(tri_count, camera.width, camera.height, 5, 5, scratch);
     depthRasterTilesCpu(DepthTiles{raw(scratch.drawn_setup.ptr()), bins, raw(depth), camera.width, camera.height});

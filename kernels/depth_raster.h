@@ -75,9 +75,16 @@ struct DepthRasterScratch {
     DeviceArray<uint8_t> seam_bits;           // per drawn triangle: the same as bits
     DeviceArray<uint32_t> seam_triangles;     // the drawn positions of triangles with such bits
     // rasterOccluders' CPU front end: the first occluder of each chunk, then the count; per
-    // chunk, its vertices in front of the near plane.
+    // chunk, the triangles it drew and those across the near plane with how many corners in
+    // front; all the crossing ones, in order.
     std::vector<uint32_t> occluder_chunks;
-    std::vector<uint64_t> occluder_chunk_front;
+    struct ChunkLists {
+        std::vector<uint32_t> drawn, crossing;
+        std::vector<uint8_t> crossing_front;
+    };
+    std::vector<ChunkLists> occluder_chunk_lists;
+    std::vector<uint32_t> occluder_crossing;
+    std::vector<uint8_t> occluder_crossing_front;
 };
 
 // Marks the edges that a triangle list shares within itself, once per mesh: flags[t] gets bit e

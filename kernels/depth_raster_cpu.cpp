@@ -258,6 +258,59 @@ uint32_t SetupCandidates(const DepthRasterVertex* vertices, const uint32_t* tria
     return count;
 }
 
+uint32_t TransformProject(const OccluderVertexJob& job, const glm::vec3* src, uint32_t count, glm::vec3* world,
+                          DepthRasterVertex* out, uint8_t* front, uint32_t& in_front) {
+    const hn::ScalableTag<float> df;
+    const hn::RebindToSigned<decltype(df)> di;
+    const hn::Rebind<uint8_t, decltype(di)> d8;
+    const uint32_t n = uint32_t(hn::Lanes(df));
+    const float* const w = job.world;
+    const float* const m = job.view_proj;
+    const auto zero = hn::Zero(df), half = hn::Set(df, 0.5f), one = hn::Set(df, 1.0f);
+    const auto vwidth = hn::Set(df, job.width), vheight = hn::Set(df, job.height);
+    const auto units = hn::Set(df, float(kUnits)), guard = hn::Set(df, kDepthRasterGuardBand);
+    const auto max_depth = hn::Set(df, kDepthRasterMaxDepth);
+    uint32_t done = 0, ahead = 0;
+    for (; done + n <= count; done += n) {
+        hn::Vec<decltype(df)> x, y, z;
+        hn::LoadInterleaved3(df, reinterpret_cast<const float*>(src + done), x, y, z);
+        // occluderVertex: glm's m * vec4(p, 1), (m0 x + m1 y) + (m2 z + m3), component by component.
+        hn::Vec<decltype(df)> p[3];
+        for (int c = 0; c < 3; ++c)
+            p[c] = hn::Add(hn::Add(hn::Mul(hn::Set(df, w[c]), x), hn::Mul(hn::Set(df, w[4 + c]), y)),
+                           hn::Add(hn::Mul(hn::Set(df, w[8 + c]), z), hn::Set(df, w[12 + c])));
+        hn::StoreInterleaved3(p[0], p[1], p[2], df, reinterpret_cast<float*>(world + done));
+        // inFrontOfNearPlane: ((r.x x + r.y y) + r.z z) + r.w > 0.
+        const auto near = hn::Add(hn::Add(hn::Add(hn::Mul(hn::Set(df, job.near_row[0]), p[0]),
+                                                  hn::Mul(hn::Set(df, job.near_row[1]), p[1])),
+                                          hn::Mul(hn::Set(df, job.near_row[2]), p[2])),
+                                  hn::Set(df, job.near_row[3]));
+        const auto in = hn::Gt(near, zero);
+        ahead += uint32_t(hn::CountTrue(df, in));
+        hn::StoreU(hn::DemoteTo(d8, hn::IfThenElseZero(hn::RebindMask(di, in), hn::Set(di, 1))), d8, front + done);
+        // ProjectVertices, in its float operations.
+        hn::Vec<decltype(df)> clip[4];
+        for (int r = 0; r < 4; ++r)
+            clip[r] = hn::Add(hn::Add(hn::Add(hn::Mul(hn::Set(df, m[r]), p[0]), hn::Mul(hn::Set(df, m[4 + r]), p[1])),
+                                      hn::Mul(hn::Set(df, m[8 + r]), p[2])),
+                              hn::Set(df, m[12 + r]));
+        const auto visible = hn::And(hn::Gt(clip[3], zero), hn::Ge(clip[2], hn::Neg(clip[3])));
+        const auto inv_w = hn::Div(one, clip[3]);
+        const auto wx = hn::Mul(hn::Add(hn::Mul(hn::Mul(clip[0], inv_w), half), half), vwidth);
+        const auto wy = hn::Mul(hn::Add(hn::Mul(hn::Mul(clip[1], inv_w), half), half), vheight);
+        const auto wz = hn::Add(hn::Mul(hn::Mul(clip[2], inv_w), half), half);
+        const auto drawn = hn::And(visible, hn::And(hn::And(hn::Le(hn::Abs(wx), guard), hn::Le(hn::Abs(wy), guard)),
+                                                    hn::Le(wz, max_depth)));
+        const auto sx = hn::ConvertTo(di, hn::IfThenElseZero(drawn, hn::Floor(hn::Add(hn::Mul(wx, units), half))));
+        const auto sy = hn::ConvertTo(di, hn::IfThenElseZero(drawn, hn::Floor(hn::Add(hn::Mul(wy, units), half))));
+        const auto bits_z = hn::BitCast(di, hn::IfThenElseZero(visible, wz));
+        const auto flag = hn::IfThenElseZero(hn::RebindMask(di, drawn), hn::Set(di, 1));
+        hn::StoreInterleaved4(sx, sy, bits_z, flag, di, reinterpret_cast<int32_t*>(out + done));
+    }
+    in_front = ahead;
+    return done;
+}
+
 void RasterTile(const DepthTiles& job, uint32_t tile) {
     const TileBins& bins = job.bins;
     const uint32_t px0 = tile % bins.tiles_x * kTile, py0 = tile / bins.tiles_x * kTile;
@@ -328,6 +381,16 @@ uint32_t setupCandidatesCpu(const DepthRasterVertex* vertices, const uint32_t* t
         HWY_CHOOSE_AVX3(SetupCandidates), HWY_CHOOSE_AVX2(SetupCandidates), HWY_CHOOSE_SSE4(SetupCandidates),
         HWY_CHOOSE_FALLBACK(SetupCandidates)};
     return pickSimd(kCandidates)(vertices, triangles, edge_flags, begin, end, last_x, last_y, out);
+}
+
+uint32_t transformProjectCpu(const OccluderVertexJob& job, const glm::vec3* src, uint32_t count, glm::vec3* world,
+                             DepthRasterVertex* out, uint8_t* front, uint32_t& in_front) {
+    using Function = uint32_t (*)(const OccluderVertexJob&, const glm::vec3*, uint32_t, glm::vec3*, DepthRasterVertex*,
+                                  uint8_t*, uint32_t&);
+    static const Function kFunctions[kSimdLevels] = {
+        HWY_CHOOSE_AVX3(TransformProject), HWY_CHOOSE_AVX2(TransformProject), HWY_CHOOSE_SSE4(TransformProject),
+        HWY_CHOOSE_FALLBACK(TransformProject)};
+    return pickSimd(kFunctions)(job, src, count, world, out, front, in_front);
 }
 
 const char* depthRasterCpuTarget() {

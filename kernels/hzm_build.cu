@@ -3,6 +3,7 @@
 
 #include "host_device.h"
 #include "device_access.h"
+#include "for_each_index.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
@@ -38,8 +39,7 @@ void hzmBuild(DevicePtr<float> level_memory, uint32_t width, uint32_t height) {
     hzmLayout(width, height, layout);
     for (uint32_t l = 1; l < layout.level_count; ++l) {
         const uint32_t texels = layout.width[l] * layout.height[l];
-        thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), texels,
-                           ReduceMax{levels + layout.offset[l - 1], levels + layout.offset[l], layout.width[l - 1],
+        forEachIndex(texels, ReduceMax{levels + layout.offset[l - 1], levels + layout.offset[l], layout.width[l - 1],
                                      layout.height[l - 1], layout.width[l]});
     }
 }

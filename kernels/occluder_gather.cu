@@ -162,7 +162,10 @@ struct WriteNearClipped {
         edge_flags[tri] = 0;
     }
     OCC_HD void operator()(uint32_t t) const {
-        if (counts[t] == 0) return;
+        if (counts[t] != 0) write(t, counts[t], offsets[t]);
+    }
+    // Triangle t, `count` (1 or 2) of whose corners are in front, as new triangles k (and k + 1).
+    OCC_HD void write(uint32_t t, uint32_t count, uint64_t k) const {
         glm::vec3 p[3];
         float d[3];
         for (int c = 0; c < 3; ++c) {
@@ -171,13 +174,12 @@ struct WriteNearClipped {
         }
         // Rotate so that the lone corner (in front for one new triangle, behind for two) is
         // first, keeping the cyclic order and so the winding.
-        const bool one = counts[t] == 1;
+        const bool one = count == 1;
         int lone = 0;
         for (int c = 0; c < 3; ++c)
             if ((d[c] > 0.0f) == one) lone = c;
         const glm::vec3 a = p[lone], b = p[(lone + 1) % 3], c = p[(lone + 2) % 3];
         const float da = d[lone], db = d[(lone + 1) % 3], dc = d[(lone + 2) % 3];
-        const uint64_t k = offsets[t];
         if (one) {
             put(k, a, onPlane(a, da, b, db), onPlane(a, da, c, dc));
         } else {
@@ -197,26 +199,19 @@ void growKeeping(DeviceArray<T>& a, uint64_t n) {
 }  // namespace
 
 uint64_t appendNearClipped(OccluderGeometry& g, const Camera& camera) {
-    const uint64_t vertices = g.vertex_total;
-    if (g.triangle_total == 0 || g.triangle_total > UINT32_MAX) return 0;
+    const uint64_t triangles = g.triangle_total, vertices = g.vertex_total;
+    if (triangles == 0 || triangles > UINT32_MAX) return 0;
+    const NearDistance near{nearPlaneRow(camera.view_proj)};
     // Which side each vertex is on, once: when every vertex is on one side no triangle crosses
     // (the usual case away from walls and floors), and the triangles' count reads a byte a
     // corner instead of a position.
     g.front.growTo(vertices);
     uint8_t* const front = raw(g.front.ptr());
     thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), vertices,
-                       NearSides{raw(g.positions.ptr()), nearPlaneRow(camera.view_proj), front});
+                       NearSides{raw(g.positions.ptr()), near.row, front});
     const uint64_t in_front = uint64_t(thrust::count(thrust::device, front, front + vertices, uint8_t(1)));
     countReadback(sizeof in_front);
-    return appendNearClippedSides(g, camera, in_front);
-}
-
-uint64_t appendNearClippedSides(OccluderGeometry& g, const Camera& camera, uint64_t in_front) {
-    const uint64_t triangles = g.triangle_total, vertices = g.vertex_total;
-    if (triangles == 0 || triangles > UINT32_MAX) return 0;
     if (in_front == 0 || in_front == vertices) return 0;
-    const NearDistance near{nearPlaneRow(camera.view_proj)};
-    const uint8_t* const front = raw(g.front.ptr());
     g.sizes.growTo(triangles);
     g.offsets.growTo(triangles);
     const auto n = uint32_t(triangles);
@@ -236,5 +231,30 @@ uint64_t appendNearClippedSides(OccluderGeometry& g, const Camera& camera, uint6
     g.triangle_total = triangles + added;
     return added;
 }
+
+#if !defined(__CUDACC__)
+uint64_t appendNearClippedList(OccluderGeometry& g, const Camera& camera, const uint32_t* crossing,
+                               const uint8_t* counts, uint64_t n) {
+    const uint64_t triangles = g.triangle_total, vertices = g.vertex_total;
+    uint64_t added = 0;
+    for (uint64_t i = 0; i < n; ++i) added += counts[i];
+    if (added == 0) return 0;
+    growKeeping(g.positions, vertices + 3 * added);
+    growKeeping(g.triangles, 3 * (triangles + added));
+    growKeeping(g.edge_flags, triangles + added);
+    growKeeping(g.edge_neighbours, 3 * (triangles + added));
+    const WriteNearClipped write{raw(g.positions.ptr()), raw(g.triangles.ptr()), raw(g.edge_flags.ptr()),
+                                 raw(g.edge_neighbours.ptr()), nullptr, nullptr, NearDistance{nearPlaneRow(camera.view_proj)},
+                                 vertices, triangles};
+    uint64_t k = 0;
+    for (uint64_t i = 0; i < n; ++i) {
+        write.write(crossing[i], counts[i], k);
+        k += counts[i];
+    }
+    g.vertex_total = vertices + 3 * added;
+    g.triangle_total = triangles + added;
+    return added;
+}
+#endif
 
 }  // namespace occ::k

@@ -104,10 +104,14 @@ OCC_HD inline bool inFrontOfNearPlane(const glm::vec4& row, const glm::vec3& p) 
 // original ones stay, and stay skipped). Runs on the device; reads back 8 bytes.
 uint64_t appendNearClipped(OccluderGeometry& g, const Camera& camera);
 
-// appendNearClipped when g.front already holds, for each of g's vertex_total vertices, 1 where
-// inFrontOfNearPlane(nearPlaneRow(camera.view_proj), position) and 0 elsewhere, and in_front
-// counts the ones (rasterOccluders' CPU front end finds both while it transforms the vertices).
-uint64_t appendNearClippedSides(OccluderGeometry& g, const Camera& camera, uint64_t in_front);
+#if !defined(__CUDACC__)
+// appendNearClipped's appended triangles when the crossing ones are known (rasterOccluders'
+// CPU front end finds them while it copies each occluder): crossing[0, n) lists, ascending,
+// every triangle of g with one or two corners in front of the near plane, counts[i] that
+// number (the new triangles it gives). Host code of the CPU build.
+uint64_t appendNearClippedList(OccluderGeometry& g, const Camera& camera, const uint32_t* crossing,
+                               const uint8_t* counts, uint64_t n);
+#endif
 
 // The occluders' depth image: gatherOccluders(objects, world, meshes, ids, count, g, &camera.eye),
 // appendNearClipped(g, camera), then depthRaster of g with seams into depth, W x H as the

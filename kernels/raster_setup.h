@@ -231,6 +231,21 @@ struct DepthTiles {
 // take the sharing away.
 uint32_t setupCandidatesCpu(const DepthRasterVertex* vertices, const uint32_t* triangles, const uint8_t* edge_flags,
                             uint32_t begin, uint32_t end, int32_t last_x, int32_t last_y, uint32_t* out);
+// One occluder's vertices as rasterOccluders' CPU front end transforms and projects them: its
+// world matrix and the camera's view_proj (column-major, m[4 * column + row]), the viewport,
+// and nearPlaneRow.
+struct OccluderVertexJob {
+    float world[16];
+    float view_proj[16];
+    float width, height;
+    float near_row[4];
+};
+// The first count - count % lanes of src[0, count) (object space), a vector at a time
+// (kernels/depth_raster_cpu.cpp): world[i] = occluderVertex, front[i] = inFrontOfNearPlane,
+// out[i] = ProjectVertices' vertex of world[i], in the same float operations, so the same bits.
+// Returns how many it did (the caller does the rest one by one) and their count in front.
+uint32_t transformProjectCpu(const OccluderVertexJob& job, const glm::vec3* src, uint32_t count, glm::vec3* world,
+                             DepthRasterVertex* out, uint8_t* front, uint32_t& in_front);
 // The CPU's tile loop (kernels/depth_raster_cpu.cpp): every tile in parallel, in SIMD, the same
 // bits as the one-thread-per-tile loop of depth_raster.cu.
 void depthRasterTilesCpu(const DepthTiles& tiles);
