@@ -2,6 +2,7 @@
 #include "keep_visible.h"
 
 #include "device_access.h"
+#include "for_each_index.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
@@ -61,8 +62,10 @@ void markNewlyVisible(DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t> oc
                       uint32_t window, DevicePtr<const uint32_t> last_visible, DevicePtr<uint8_t> flags) {
     if (count == 0) return;
     const thrust::counting_iterator<uint32_t> first(0);
-    thrust::transform(thrust::device, first, first + count, raw(flags),
-                      NewlyVisible{raw(ids), raw(occluded), raw(last_visible), uint32_t(frame + 1), window});
+    withPolicy(count, [&](auto policy) {
+        thrust::transform(policy, first, first + count, raw(flags),
+                          NewlyVisible{raw(ids), raw(occluded), raw(last_visible), uint32_t(frame + 1), window});
+    });
 }
 
 void mergeNearest(DevicePtr<float> depth, DevicePtr<const float> other, uint32_t count) {
@@ -73,7 +76,7 @@ void mergeNearest(DevicePtr<float> depth, DevicePtr<const float> other, uint32_t
 void scatterFlags(DevicePtr<const uint32_t> indices, DevicePtr<const uint8_t> values, uint32_t count,
                   DevicePtr<uint8_t> occluded) {
     if (count == 0) return;
-    thrust::scatter(thrust::device, raw(values), raw(values) + count, raw(indices), raw(occluded));
+    withPolicy(count, [&](auto policy) { thrust::scatter(policy, raw(values), raw(values) + count, raw(indices), raw(occluded)); });
 }
 
 void keepRecentlyVisible(DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t> occluded, uint32_t count,
@@ -81,9 +84,8 @@ void keepRecentlyVisible(DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t>
                          DevicePtr<uint32_t> returned, DevicePtr<uint8_t> drop) {
     if (count == 0) return;
     const thrust::counting_iterator<uint32_t> first(0);
-    thrust::for_each_n(thrust::device, first, count,
-                       KeepRecent{raw(ids), raw(occluded), uint32_t(frame + 1), keep_frames, step, raw(last_visible),
-                                  raw(returned), raw(drop)});
+    forEachIndex(count, KeepRecent{raw(ids), raw(occluded), uint32_t(frame + 1), keep_frames, step, raw(last_visible),
+                                   raw(returned), raw(drop)});
 }
 
 }  // namespace occ::k

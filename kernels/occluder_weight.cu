@@ -2,6 +2,7 @@
 #include "occluder_weight.h"
 
 #include "device_access.h"
+#include "for_each_index.h"
 
 #include <algorithm>
 
@@ -175,16 +176,22 @@ uint32_t selectPvsOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const
     uint64_t* const keys = raw(scratch.keys.ptr());
     uint8_t* const taken = raw(scratch.taken.ptr());
     const thrust::counting_iterator<uint32_t> first(0);
-    thrust::transform(thrust::device, first, first + count, keys,
-                      PvsOccluderKey{raw(objects), raw(candidates), raw(in_frustum), camera.eye, camera.near_plane});
-    thrust::sort(thrust::device, keys, keys + count);
+    // A PVS is a few thousand ids: on the CPU the ranking then runs on the calling thread, and
+    // the sort without the TBB sort's temporaries.
+    withPolicy(count, [&](auto policy) {
+        thrust::transform(policy, first, first + count, keys,
+                          PvsOccluderKey{raw(objects), raw(candidates), raw(in_frustum), camera.eye, camera.near_plane});
+        thrust::sort(policy, keys, keys + count);
+    });
     if (exclude_count > 0)
-        thrust::for_each_n(thrust::device, raw(exclude), exclude_count, MarkTaken{taken, 1});
+        withPolicy(exclude_count,
+                   [&](auto policy) { thrust::for_each_n(policy, raw(exclude), exclude_count, MarkTaken{taken, 1}); });
     thrust::for_each_n(thrust::device, first, 1,
                        TakeWithinBudget{raw(objects), keys, count, taken, triangle_budget, raw(out),
                                         raw(scratch.chosen.ptr())});
     if (exclude_count > 0)
-        thrust::for_each_n(thrust::device, raw(exclude), exclude_count, MarkTaken{taken, 0});
+        withPolicy(exclude_count,
+                   [&](auto policy) { thrust::for_each_n(policy, raw(exclude), exclude_count, MarkTaken{taken, 0}); });
     return readBack(DevicePtr<const uint32_t>(scratch.chosen.ptr()));
 }
 
@@ -200,7 +207,8 @@ struct InFrustum {
 uint32_t countInFrustum(DevicePtr<const uint32_t> ids, uint32_t count, DevicePtr<const uint8_t> in_frustum) {
     if (count == 0) return 0;
     countReadback(sizeof(uint32_t));
-    return uint32_t(thrust::count_if(thrust::device, raw(ids), raw(ids) + count, InFrustum{raw(in_frustum)}));
+    return uint32_t(withPolicy(
+        count, [&](auto policy) { return thrust::count_if(policy, raw(ids), raw(ids) + count, InFrustum{raw(in_frustum)}); }));
 }
 
 }  // namespace occ::k

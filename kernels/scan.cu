@@ -3,6 +3,7 @@
 
 #include "block_runs.h"
 #include "device_access.h"
+#include "for_each_index.h"
 
 #include <thrust/copy.h>
 #include <thrust/execution_policy.h>
@@ -33,7 +34,8 @@ uint64_t exclusiveScan(DevicePtr<const uint32_t> in, uint32_t count, DevicePtr<u
 uint32_t compactIndices(DevicePtr<const uint8_t> flags, uint32_t count, uint8_t value, DevicePtr<uint32_t> out) {
     if (count == 0) return 0;
     const thrust::counting_iterator<uint32_t> first(0);
-    uint32_t* const end = thrust::copy_if(thrust::device, first, first + count, raw(flags), raw(out), Equals{value});
+    uint32_t* const end = withPolicy(
+        count, [&](auto policy) { return thrust::copy_if(policy, first, first + count, raw(flags), raw(out), Equals{value}); });
     countReadback(sizeof(uint32_t));  // copy_if's count
     return uint32_t(end - raw(out));
 }
@@ -41,16 +43,18 @@ uint32_t compactIndices(DevicePtr<const uint8_t> flags, uint32_t count, uint8_t 
 uint32_t compactSelected(DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t> flags, uint32_t count, uint8_t value,
                          DevicePtr<uint32_t> out) {
     if (count == 0) return 0;
-    uint32_t* const end =
-        thrust::copy_if(thrust::device, raw(ids), raw(ids) + count, raw(flags), raw(out), Equals{value});
+    uint32_t* const end = withPolicy(count, [&](auto policy) {
+        return thrust::copy_if(policy, raw(ids), raw(ids) + count, raw(flags), raw(out), Equals{value});
+    });
     countReadback(sizeof(uint32_t));
     return uint32_t(end - raw(out));
 }
 
 uint32_t unionAscending(DevicePtr<const uint32_t> a, uint32_t a_count, DevicePtr<const uint32_t> b, uint32_t b_count,
                         DevicePtr<uint32_t> out) {
-    uint32_t* const end =
-        thrust::set_union(thrust::device, raw(a), raw(a) + a_count, raw(b), raw(b) + b_count, raw(out));
+    uint32_t* const end = withPolicy(uint64_t(a_count) + b_count, [&](auto policy) {
+        return thrust::set_union(policy, raw(a), raw(a) + a_count, raw(b), raw(b) + b_count, raw(out));
+    });
     countReadback(sizeof(uint32_t));
     return uint32_t(end - raw(out));
 }
