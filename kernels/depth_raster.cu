@@ -821,6 +821,53 @@ TileBins binTriangles(uint32_t tri_count, uint32_t width, uint32_t height, uint3
     const uint32_t chunk_count = uint32_t(std::max<uint64_t>(1, std::min(wanted_chunks, kMaxCountCells / tile_count)));
     const ChunkGrid grid{drawn, (drawn + chunk_count - 1) / chunk_count, chunk_count, tiles_x, tile_w_log2,
                          tile_h_log2};
+#if !defined(__CUDACC__)
+    // On the CPU each chunk counts and fills a row of its own (chunk-major), so that no two
+    // cores write the same cache line (the tile-major matrix below had neighbouring chunks'
+    // cells side by side), and one serial scan in tile order leaves each tile's end in the first
+    // tile_count cells: TileBins with one chunk.
+    if (drawn > 0) {
+        const uint64_t row = tile_count;
+        scratch.cells.resize(row * (chunk_count + 1));
+        uint64_t* const ends = raw(scratch.cells.ptr());
+        uint64_t* const rows = ends + row;  // chunk c's counts, then cursors, at rows + c * row
+        const DepthRasterTriangle* const drawn_setup = raw(scratch.drawn_setup.ptr());
+        const auto forEachTileOf = [&](const DepthRasterTriangle& t, auto&& f) {
+            for (uint32_t ty = t.y_lo >> tile_h_log2; ty <= uint32_t(t.y_hi) >> tile_h_log2; ++ty)
+                for (uint32_t tx = t.x_lo >> tile_w_log2; tx <= uint32_t(t.x_hi) >> tile_w_log2; ++tx)
+                    f(uint64_t(ty) * tiles_x + tx);
+        };
+        const auto eachChunk = [&](auto&& work) {
+            if (chunk_count == 1)
+                work(0u);
+            else
+                tbb::parallel_for(0u, chunk_count, [&](uint32_t c) { work(c); });
+        };
+        eachChunk([&](uint32_t c) {
+            uint64_t* const counts = rows + c * row;
+            std::fill(counts, counts + row, uint64_t(0));
+            for (uint32_t i = grid.chunkBegin(c); i < grid.chunkEnd(c); ++i)
+                forEachTileOf(drawn_setup[i], [&](uint64_t tile) { ++counts[tile]; });
+        });
+        uint64_t total = 0;
+        for (uint64_t tile = 0; tile < row; ++tile) {
+            for (uint32_t c = 0; c < chunk_count; ++c) {
+                const uint64_t n = rows[c * row + tile];
+                rows[c * row + tile] = total;
+                total += n;
+            }
+            ends[tile] = total;
+        }
+        scratch.pair_triangle.resize(std::max<uint64_t>(1, total));
+        uint32_t* const pairs = raw(scratch.pair_triangle.ptr());
+        eachChunk([&](uint32_t c) {
+            uint64_t* const cursor = rows + c * row;
+            for (uint32_t i = grid.chunkBegin(c); i < grid.chunkEnd(c); ++i)
+                forEachTileOf(drawn_setup[i], [&](uint64_t tile) { pairs[cursor[tile]++] = i; });
+        });
+        return TileBins{tile_w_log2, tile_h_log2, tiles_x, tiles_y, 1, ends, pairs};
+    }
+#endif
     const uint64_t cell_count = uint64_t(tile_count) * chunk_count;
     scratch.cells.resize(cell_count + 1);
     uint64_t* cells = raw(scratch.cells.ptr());
