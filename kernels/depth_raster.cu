@@ -678,16 +678,18 @@ uint32_t groupEqualKeys(uint64_t* keys, uint32_t* ids, uint32_t count, DepthRast
     }
     if (shared == 0) return 0;
     // The keys' groups in the order of their slots (a function of the keys alone).
-    std::vector<uint64_t> out_keys(shared);
-    std::vector<uint32_t> out_ids(shared);
+    std::vector<uint64_t>& out_keys = scratch.grouped_keys;
+    std::vector<uint32_t>& out_ids = scratch.grouped_ids;
+    out_keys.resize(shared);
+    out_ids.resize(shared);
     uint32_t at = 0;
     for (uint64_t h = 0; h < slots; ++h) {
         const uint32_t f = table[h];
         if (f == UINT32_MAX || size[f] < 2) continue;
         for (uint32_t e = f; e != UINT32_MAX; e = next[e]) out_keys[at] = keys[e], out_ids[at] = ids[e], ++at;
     }
-    std::copy(out_keys.begin(), out_keys.end(), keys);
-    std::copy(out_ids.begin(), out_ids.end(), ids);
+    std::copy(out_keys.begin(), out_keys.begin() + shared, keys);
+    std::copy(out_ids.begin(), out_ids.begin() + shared, ids);
     return shared;
 #endif
 }

@@ -71,6 +71,8 @@ struct DepthRasterScratch {
     DeviceArray<uint32_t> edge_ids;           // 3 * triangle + stored edge, one per boundary edge
     DeviceArray<uint64_t> edge_keys;          // hash of the edge's world endpoints, unordered
     DeviceArray<uint32_t> key_groups;         // CPU build: a hash table of edge_keys and its chains
+    std::vector<uint64_t> grouped_keys;       // CPU build: the keys shared by several edges, grouped
+    std::vector<uint32_t> grouped_ids;        // and their edges
     DeviceArray<uint8_t> seam_edges;          // 3 per drawn triangle: 1 where a stored edge is shared across
     DeviceArray<uint8_t> seam_bits;           // per drawn triangle: the same as bits
     DeviceArray<uint32_t> seam_triangles;     // the drawn positions of triangles with such bits
