@@ -212,7 +212,8 @@ job=
 "${mpirun[@]}" -np 3 "$exe" render "$dir/p.oss" --path "$dir/long.cam" --no-display --rank-timeout 3 >/dev/null 2>"$dir/errs" &
 job=$!
 victim=$(rankPid 2) || fail "rank 2 never started"
-sleep 2
+# Past the start-up, in which the ranks allow each other 60 s (see tests/mpi_sort_last.sh).
+sleep 6
 kill -STOP "$victim"
 stopped=$(date +%s.%N)
 for _ in $(seq 150); do kill -0 $job 2>/dev/null || break; sleep 0.1; done
