@@ -768,9 +768,18 @@ void setupTrianglesCpu(const SetupTriangles& setup, uint32_t begin, uint32_t end
 }
 #endif
 
+// The setup of the drawn triangles listed in scratch.drawn_ids copied densely, then the seams
+// found among them. Seams only move margins of drawn triangles, so the list stays what it is.
+void copyDrawnSetup(const glm::vec3* positions, const uint32_t* triangles, const SetupTriangles& setup,
+                    DepthRasterScratch& scratch, bool with_seams) {
+    scratch.drawn_setup.resize(std::max<uint32_t>(1, scratch.drawn_count));
+    forEachIndex(scratch.drawn_count, GatherDrawn{raw(scratch.setup.ptr()), raw(scratch.drawn_ids.ptr()),
+                                                  raw(scratch.drawn_setup.ptr())});
+    if (with_seams) seams(positions, triangles, setup, scratch);
+}
+
 // The list of drawn triangles, which every later pass walks instead of all of them (on the
-// plant walks 3 occluder triangles in 4 hold no pixel centre), their setup copied densely, then
-// the seams. Seams only move margins of drawn triangles, so the list stays what it is.
+// plant walks 3 occluder triangles in 4 hold no pixel centre), then copyDrawnSetup.
 void listDrawnTriangles(const glm::vec3* positions, const uint32_t* triangles, uint32_t tri_count,
                         const SetupTriangles& setup, DepthRasterScratch& scratch, bool with_seams) {
     const thrust::counting_iterator<uint32_t> first(0);
@@ -779,10 +788,7 @@ void listDrawnTriangles(const glm::vec3* positions, const uint32_t* triangles, u
     scratch.drawn_count = uint32_t(
         thrust::copy_if(thrust::device, first, first + tri_count, drawn_ids, ByteSet{raw(scratch.drawn.ptr())}) - drawn_ids);
     countReadback(sizeof scratch.drawn_count);
-    scratch.drawn_setup.resize(std::max<uint32_t>(1, scratch.drawn_count));
-    forEachIndex(scratch.drawn_count,
-                       GatherDrawn{raw(scratch.setup.ptr()), drawn_ids, raw(scratch.drawn_setup.ptr())});
-    if (with_seams) seams(positions, triangles, setup, scratch);
+    copyDrawnSetup(positions, triangles, setup, scratch, with_seams);
 }
 
 }  // namespace
@@ -898,6 +904,13 @@ void checkRasterViewport(const Camera& camera, const char* who) {
 
 namespace {
 
+// The drawn triangles binned to the exact raster's tiles, as its tile loops take them.
+DepthTiles binnedTiles(uint32_t tri_count, const Camera& camera, DevicePtr<float> depth, DepthRasterScratch& scratch) {
+    static_assert(kTile == 1u << 5);
+    const TileBins bins = binTriangles(tri_count, camera.width, camera.height, 5, 5, scratch);
+    return DepthTiles{raw(scratch.drawn_setup.ptr()), bins, raw(depth), camera.width, camera.height};
+}
+
 DepthTiles depthRasterFrontEnd(DevicePtr<const glm::vec3> position_memory, DevicePtr<const uint32_t> triangle_memory,
                                uint32_t tri_count, DevicePtr<const uint8_t> flag_memory,
                                DevicePtr<const uint32_t> neighbour_memory, const Camera& camera,
@@ -905,9 +918,7 @@ DepthTiles depthRasterFrontEnd(DevicePtr<const glm::vec3> position_memory, Devic
     if (tri_count > 0)
         depthRasterSetup(raw(position_memory), raw(triangle_memory), tri_count, raw(flag_memory), raw(neighbour_memory),
                          camera, scratch, with_seams);
-    static_assert(kTile == 1u << 5);
-    const TileBins bins = binTriangles(tri_count, camera.width, camera.height, 5, 5, scratch);
-    return DepthTiles{raw(scratch.drawn_setup.ptr()), bins, raw(depth_memory), camera.width, camera.height};
+    return binnedTiles(tri_count, camera, depth_memory, scratch);
 }
 
 void rasterTilesScalar(const DepthTiles& t) {
@@ -1104,27 +1115,19 @@ uint64_t rasterOccluders(DevicePtr<const ObjectInfo> object_memory, DevicePtr<co
             }
         }
     });
-    // The drawn list, chunk after chunk (ascending), and the crossing triangles likewise.
-    uint64_t drawn_total = 0, crossing_total = 0;
+    // The parts of triangles across the near plane, appended chunk after chunk (so in ascending
+    // order, as appendNearClipped appends them), then projected and set up on their own (their
+    // edges are all boundaries, so they need no neighbour).
+    uint64_t drawn_total = 0, added = 0;
     for (size_t c = 0; c < chunk_count; ++c) {
-        drawn_total += scratch.occluder_chunk_lists[c].drawn.size();
-        crossing_total += scratch.occluder_chunk_lists[c].crossing.size();
+        const DepthRasterScratch::ChunkLists& lists = scratch.occluder_chunk_lists[c];
+        drawn_total += lists.drawn.size();
+        added += appendNearClippedList(g, camera, lists.crossing.data(), lists.crossing_front.data(),
+                                       lists.crossing.size());
     }
-    std::vector<uint32_t>& crossing = scratch.occluder_crossing;
-    std::vector<uint8_t>& crossing_front = scratch.occluder_crossing_front;
-    crossing.clear(), crossing_front.clear();
-    if (crossing_total > 0)
-        for (size_t c = 0; c < chunk_count; ++c) {
-            const DepthRasterScratch::ChunkLists& lists = scratch.occluder_chunk_lists[c];
-            crossing.insert(crossing.end(), lists.crossing.begin(), lists.crossing.end());
-            crossing_front.insert(crossing_front.end(), lists.crossing_front.begin(), lists.crossing_front.end());
-        }
-    // The parts of triangles across the near plane, appended: projected and set up on their own
-    // (their edges are all boundaries, so they need no neighbour).
-    const uint64_t added = appendNearClippedList(g, camera, crossing.data(), crossing_front.data(), crossing_total);
     const auto tri_count = uint32_t(g.triangle_total);
     SetupTriangles final_setup = setup;
-    std::vector<uint32_t>& appended_drawn = scratch.occluder_crossing;  // reused: the crossing list is done
+    std::vector<uint32_t>& appended_drawn = scratch.occluder_appended_drawn;
     appended_drawn.clear();
     if (added > 0) {
         growKeepingAll(scratch.vertices, g.vertex_total);
@@ -1139,6 +1142,7 @@ uint64_t rasterOccluders(DevicePtr<const ObjectInfo> object_memory, DevicePtr<co
                                      raw(scratch.drawn.ptr()), last_x, last_y};
         setupRangeCpu(final_setup, uint32_t(triangle_total), uint32_t(added), appended_drawn);
     }
+    // The drawn list: chunk after chunk (ascending), then the appended triangles.
     scratch.drawn_count = uint32_t(drawn_total + appended_drawn.size());
     scratch.drawn_ids.resize(std::max<uint32_t>(1, scratch.drawn_count));
     uint32_t* at = raw(scratch.drawn_ids.ptr());
@@ -1147,13 +1151,8 @@ uint64_t rasterOccluders(DevicePtr<const ObjectInfo> object_memory, DevicePtr<co
         at = std::copy(d.begin(), d.end(), at);
     }
     std::copy(appended_drawn.begin(), appended_drawn.end(), at);
-    scratch.drawn_setup.resize(std::max<uint32_t>(1, scratch.drawn_count));
-    forEachIndex(scratch.drawn_count,
-                 GatherDrawn{raw(scratch.setup.ptr()), raw(scratch.drawn_ids.ptr()), raw(scratch.drawn_setup.ptr())});
-    seams(raw(g.positions.ptr()), raw(g.triangles.ptr()), final_setup, scratch);
-    static_assert(kTile == 1u << 5);
-    const TileBins bins = binTriangles(tri_count, camera.width, camera.height, 5, 5, scratch);
-    depthRasterTilesCpu(DepthTiles{raw(scratch.drawn_setup.ptr()), bins, raw(depth), camera.width, camera.height});
+    copyDrawnSetup(raw(g.positions.ptr()), raw(g.triangles.ptr()), final_setup, scratch, /*seams=*/true);
+    depthRasterTilesCpu(binnedTiles(tri_count, camera, depth, scratch));
     return g.triangle_total;
 #endif
 }

@@ -78,15 +78,14 @@ struct DepthRasterScratch {
     DeviceArray<uint32_t> seam_triangles;     // the drawn positions of triangles with such bits
     // rasterOccluders' CPU front end: the first occluder of each chunk, then the count; per
     // chunk, the triangles it drew and those across the near plane with how many corners in
-    // front; all the crossing ones, in order.
+    // front; the drawn ones among the clipped parts appended.
     std::vector<uint32_t> occluder_chunks;
     struct ChunkLists {
         std::vector<uint32_t> drawn, crossing;
         std::vector<uint8_t> crossing_front;
     };
     std::vector<ChunkLists> occluder_chunk_lists;
-    std::vector<uint32_t> occluder_crossing;
-    std::vector<uint8_t> occluder_crossing_front;
+    std::vector<uint32_t> occluder_appended_drawn;
 };
 
 // Marks the edges that a triangle list shares within itself, once per mesh: flags[t] gets bit e

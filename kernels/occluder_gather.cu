@@ -114,7 +114,7 @@ namespace {
 // clip.z + clip.w of a world point: >= 0 in front of the near plane (OpenGL clip space).
 struct NearDistance {
     glm::vec4 row;  // nearPlaneRow
-    OCC_HD float operator()(const glm::vec3& p) const { return row.x * p.x + row.y * p.y + row.z * p.z + row.w; }
+    OCC_HD float operator()(const glm::vec3& p) const { return nearPlaneDistance(row, p); }
 };
 
 // Per vertex, 1 when it is in front of the near plane.
@@ -196,19 +196,34 @@ void growKeeping(DeviceArray<T>& a, uint64_t n) {
     if (a.size() < n) a.resizeKeep(n + n / 2);
 }
 
+// Room in g for `added` clipped triangles on 3 new vertices each, after its current totals.
+void growForClipped(OccluderGeometry& g, uint64_t added) {
+    growKeeping(g.positions, g.vertex_total + 3 * added);
+    growKeeping(g.triangles, 3 * (g.triangle_total + added));
+    growKeeping(g.edge_flags, g.triangle_total + added);
+    growKeeping(g.edge_neighbours, 3 * (g.triangle_total + added));
+}
+
+// The writer of clipped triangles after g's current totals (arrays grown by growForClipped).
+WriteNearClipped clippedWriter(OccluderGeometry& g, const Camera& camera, const uint32_t* counts,
+                               const uint64_t* offsets) {
+    return WriteNearClipped{raw(g.positions.ptr()), raw(g.triangles.ptr()),      raw(g.edge_flags.ptr()),
+                            raw(g.edge_neighbours.ptr()), counts, offsets, NearDistance{nearPlaneRow(camera.view_proj)},
+                            g.vertex_total, g.triangle_total};
+}
+
 }  // namespace
 
 uint64_t appendNearClipped(OccluderGeometry& g, const Camera& camera) {
     const uint64_t triangles = g.triangle_total, vertices = g.vertex_total;
     if (triangles == 0 || triangles > UINT32_MAX) return 0;
-    const NearDistance near{nearPlaneRow(camera.view_proj)};
     // Which side each vertex is on, once: when every vertex is on one side no triangle crosses
     // (the usual case away from walls and floors), and the triangles' count reads a byte a
     // corner instead of a position.
     g.front.growTo(vertices);
     uint8_t* const front = raw(g.front.ptr());
     thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), vertices,
-                       NearSides{raw(g.positions.ptr()), near.row, front});
+                       NearSides{raw(g.positions.ptr()), nearPlaneRow(camera.view_proj), front});
     const uint64_t in_front = uint64_t(thrust::count(thrust::device, front, front + vertices, uint8_t(1)));
     countReadback(sizeof in_front);
     if (in_front == 0 || in_front == vertices) return 0;
@@ -219,40 +234,29 @@ uint64_t appendNearClipped(OccluderGeometry& g, const Camera& camera) {
                        CountNearClipped{front, raw(g.triangles.ptr()), raw(g.sizes.ptr())});
     const uint64_t added = exclusiveScan(g.sizes.ptr(), n, g.offsets.ptr());
     if (added == 0) return 0;
-    growKeeping(g.positions, vertices + 3 * added);
-    growKeeping(g.triangles, 3 * (triangles + added));
-    growKeeping(g.edge_flags, triangles + added);
-    growKeeping(g.edge_neighbours, 3 * (triangles + added));
+    growForClipped(g, added);
     thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), n,
-                       WriteNearClipped{raw(g.positions.ptr()), raw(g.triangles.ptr()), raw(g.edge_flags.ptr()),
-                                        raw(g.edge_neighbours.ptr()), raw(g.sizes.ptr()), raw(g.offsets.ptr()), near,
-                                        vertices, triangles});
-    g.vertex_total = vertices + 3 * added;
-    g.triangle_total = triangles + added;
+                       clippedWriter(g, camera, raw(g.sizes.ptr()), raw(g.offsets.ptr())));
+    g.vertex_total += 3 * added;
+    g.triangle_total += added;
     return added;
 }
 
 #if !defined(__CUDACC__)
 uint64_t appendNearClippedList(OccluderGeometry& g, const Camera& camera, const uint32_t* crossing,
                                const uint8_t* counts, uint64_t n) {
-    const uint64_t triangles = g.triangle_total, vertices = g.vertex_total;
     uint64_t added = 0;
     for (uint64_t i = 0; i < n; ++i) added += counts[i];
     if (added == 0) return 0;
-    growKeeping(g.positions, vertices + 3 * added);
-    growKeeping(g.triangles, 3 * (triangles + added));
-    growKeeping(g.edge_flags, triangles + added);
-    growKeeping(g.edge_neighbours, 3 * (triangles + added));
-    const WriteNearClipped write{raw(g.positions.ptr()), raw(g.triangles.ptr()), raw(g.edge_flags.ptr()),
-                                 raw(g.edge_neighbours.ptr()), nullptr, nullptr, NearDistance{nearPlaneRow(camera.view_proj)},
-                                 vertices, triangles};
+    growForClipped(g, added);
+    const WriteNearClipped write = clippedWriter(g, camera, nullptr, nullptr);
     uint64_t k = 0;
     for (uint64_t i = 0; i < n; ++i) {
         write.write(crossing[i], counts[i], k);
         k += counts[i];
     }
-    g.vertex_total = vertices + 3 * added;
-    g.triangle_total = triangles + added;
+    g.vertex_total += 3 * added;
+    g.triangle_total += added;
     return added;
 }
 #endif

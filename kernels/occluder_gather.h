@@ -89,9 +89,10 @@ OCC_HD inline glm::vec4 nearPlaneRow(const glm::mat4& view_proj) {
     const glm::mat4& m = view_proj;  // m[column][row]
     return glm::vec4(m[0][2] + m[0][3], m[1][2] + m[1][3], m[2][2] + m[2][3], m[3][2] + m[3][3]);
 }
-OCC_HD inline bool inFrontOfNearPlane(const glm::vec4& row, const glm::vec3& p) {
-    return row.x * p.x + row.y * p.y + row.z * p.z + row.w > 0.0f;
+OCC_HD inline float nearPlaneDistance(const glm::vec4& row, const glm::vec3& p) {
+    return row.x * p.x + row.y * p.y + row.z * p.z + row.w;
 }
+OCC_HD inline bool inFrontOfNearPlane(const glm::vec4& row, const glm::vec3& p) { return nearPlaneDistance(row, p) > 0.0f; }
 
 // The depth raster skips a triangle whole when a corner is behind the near plane (it has no
 // screen position), so a floor or wall the camera stands on or beside would occlude nothing.
@@ -106,9 +107,11 @@ uint64_t appendNearClipped(OccluderGeometry& g, const Camera& camera);
 
 #if !defined(__CUDACC__)
 // appendNearClipped's appended triangles when the crossing ones are known (rasterOccluders'
-// CPU front end finds them while it copies each occluder): crossing[0, n) lists, ascending,
-// every triangle of g with one or two corners in front of the near plane, counts[i] that
-// number (the new triangles it gives). Host code of the CPU build.
+// CPU front end finds them while it copies each occluder): appends, after g's current totals,
+// the parts in front of the near plane of crossing[0, n), counts[i] being how many corners of
+// crossing[i] are in front (1 or 2: the new triangles it gives). Given every crossing triangle
+// of g in ascending order, in one list or in several calls in turn, it appends what
+// appendNearClipped appends. Host code of the CPU build.
 uint64_t appendNearClippedList(OccluderGeometry& g, const Camera& camera, const uint32_t* crossing,
                                const uint8_t* counts, uint64_t n);
 #endif
