@@ -985,6 +985,25 @@ inline void prefetchLines(const void* p, uint64_t bytes, uint64_t lines) {
     for (uint64_t b = 0; b < std::min(bytes, 64 * lines); b += 64) prefetch(c + b);
 }
 
+// Asks for the start of the arrays of the mesh of occluder o.
+void prefetchMesh(const ObjectInfo& o, const MeshGeometry& meshes) {
+    const uint64_t first_triangle = raw(meshes.triangle_first)[o.mesh];
+    prefetchLines(raw(meshes.positions) + raw(meshes.vertex_first)[o.mesh], 12 * uint64_t(o.vertex_count), 8);
+    prefetchLines(raw(meshes.triangles) + 3 * first_triangle, 12 * uint64_t(o.triangle_count), 8);
+    prefetchLines(raw(meshes.edge_neighbours) + 3 * first_triangle, 12 * uint64_t(o.triangle_count), 8);
+    prefetch(raw(meshes.edge_flags) + first_triangle);
+}
+
+// Lists the triangles [first, first + count) with one or two corners in front of the near plane
+// (appendNearClipped's CountNearClipped), with that number.
+void listNearCrossings(const uint8_t* front, const uint32_t* corners, uint32_t first, uint32_t count,
+                       DepthRasterScratch::ChunkLists& lists) {
+    for (uint32_t t = first; t < first + count; ++t) {
+        const uint32_t ahead = front[corners[3 * t]] + front[corners[3 * t + 1]] + front[corners[3 * t + 2]];
+        if (ahead == 1 || ahead == 2) lists.crossing.push_back(t), lists.crossing_front.push_back(uint8_t(ahead));
+    }
+}
+
 // Grows a to at least n entries, keeping its contents.
 template <class T>
 void growKeepingAll(DeviceArray<T>& a, uint64_t n) {
@@ -1072,14 +1091,7 @@ uint64_t rasterOccluders(DevicePtr<const ObjectInfo> object_memory, DevicePtr<co
             // for the start of the one after next (a fifth off this pass on the 10^5 orbit), and
             // for the records of the one after that.
             if (j + 4 < count) prefetch(objects + ids[j + 4]), prefetch(world + ids[j + 4]);
-            if (j + 2 < count) {
-                const ObjectInfo& next = objects[ids[j + 2]];
-                const uint64_t first_triangle = triangle_first[next.mesh];
-                prefetchLines(mesh_positions + vertex_first[next.mesh], 12 * uint64_t(next.vertex_count), 8);
-                prefetchLines(raw(meshes.triangles) + 3 * first_triangle, 12 * uint64_t(next.triangle_count), 8);
-                prefetchLines(raw(meshes.edge_neighbours) + 3 * first_triangle, 12 * uint64_t(next.triangle_count), 8);
-                prefetch(raw(meshes.edge_flags) + first_triangle);
-            }
+            if (j + 2 < count) prefetchMesh(objects[ids[j + 2]], meshes);
             const uint32_t id = ids[j];
             const ObjectInfo& o = objects[id];
             const glm::mat4 m = world[id];
@@ -1103,16 +1115,9 @@ uint64_t rasterOccluders(DevicePtr<const ObjectInfo> object_memory, DevicePtr<co
                                   occluderSkipsBackFaces(o.aabb, m, camera.eye, true), raw(g.triangles.ptr()),
                                   raw(g.edge_flags.ptr()), raw(g.edge_neighbours.ptr()));
             setupRangeCpu(setup, first, o.triangle_count, lists.drawn);
-            // Across the near plane (only where the occluder's vertices lie on both sides):
-            // appendNearClipped's CountNearClipped.
-            if (in_front != 0 && in_front != o.vertex_count) {
-                const uint32_t* const corners = raw(g.triangles.ptr());
-                for (uint32_t t = first; t < first + o.triangle_count; ++t) {
-                    const uint32_t ahead =
-                        front[corners[3 * t]] + front[corners[3 * t + 1]] + front[corners[3 * t + 2]];
-                    if (ahead == 1 || ahead == 2) lists.crossing.push_back(t), lists.crossing_front.push_back(uint8_t(ahead));
-                }
-            }
+            // Across the near plane: only where the occluder's vertices lie on both sides.
+            if (in_front != 0 && in_front != o.vertex_count)
+                listNearCrossings(front, raw(g.triangles.ptr()), first, o.triangle_count, lists);
         }
     });
     // The parts of triangles across the near plane, appended chunk after chunk (so in ascending
