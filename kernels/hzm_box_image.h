@@ -26,7 +26,7 @@ struct BoxImage {
 // (images[j] then unspecified). view_proj: column-major, as glm keeps it (16 floats).
 // And the HZM test's first look, at the level it starts at (the finest where the image spans at
 // most 2x2 texels): settled[j] = 1 where the image is valid and every texel there proves the box
-// hidden (its nearest depth beyond the texel's + 1e-6), which is then the test's answer; 0
+// hidden (its nearest depth beyond the texel's + kHzmTestEpsilon), which is then the answer; 0
 // where the test must look further. The pyramid: `texels` (all levels), level_count >= 1 levels
 // of level_width[l] texels a row starting at level_offset[l] (all below 2^31).
 void boxImagesCpu(const ObjectInfo* objects, const uint32_t* ids, uint32_t count, const float* view_proj,
