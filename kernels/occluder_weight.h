@@ -49,10 +49,9 @@ struct PvsOccluderScratch {
 // visible in an earlier frame is likely to occlude now. Of candidates[0, count) (object ids; one
 // listed twice is taken once), those in the frustum (in_frustum as frustumCull writes it) and
 // with compactness >= 0 (an HLOD has -1: not the real surface, never an occluder) are ranked by most
-// screen per rastered triangle, weighed towards the eye, first: (|aabb diagonal| / D)^2 x
-// (camera.near_plane / D)^2 x compactness / max(1, triangles), D the distance from the eye to the
-// box, at least camera.near_plane (a nearer occluder has more behind it to hide); equal scores by
-// increasing id. Then, in that order and skipping ids of exclude[0, exclude_count) (the AOS),
+// screen per rastered triangle first: (|aabb diagonal| / D)^2 x compactness / max(1, triangles),
+// D the distance from the eye to the box, at least camera.near_plane; equal scores by increasing
+// id. Then, in that order and skipping ids of exclude[0, exclude_count) (the AOS),
 // each is taken while the triangles taken so far plus its own stay within triangle_budget.
 // Writes the taken ids to out in rank order (room for count) and returns how many. All arrays
 // in device memory; `scratch.taken` is sized by the caller to the object count and zeroed once.

@@ -167,18 +167,16 @@ TEST_F(SelectTopK, KeysScratchIsReusedAcrossCalls) {
 
 // selectPvsOccluders on seven hand-checked objects. With the eye at the origin and near plane 1,
 // a box [-1,1] x [-1,1] x [z-2, z] (z < 0) has diagonal sqrt(12) and is |z| away, so its
-// (diagonal / D)^2 x (near / D)^2 is 3 / 4 = 0.75 at z = -2 and 0.75 / 16 at z = -4; score = that x
-// compactness / triangles.
+// (diagonal / D)^2 is 3 at z = -2 and 0.75 at z = -4; score = that x compactness / triangles.
 //   id  z   compactness  triangles  score    note
-//   0   -2  1            100        0.0075   ties with 3: the lower id ranks first
-//   1   -2  1            50         0.015
-//   2   -4  1            10         0.0047   second without the nearness (0.075), twice as far:
-//                                            last
-//   3   -2  0.5          50         0.0075
-//   4   -2  1            20         0.0375   the AOS: excluded
-//   5   -2  1            5          0.15     out of the frustum
-//   6   -2  1            25         0.03
-// So the rank order of those that may be taken is 6, 1, 0, 3, 2.
+//   0   -2  1            100        0.03     ties with 3: the lower id ranks first
+//   1   -2  1            50         0.06
+//   2   -4  1            10         0.075    twice as far, but few triangles: second
+//   3   -2  0.5          50         0.03
+//   4   -2  1            20         0.15     the AOS: excluded
+//   5   -2  1            5          0.6      out of the frustum
+//   6   -2  1            25         0.12
+// So the rank order of those that may be taken is 6, 2, 1, 0, 3.
 ObjectInfo pvsCandidate(float z, float compactness, uint32_t triangles) {
     ObjectInfo o{};
     o.aabb = {{-1, -1, z - 2}, {1, 1, z}};
@@ -214,17 +212,17 @@ struct PvsFixture {
     }
 };
 
-TEST_F(SelectPvsOccluders, RanksByScreenPerTriangleAndNearnessTiesByIdSkippingTheAosAndTheUnseen) {
+TEST_F(SelectPvsOccluders, RanksByScreenPerTriangleTiesByIdSkippingTheAosAndTheUnseen) {
     PvsFixture f;
-    EXPECT_EQ(f.select({4}, 1000), (std::vector<uint32_t>{6, 1, 0, 3, 2}));
+    EXPECT_EQ(f.select({4}, 1000), (std::vector<uint32_t>{6, 2, 1, 0, 3}));
 }
 
 TEST_F(SelectPvsOccluders, GreedyBudgetSkipsACandidateTooLargeAndTakesALaterSmallerOne) {
-    // 6 and 1 take 25 + 50 = 75 triangles; 0 (100) would make 175 > 150 and is skipped; 3 (50)
-    // makes 125 and 2 (10) 135, both taken. The excluded 4 spends none of the budget (it would
-    // have left no room for 3).
+    // 6, 2 and 1 take 25 + 10 + 50 = 85 triangles; 0 (100) would make 185 > 150 and is skipped;
+    // 3 (50) makes 135 and is taken. The excluded 4 spends none of the budget (it would have left
+    // no room for 3).
     PvsFixture f;
-    EXPECT_EQ(f.select({4}, 150), (std::vector<uint32_t>{6, 1, 3, 2}));
+    EXPECT_EQ(f.select({4}, 150), (std::vector<uint32_t>{6, 2, 1, 3}));
     // A budget too small for every candidate takes none; a zero budget too.
     EXPECT_EQ(f.select({4}, 9), (std::vector<uint32_t>{}));
     EXPECT_EQ(f.select({4}, 0), (std::vector<uint32_t>{}));
@@ -235,8 +233,8 @@ TEST_F(SelectPvsOccluders, GreedyBudgetSkipsACandidateTooLargeAndTakesALaterSmal
 TEST_F(SelectPvsOccluders, ExcludedIdsAreFreeAgainInTheNextCall) {
     // The scratch's `taken` bytes must come back zeroed, so a call without exclusions takes 4.
     PvsFixture f;
-    EXPECT_EQ(f.select({4, 6}, 1000), (std::vector<uint32_t>{1, 0, 3, 2}));
-    EXPECT_EQ(f.select({}, 1000), (std::vector<uint32_t>{4, 6, 1, 0, 3, 2}));
+    EXPECT_EQ(f.select({4, 6}, 1000), (std::vector<uint32_t>{2, 1, 0, 3}));
+    EXPECT_EQ(f.select({}, 1000), (std::vector<uint32_t>{4, 6, 2, 1, 0, 3}));
     EXPECT_EQ(test::toHost(f.scratch.taken), std::vector<uint8_t>(f.objects.size(), 0));
 }
 
