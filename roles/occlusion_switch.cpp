@@ -5,6 +5,7 @@
 #include "net/rank_error.h"
 #include "scene/csv.h"
 #include "scene/errors.h"
+#include "util/limits.h"
 
 #include <algorithm>
 #include <chrono>
@@ -490,7 +491,8 @@ const char* RankLayout::roleOf(int rank) const {
 
 std::vector<uint16_t> partitionObjects(const OssFile& file, int parts, int cells) {
     if (parts < 1 || parts > 65535) throw std::invalid_argument("partitionObjects: parts outside [1, 65535]");
-    if (cells < 1 || cells > 1024) throw std::invalid_argument("partitionObjects: cells outside [1, 1024]");
+    if (cells < 1 || cells > kMaxSortLastCells)
+        throw std::invalid_argument("partitionObjects: cells outside [1, " + std::to_string(kMaxSortLastCells) + "]");
     const auto objects = file.objects();
     const auto meshes = file.meshRecords();
     std::vector<uint16_t> partition(objects.size(), 0);

@@ -15,13 +15,6 @@ namespace {
 
 using namespace bench;
 
-std::string fmt(double v, int precision) {
-    if (!std::isfinite(v)) return "n/a";
-    std::ostringstream s;
-    s << std::fixed << std::setprecision(precision) << v;
-    return s.str();
-}
-
 // What one step that makes a file cost, kept beside the file so that a later run that reuses
 // it can still report it.
 struct StepCost {
@@ -38,7 +31,7 @@ StepCost readCost(const fs::path& path) {
 }
 
 void writeCost(const fs::path& path, const RunResult& r) {
-    writeFileAtomic(path.string(), fmt(r.seconds, 2) + " " + fmt(r.peak_mb, 1) + "\n");
+    writeFileAtomic(path.string(), fixed(r.seconds, 2) + " " + fixed(r.peak_mb, 1) + "\n");
 }
 
 // Per-frame figures of one render run, over the display's frames.
@@ -216,17 +209,17 @@ private:
         char date[32];
         std::strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
         const auto cost = [](const StepCost& c) {
-            return std::isfinite(c.seconds) ? fmt(c.seconds, 1) + " s, " + fmt(c.peak_mb, 0) + " MB peak" : std::string("n/a");
+            return std::isfinite(c.seconds) ? fixed(c.seconds, 1) + " s, " + fixed(c.peak_mb, 0) + " MB peak" : std::string("n/a");
         };
         std::ostringstream md;
         md << "# occswitch bench massive\n\n"
            << "Written by `occswitch bench massive --objects " << o_.objects << " --frames " << o_.frames
-           << " --budget " << o_.budget << "` on " << date << " in " << fmt(total, 0) << " s (scene: " << (made_ ? "made by this run" : "reused; its cost from when it was made") << ").\n\n"
+           << " --budget " << o_.budget << "` on " << date << " in " << fixed(total, 0) << " s (scene: " << (made_ ? "made by this run" : "reused; its cost from when it was made") << ").\n\n"
            << "- scene: `gen plant --objects " << o_.objects << " --seed 1`: " << objects_ << " objects, " << triangles_
-           << " triangles; glTF + buffer " << fmt(double(input_bytes_) / 1e9, 2) << " GB, .oss "
-           << fmt(double(oss_bytes_) / 1e9, 2) << " GB\n"
+           << " triangles; glTF + buffer " << fixed(double(input_bytes_) / 1e9, 2) << " GB, .oss "
+           << fixed(double(oss_bytes_) / 1e9, 2) << " GB\n"
            << "- gen: " << cost(gen_) << "; prep: " << cost(prep_) << " (a quarter of the input: "
-           << fmt(double(input_bytes_) / 4e6, 0) << " MB)\n"
+           << fixed(double(input_bytes_) / 4e6, 0) << " MB)\n"
            << "- runs: 512x512, `--budget " << o_.budget << "`, `--no-display` (every stage but drawing) for the "
            << o_.frames << "-camera walk and orbit; the exact visible set (`--headless --exact`, all frustum objects drawn "
            << "at full detail) over the walk's first " << o_.exact_frames << " frames; the walk again with drawing "
@@ -255,12 +248,12 @@ private:
                             {"walk_lod_drawn", "walk, lod, drawn", &walk_lod_drawn_}};
         for (const auto& [key, name, f] : rows) {
             const std::vector<std::string> cells = {
-                std::to_string(f->frames), fmt(f->first_ms, 1), fmt(f->second_ms, 1), fmt(f->median_ms, 1),
-                fmt(f->p99_ms, 1), fmt(f->max_ms, 1), std::to_string(f->over_2x_median), fmt(f->streamed_share, 3),
-                std::to_string(f->frames_streaming), fmt(f->visible, 0), fmt(f->churn, 1), fmt(f->exact_churn, 1),
-                fmt(f->occluder_triangles, 0), fmt(f->raster_ms, 2), fmt(f->occlusion_ms, 2), fmt(f->raster_rate / 1e6, 2),
-                fmt(f->false_culls, 0), fmt(f->accuracy, 1),
-                fmt(f->peak_mb, 0), fmt(f->seconds, 1)};
+                std::to_string(f->frames), fixed(f->first_ms, 1), fixed(f->second_ms, 1), fixed(f->median_ms, 1),
+                fixed(f->p99_ms, 1), fixed(f->max_ms, 1), std::to_string(f->over_2x_median), fixed(f->streamed_share, 3),
+                std::to_string(f->frames_streaming), fixed(f->visible, 0), fixed(f->churn, 1), fixed(f->exact_churn, 1),
+                fixed(f->occluder_triangles, 0), fixed(f->raster_ms, 2), fixed(f->occlusion_ms, 2), fixed(f->raster_rate / 1e6, 2),
+                fixed(f->false_culls, 0), fixed(f->accuracy, 1),
+                fixed(f->peak_mb, 0), fixed(f->seconds, 1)};
             md << "| " << name;
             csv << key;
             for (const std::string& c : cells) md << " | " << c, csv << "," << c;
@@ -271,17 +264,17 @@ private:
               "within 2x the exact churn, 0 false culls, oc+lod no slower than lod; gen peak < 2 GB, prep peak <= a "
               "quarter of the input plus a fixed amount.\n\n"
            << "- oc+lod against lod on the walk, median, without drawing (the pipeline alone, a fast GPU's case): "
-           << fmt(walk_.median_ms, 1) << " ms against " << fmt(walk_lod_.median_ms, 1) << " ms ("
-           << fmt(walk_lod_.median_ms / walk_.median_ms, 2) << "x; issue 32's target, at most 1.25 x lod + 1 ms = "
-           << fmt(1.25 * walk_lod_.median_ms + 1.0, 1) << " ms: " << (walk_.median_ms <= 1.25 * walk_lod_.median_ms + 1.0 ? "met" : "missed")
-           << "); with drawing: " << fmt(walk_drawn_.median_ms, 1) << " ms against " << fmt(walk_lod_drawn_.median_ms, 1)
-           << " ms (" << fmt(walk_lod_drawn_.median_ms / walk_drawn_.median_ms, 2) << "x)\n"
-           << "- occlusion stage on the walk: " << fmt(walk_.occlusion_ms, 2) << " ms (issue 32's target: at most 6 ms on "
-              "the 10^6 walk), raster " << fmt(walk_.raster_rate / 1e6, 1) << " M occluder triangles/s per core (target 40)\n"
-           << "- p99 / median: walk " << fmt(walk_.p99_ms / walk_.median_ms, 2) << ", orbit "
-           << fmt(orbit_.p99_ms / orbit_.median_ms, 2) << "; frame 0 / median: walk "
-           << fmt(walk_.first_ms / walk_.median_ms, 1) << ", orbit " << fmt(orbit_.first_ms / orbit_.median_ms, 1) << "\n"
-           << "- PVS churn / exact churn over the walk's prefix: " << fmt(exact_.churn / exact_.exact_churn, 2) << "\n";
+           << fixed(walk_.median_ms, 1) << " ms against " << fixed(walk_lod_.median_ms, 1) << " ms ("
+           << fixed(walk_lod_.median_ms / walk_.median_ms, 2) << "x; issue 32's target, at most 1.25 x lod + 1 ms = "
+           << fixed(1.25 * walk_lod_.median_ms + 1.0, 1) << " ms: " << (walk_.median_ms <= 1.25 * walk_lod_.median_ms + 1.0 ? "met" : "missed")
+           << "); with drawing: " << fixed(walk_drawn_.median_ms, 1) << " ms against " << fixed(walk_lod_drawn_.median_ms, 1)
+           << " ms (" << fixed(walk_lod_drawn_.median_ms / walk_drawn_.median_ms, 2) << "x)\n"
+           << "- occlusion stage on the walk: " << fixed(walk_.occlusion_ms, 2) << " ms (issue 32's target: at most 6 ms on "
+              "the 10^6 walk), raster " << fixed(walk_.raster_rate / 1e6, 1) << " M occluder triangles/s per core (target 40)\n"
+           << "- p99 / median: walk " << fixed(walk_.p99_ms / walk_.median_ms, 2) << ", orbit "
+           << fixed(orbit_.p99_ms / orbit_.median_ms, 2) << "; frame 0 / median: walk "
+           << fixed(walk_.first_ms / walk_.median_ms, 1) << ", orbit " << fixed(orbit_.first_ms / orbit_.median_ms, 1) << "\n"
+           << "- PVS churn / exact churn over the walk's prefix: " << fixed(exact_.churn / exact_.exact_churn, 2) << "\n";
         writeFileAtomic((out_ / "massive.md").string(), md.str());
         writeFileAtomic((out_ / "massive.csv").string(), csv.str());
         std::fprintf(stderr, "bench massive: done in %.0f s\n", total);

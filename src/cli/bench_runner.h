@@ -7,6 +7,7 @@
 
 #include "scene/csv.h"
 #include "scene/errors.h"
+#include "util/number_format.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -35,14 +36,6 @@ namespace occ::cli::bench {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-// A number with `digits` decimals ("n/a" when it is not finite), for tables and CSV fields.
-inline std::string fixed(double v, int digits) {
-    if (!std::isfinite(v)) return "n/a";
-    char buffer[64];
-    std::snprintf(buffer, sizeof buffer, "%.*f", digits, v);
-    return buffer;
-}
 
 // Set by the benchmarks' SIGINT/SIGTERM handler; the runner stops its child when it sees it.
 inline volatile std::sig_atomic_t g_interrupted = 0;

@@ -21,6 +21,7 @@
 #include "render/png_writer.h"
 #include "render/sort_last.h"
 #include "render/window.h"
+#include "util/limits.h"
 #endif
 
 #include <atomic>
@@ -437,8 +438,9 @@ void parseViewportSize(const std::string& option, const std::string& text, uint3
     unsigned long a = 0, b = 0;
     char x = 0, extra = 0;
     if (std::sscanf(text.c_str(), "%lu%c%lu%c", &a, &x, &b, &extra) != 3 || x != 'x' || a == 0 || b == 0 ||
-        a > 16384 || b > 16384)
-        throw UsageError(option + " " + text + ": expected WxH with 1 <= W, H <= 16384, e.g. 512x512");
+        a > kMaxViewportSide || b > kMaxViewportSide)
+        throw UsageError(option + " " + text + ": expected WxH with 1 <= W, H <= " + std::to_string(kMaxViewportSide) +
+                         ", e.g. 512x512");
     width = uint32_t(a);
     height = uint32_t(b);
 }
@@ -514,7 +516,7 @@ Command addRenderCommand(CLI::App& app) {
     sub->add_option("--sort-last-cells", o->sort_last_cells,
                     "with more than 3 ranks: regions of the scene per display rank (1 = one coherent region\n"
                     "each; more spreads each rank's objects so that every view is shared, docs/scaling.md)")
-        ->check(CLI::Range(1, 1024))
+        ->check(CLI::Range(1, kMaxSortLastCells))
         ->capture_default_str();
     sub->add_option("--link", o->link,
                     "LATENCY_MS[:MBPS[:JITTER_MS]]: emulate a network link between every pair of ranks, e.g. 1:100\n"

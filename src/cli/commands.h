@@ -18,7 +18,7 @@ struct Command {
     std::function<int()> run;
 };
 
-// Parses a viewport "WxH" (1 <= W, H <= 16384); throws UsageError naming `option` otherwise.
+// Parses a viewport "WxH" (1 <= W, H <= kMaxViewportSide, util/limits.h); throws UsageError naming `option` otherwise.
 void parseViewportSize(const std::string& option, const std::string& text, uint32_t& width, uint32_t& height);
 
 // Parses --pvs-occluders: "auto" (PipelineOptions::kAutoOccluderTriangles) or a triangle count

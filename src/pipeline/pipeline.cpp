@@ -11,6 +11,7 @@
 #include "occluder_weight.h"
 #include "reform.h"
 #include "scene/errors.h"
+#include "util/limits.h"
 
 #include <xxhash.h>
 
@@ -55,9 +56,9 @@ StreamMode parseStreamMode(const std::string& s) {
 }
 
 Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(file), options_(options) {
-    if (options.width == 0 || options.height == 0 || options.width > 16384 || options.height > 16384)
+    if (options.width == 0 || options.height == 0 || options.width > kMaxViewportSide || options.height > kMaxViewportSide)
         throw OptionError("viewport", std::to_string(options.width) + "x" + std::to_string(options.height) +
-                          ": width and height must be in [1, 16384]");
+                          ": width and height must be in [1, " + std::to_string(kMaxViewportSide) + "]");
     if (options.aos > 65536) throw OptionError("aos", std::to_string(options.aos) + " is more than 65536 occluders");
     if (!(options.alpha > 1.0f)) throw OptionError("alpha", OptionError::value(options.alpha) + ": must be > 1");
     if (!(options.pet >= 0.0f)) throw OptionError("pet", OptionError::value(options.pet) + ": must be >= 0");

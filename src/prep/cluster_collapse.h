@@ -10,7 +10,7 @@
 // makes degenerate), so the result is a progressive mesh with the same arrays and the prefix
 // property; only the kept vertex need not be a neighbour.
 
-#include "prep/progressive_mesh.h"
+#include "prep/collapse_sequence.h"
 
 #include <glm/glm.hpp>
 

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
-#include "prep/progressive_mesh.h"
+#include "prep/collapse_sequence.h"
 
 #include <cstdint>
 

@@ -7,7 +7,7 @@
 // of its subtree's geometry, merged and simplified, that can be drawn instead of all of it.
 
 #include "kernel_types.h"
-#include "prep/progressive_mesh.h"
+#include "prep/collapse_sequence.h"
 #include "scene/oss_file.h"
 
 #include <atomic>

@@ -5,6 +5,7 @@
 #include "hzm_test.h"
 #include "render/gl_check.h"
 #include "render/png_writer.h"
+#include "util/number_format.h"
 
 #include <chrono>
 #include <cmath>
@@ -36,12 +37,6 @@ bool boxMayHavePixels(const k::Aabb& box, const glm::mat4& view_proj) {
     for (int o : outside)
         if (o == 8) return false;
     return true;
-}
-
-std::string fixed(double v, int digits) {
-    char b[64];
-    std::snprintf(b, sizeof b, "%.*f", digits, v);
-    return b;
 }
 
 }  // namespace

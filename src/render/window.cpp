@@ -6,6 +6,7 @@
 #include "render/png_writer.h"
 #include "render/sort_last.h"
 #include "view/camera_path.h"
+#include "util/number_format.h"
 
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
@@ -261,12 +262,6 @@ public:
         recording_ = false;
     }
 
-    static std::string fixed(double v, int digits) {
-        char b[64];
-        std::snprintf(b, sizeof b, "%.*f", digits, v);
-        return b;
-    }
-
 private:
     void writeScreenshot(const std::vector<uint8_t>& rgb) {
         screenshot_ = false;
@@ -410,7 +405,7 @@ std::string runWindowRanks(Transport& transport, const OssFile& file, const Pipe
         visible = pipeline.visibleObjects().size();
         session.frameShown([&] {
             return std::to_string(ranks) + " ranks  latency " + std::to_string(frames) + " frame" +
-                   (frames == 1 ? "" : "s") + " " + Session::fixed(ms, 1) + " ms  " + std::to_string(visible) +
+                   (frames == 1 ? "" : "s") + " " + fixed(ms, 1) + " ms  " + std::to_string(visible) +
                    " visible objects  " + modeName(options.mode);
         });
         return std::string();

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "scene/oss_file.h"
 
-#include "prep/lod_prefix.h"
+#include "scene/lod_prefix.h"
 
 #include "scene/errors.h"
 

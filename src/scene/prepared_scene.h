@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
-#include "prep/progressive_mesh.h"
+#include "scene/progressive_mesh.h"
 #include "scene/scene.h"
 
 #include <cstdint>

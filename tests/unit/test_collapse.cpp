@@ -5,7 +5,7 @@
 #include "prep/error_calibration.h"
 #include "prep/fast_collapser.h"
 #include "prep/hausdorff.h"
-#include "prep/lod_prefix.h"
+#include "scene/lod_prefix.h"
 #include "prep/prepare.h"
 #include "prep/rearrange.h"
 #include "prep/weld.h"

@@ -5,7 +5,7 @@
 #include "prep/fast_collapser.h"
 #include "prep/rearrange.h"
 #include "prep/hierarchy.h"
-#include "prep/lod_prefix.h"
+#include "scene/lod_prefix.h"
 #include "prep/prepare.h"
 #include "test_support.h"
 

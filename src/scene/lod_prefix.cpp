@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: MIT
-#include "prep/lod_prefix.h"
+#include "scene/lod_prefix.h"
 
 namespace occ {
 
 namespace {
 
-std::string str(uint64_t v) { return std::to_string(v); }
+std::string decimal(uint64_t v) { return std::to_string(v); }
 
 bool isDegenerate(const uint32_t* c) { return c[0] == c[1] || c[1] == c[2] || c[0] == c[2]; }
 
@@ -24,8 +24,9 @@ std::optional<LodPrefixViolation> checkLodPrefix(uint32_t n, std::span<const int
     for (uint32_t t = 0; t < t_count; ++t) {
         const uint32_t* c = &s.corners[size_t(t) * 3];
         if (isDegenerate(c))
-            return LodPrefixViolation{n, "triangle " + str(t) + " (" + str(c[0]) + ", " + str(c[1]) + ", " + str(c[2]) +
-                                             ") is degenerate at full detail, but map[" + str(n) + "] = " + str(map[n])};
+            return LodPrefixViolation{n, "triangle " + decimal(t) + " (" + decimal(c[0]) + ", " + decimal(c[1]) + ", " +
+                                             decimal(c[2]) + ") is degenerate at full detail, but map[" + decimal(n) +
+                                             "] = " + decimal(map[n])};
         for (int j = 0; j < 3; ++j) s.triangles_of[c[j]].push_back(t);
     }
 
@@ -43,9 +44,10 @@ std::optional<LodPrefixViolation> checkLodPrefix(uint32_t n, std::span<const int
                 if (c[j] == v) c[j] = target;
             if (isDegenerate(c)) {
                 if (t < lo)
-                    return LodPrefixViolation{k - 1, "triangle " + str(t) + " degenerates when vertex " + str(v) +
-                                                         " collapses into " + str(target) + ", but it is below map[" +
-                                                         str(k - 1) + "] = " + str(lo)};
+                    return LodPrefixViolation{k - 1, "triangle " + decimal(t) + " degenerates when vertex " +
+                                                         decimal(v) + " collapses into " + decimal(target) +
+                                                         ", but it is below map[" + decimal(k - 1) +
+                                                         "] = " + decimal(lo)};
                 s.degenerate[t] = 1;
                 ++removed;
             } else {
@@ -56,10 +58,10 @@ std::optional<LodPrefixViolation> checkLodPrefix(uint32_t n, std::span<const int
         if (removed != hi - lo) {
             uint32_t survivor = lo;
             while (survivor < hi && s.degenerate[survivor]) ++survivor;
-            return LodPrefixViolation{k - 1, "collapsing vertex " + str(v) + " into " + str(target) + " removes " +
-                                                 str(removed) + " triangles, but map[" + str(k) + "] - map[" +
-                                                 str(k - 1) + "] = " + str(hi - lo) + "; triangle " + str(survivor) +
-                                                 " stays non-degenerate"};
+            return LodPrefixViolation{k - 1, "collapsing vertex " + decimal(v) + " into " + decimal(target) +
+                                                 " removes " + decimal(removed) + " triangles, but map[" + decimal(k) +
+                                                 "] - map[" + decimal(k - 1) + "] = " + decimal(hi - lo) +
+                                                 "; triangle " + decimal(survivor) + " stays non-degenerate"};
         }
     }
     return std::nullopt;

@@ -1,0 +1,19 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+namespace occ {
+
+// `v` with `digits` decimals, as printf's "%.*f" writes it, or "n/a" when it is not finite: the
+// one formatter of numbers for tables, CSV fields, logs and the window's title.
+inline std::string fixed(double v, int digits) {
+    if (!std::isfinite(v)) return "n/a";
+    char buffer[64];
+    std::snprintf(buffer, sizeof buffer, "%.*f", digits, v);
+    return buffer;
+}
+
+}  // namespace occ
