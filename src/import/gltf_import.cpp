@@ -113,87 +113,28 @@ public:
             if (!isSupportedExtension(ext))
                 throw InputError(path_, "extensionsRequired: unsupported required extension " + ext);
 
-        std::vector<int> roots;
-        if (scene_index_ >= 0 && size_t(scene_index_) >= std::max<size_t>(1, model_.scenes.size()))
-            throw InputError(path_, "/scenes: scene " + std::to_string(scene_index_) + " does not exist (" +
-                                        std::to_string(model_.scenes.size()) + " scenes)");
-        if (!model_.scenes.empty()) {
-            const int scene = scene_index_ >= 0 ? scene_index_ : model_.defaultScene >= 0 ? model_.defaultScene : 0;
-            if (scene >= int(model_.scenes.size()))
-                throw InputError(path_, "/scene: index " + std::to_string(scene) + " out of range (" +
-                                            std::to_string(model_.scenes.size()) + " scenes)");
-            roots = model_.scenes[size_t(scene)].nodes;
-        } else {
-            // Without scenes, the spec leaves the choice to us: every node that is nobody's
-            // child is drawn.
-            std::vector<bool> is_child(model_.nodes.size(), false);
-            for (const tinygltf::Node& n : model_.nodes)
-                for (int c : n.children)
-                    if (c >= 0 && size_t(c) < is_child.size()) is_child[size_t(c)] = true;
-            for (size_t i = 0; i < model_.nodes.size(); ++i)
-                if (!is_child[i]) roots.push_back(int(i));
-        }
-        if (roots.empty()) throw InputError(path_, "/scenes: empty scene, it has no nodes (no triangles)");
-
-        state_.assign(model_.nodes.size(), NodeState::Unvisited);
-        for (size_t i = 0; i < roots.size(); ++i) {
-            checkNodeIndex(roots[i], "/scenes/nodes/" + std::to_string(i));
-            flatten(roots[i]);
-        }
+        const std::vector<int64_t> roots = gltf::sceneRoots(
+            path_, scene_index_, model_.defaultScene, model_.scenes.size(), model_.nodes.size(),
+            [&](size_t scene) -> const std::vector<int>& { return model_.scenes[scene].nodes; },
+            [&](const auto& f) {
+                for (const tinygltf::Node& n : model_.nodes)
+                    for (int c : n.children) f(int64_t(c));
+            });
+        gltf::walkNodeForest(
+            path_, model_.nodes.size(), roots,
+            [&](int64_t node) { return model_.nodes[size_t(node)].children.size(); },
+            [&](int64_t node, size_t i) { return model_.nodes[size_t(node)].children[i]; },
+            [&](int64_t node) { return localMatrix(int(node)); },
+            [&](int64_t node, const glm::mat4& world) { emitPrimitives(int(node), world); });
         return std::move(scene_);
     }
 
 private:
-    enum class NodeState : uint8_t { Unvisited, OnPath, Done };
-
-    void checkNodeIndex(int node, const std::string& where) const {
-        if (node < 0 || size_t(node) >= model_.nodes.size())
-            throw InputError(path_, where + ": node index " + std::to_string(node) + " out of range (" +
-                                        std::to_string(model_.nodes.size()) + " nodes)");
-    }
-
     glm::mat4 localMatrix(int node_index) const {
         const tinygltf::Node& node = model_.nodes[size_t(node_index)];
         const auto given = [](const std::vector<double>& v, size_t n) { return v.size() == n ? v.data() : nullptr; };
         return gltf::nodeMatrix(path_, size_t(node_index), given(node.matrix, 16), given(node.translation, 3),
                                 given(node.rotation, 4), given(node.scale, 3));
-    }
-
-    // Iterative depth-first walk: a malicious or broken file can have node chains far deeper
-    // than the call stack, and cycles (which glTF forbids) must be reported, not followed.
-    void flatten(int root) {
-        struct Frame {
-            int node;
-            glm::mat4 world;
-            size_t next_child;
-        };
-        if (state_[size_t(root)] == NodeState::Done)
-            throw InputError(path_, "/nodes/" + std::to_string(root) + ": node has more than one parent");
-        std::vector<Frame> stack;
-        stack.push_back({root, localMatrix(root), 0});
-        state_[size_t(root)] = NodeState::OnPath;
-        emitPrimitives(root, stack.back().world);
-        while (!stack.empty()) {
-            Frame& top = stack.back();
-            const tinygltf::Node& node = model_.nodes[size_t(top.node)];
-            if (top.next_child == node.children.size()) {
-                state_[size_t(top.node)] = NodeState::Done;
-                stack.pop_back();
-                continue;
-            }
-            const size_t ci = top.next_child++;
-            const int child = node.children[ci];
-            const std::string where = "/nodes/" + std::to_string(top.node) + "/children/" + std::to_string(ci);
-            checkNodeIndex(child, where);
-            if (state_[size_t(child)] == NodeState::OnPath)
-                throw InputError(path_, where + ": node graph has a cycle through node " + std::to_string(child));
-            if (state_[size_t(child)] == NodeState::Done)
-                throw InputError(path_, where + ": node " + std::to_string(child) + " has more than one parent");
-            const glm::mat4 world = top.world * localMatrix(child);
-            state_[size_t(child)] = NodeState::OnPath;
-            stack.push_back({child, world, 0});
-            emitPrimitives(child, world);
-        }
     }
 
     void emitPrimitives(int node_index, const glm::mat4& world) {
@@ -491,7 +432,6 @@ private:
     const tinygltf::Model& model_;
     int scene_index_;
     Scene scene_;
-    std::vector<NodeState> state_;
     std::map<std::pair<int, int>, uint32_t> mesh_ids_;
 };
 

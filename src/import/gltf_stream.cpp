@@ -503,13 +503,7 @@ private:
         return doc_.materials[size_t(p.material)];
     }
 
-    void checkNode(int64_t node, const std::string& where) const {
-        if (node < 0 || uint64_t(node) >= doc_.nodes.size())
-            throw InputError(path_, where + ": node index " + std::to_string(node) + " out of range (" +
-                                        std::to_string(doc_.nodes.size()) + " nodes)");
-    }
-
-    // The node forest walked depth first without recursion, as the whole-file importer walks it:
+    // The node forest walked as the whole-file importer walks it (gltf::walkNodeForest):
     // one object per (node, triangle primitive), meshes numbered as first met.
     void flatten(int scene_option) {
         for (const std::string& ext : doc_.required)
@@ -519,63 +513,18 @@ private:
         for (uint32_t m = 0; m < doc_.meshes.size(); ++m)
             for (uint32_t p = 0; p < doc_.meshes[m].count; ++p) mesh_of_primitive_[doc_.meshes[m].first + p] = m;
 
-        std::vector<int64_t> roots;
-        if (scene_option >= 0 && size_t(scene_option) >= std::max<size_t>(1, doc_.scenes.size()))
-            throw InputError(path_, "/scenes: scene " + std::to_string(scene_option) + " does not exist (" +
-                                        std::to_string(doc_.scenes.size()) + " scenes)");
-        if (!doc_.scenes.empty()) {
-            const int64_t scene = scene_option >= 0 ? scene_option : doc_.scene >= 0 ? doc_.scene : 0;
-            if (scene >= int64_t(doc_.scenes.size()))
-                throw InputError(path_, "/scene: index " + std::to_string(scene) + " out of range (" +
-                                            std::to_string(doc_.scenes.size()) + " scenes)");
-            roots = doc_.scenes[size_t(scene)];
-        } else {
-            std::vector<bool> is_child(doc_.nodes.size(), false);
-            for (int64_t c : doc_.children)
-                if (c >= 0 && uint64_t(c) < is_child.size()) is_child[size_t(c)] = true;
-            for (size_t i = 0; i < doc_.nodes.size(); ++i)
-                if (!is_child[i]) roots.push_back(int64_t(i));
-        }
-        if (roots.empty()) throw InputError(path_, "/scenes: empty scene, it has no nodes (no triangles)");
-
-        enum : uint8_t { Unvisited, OnPath, Done };
-        std::vector<uint8_t> state(doc_.nodes.size(), Unvisited);
+        const std::vector<int64_t> roots = gltf::sceneRoots(
+            path_, scene_option, doc_.scene, doc_.scenes.size(), doc_.nodes.size(),
+            [&](size_t scene) -> const std::vector<int64_t>& { return doc_.scenes[scene]; },
+            [&](const auto& f) {
+                for (int64_t c : doc_.children) f(c);
+            });
         std::vector<uint32_t> id_of_primitive(doc_.primitives.size(), UINT32_MAX);
-        struct Frame {
-            int64_t node;
-            glm::mat4 world;
-            uint32_t next_child;
-        };
-        std::vector<Frame> stack;
-        const auto enter = [&](int64_t node, const glm::mat4& world) {
-            state[size_t(node)] = OnPath;
-            stack.push_back({node, world, 0});
-            emit(node, world, id_of_primitive);
-        };
-        for (size_t i = 0; i < roots.size(); ++i) {
-            checkNode(roots[i], "/scenes/nodes/" + std::to_string(i));
-            if (state[size_t(roots[i])] == Done)
-                throw InputError(path_, "/nodes/" + std::to_string(roots[i]) + ": node has more than one parent");
-            enter(roots[i], doc_.nodes[size_t(roots[i])].local);
-            while (!stack.empty()) {
-                Frame& top = stack.back();
-                const NodeDef& n = doc_.nodes[size_t(top.node)];
-                if (top.next_child == n.child_count) {
-                    state[size_t(top.node)] = Done;
-                    stack.pop_back();
-                    continue;
-                }
-                const uint32_t ci = top.next_child++;
-                const int64_t child = doc_.children[n.first_child + ci];
-                const std::string at = "/nodes/" + std::to_string(top.node) + "/children/" + std::to_string(ci);
-                checkNode(child, at);
-                if (state[size_t(child)] == OnPath)
-                    throw InputError(path_, at + ": node graph has a cycle through node " + std::to_string(child));
-                if (state[size_t(child)] == Done)
-                    throw InputError(path_, at + ": node " + std::to_string(child) + " has more than one parent");
-                enter(child, top.world * doc_.nodes[size_t(child)].local);
-            }
-        }
+        gltf::walkNodeForest(
+            path_, doc_.nodes.size(), roots, [&](int64_t node) { return doc_.nodes[size_t(node)].child_count; },
+            [&](int64_t node, size_t i) { return doc_.children[doc_.nodes[size_t(node)].first_child + i]; },
+            [&](int64_t node) -> const glm::mat4& { return doc_.nodes[size_t(node)].local; },
+            [&](int64_t node, const glm::mat4& world) { emit(node, world, id_of_primitive); });
         // The tree is not needed any more; the tables meshes are read through are.
         doc_.nodes = {};
         doc_.children = {};

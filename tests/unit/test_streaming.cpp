@@ -110,6 +110,71 @@ TEST(StreamingGltf, TheSecondSceneOfAFileAndNodeHierarchies) {
     EXPECT_THROW(streamGltf(external, missing, &why), InputError);
 }
 
+// Both readers pick the scene's roots and walk the node forest with the same code
+// (gltf::sceneRoots, gltf::walkNodeForest): each broken forest fails in both with the same place
+// and words, and a file without scenes draws the same nodes.
+TEST(StreamingGltf, NodeForestsAreCheckedAsTheWholeFileImporterChecksThem) {
+    std::vector<unsigned char> bin(44, 0);
+    const float p[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    const uint16_t idx[3] = {0, 1, 2};
+    std::memcpy(bin.data(), p, 36);
+    std::memcpy(bin.data() + 36, idx, 6);
+    std::ofstream(scratch("forest.bin"), std::ios::binary).write(reinterpret_cast<const char*>(bin.data()), 44);
+    const auto file = [](const std::string& name, const std::string& forest) {
+        return test::writeFixture(name, R"({"asset":{"version":"2.0"},)" + forest + R"(,
+      "meshes":[{"primitives":[{"attributes":{"POSITION":0},"indices":1}]}],
+      "accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3"},
+                   {"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}],
+      "bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":6}],
+      "buffers":[{"byteLength":44,"uri":"forest.bin"}]})");
+    };
+    const auto message = [](const auto& read) -> std::string {
+        try {
+            read();
+        } catch (const InputError& e) {
+            return e.what();
+        }
+        return "no error";
+    };
+    const struct {
+        const char* name;
+        const char* forest;
+        const char* error;
+    } cases[] = {
+        {"cycle.gltf", R"("scenes":[{"nodes":[0]}],"nodes":[{"children":[1]},{"children":[0],"mesh":0}])",
+         "/nodes/1/children/0: node graph has a cycle through node 0"},
+        {"parents.gltf", R"("scenes":[{"nodes":[0,1]}],"nodes":[{"children":[2]},{"children":[2]},{"mesh":0}])",
+         "/nodes/1/children/0: node 2 has more than one parent"},
+        {"child.gltf", R"("scenes":[{"nodes":[0]}],"nodes":[{"children":[5],"mesh":0}])",
+         "/nodes/0/children/0: node index 5 out of range (1 nodes)"},
+        {"root.gltf", R"("scenes":[{"nodes":[3]}],"nodes":[{"mesh":0}])",
+         "/scenes/nodes/0: node index 3 out of range (1 nodes)"},
+        {"twice.gltf", R"("scenes":[{"nodes":[0,0]}],"nodes":[{"mesh":0}])", "/nodes/0: node has more than one parent"},
+        {"empty.gltf", R"("scenes":[{"nodes":[]}],"nodes":[{"mesh":0}])", "empty scene"},
+        {"default.gltf", R"("scene":3,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}])",
+         "/scene: index 3 out of range (1 scenes)"},
+    };
+    for (const auto& c : cases) {
+        SCOPED_TRACE(c.name);
+        const std::string path = file(c.name, c.forest);
+        std::string why;
+        const std::string whole = message([&] { importModel(path); });
+        const std::string streamed = message([&] { streamGltf(path, {}, &why); });
+        EXPECT_NE(whole.find(path), std::string::npos) << whole;
+        EXPECT_NE(whole.find(c.error), std::string::npos) << whole;
+        EXPECT_EQ(streamed, whole);
+    }
+    // Without scenes every node that is nobody's child is a root: node 0 and its child 1, and 2.
+    const std::string path =
+        file("noscene.gltf", R"("nodes":[{"children":[1]},{"mesh":0,"translation":[1,0,0]},{"mesh":0}])");
+    std::string why;
+    const auto source = streamGltf(path, {}, &why);
+    ASSERT_TRUE(source) << why;
+    const Scene whole = importModel(path);
+    EXPECT_EQ(whole.objects.size(), 2u);
+    expectSameScene(*source, whole);
+}
+
 TEST(StreamingGltf, LeavesCompressedAndInstancedFilesToTheWholeFileImporter) {
     if (std::system("command -v gltfpack > /dev/null 2>&1") != 0) GTEST_SKIP() << "gltfpack not installed";
     const std::string in = scratch("src.glb"), packed = scratch("packed.glb");
