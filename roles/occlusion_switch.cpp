@@ -5,7 +5,7 @@
 #include "net/rank_error.h"
 #include "scene/csv.h"
 #include "scene/errors.h"
-#include "util/limits.h"
+#include "util/config.h"
 
 #include <algorithm>
 #include <chrono>

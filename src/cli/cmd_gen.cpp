@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "cli/commands.h"
 
-#include "cli/progress.h"
+#include "util/progress.h"
 
 #include "import/glb_writer.h"
 #include "import/grid.h"

@@ -2,7 +2,7 @@
 #include "cli/commands.h"
 
 #include "cli/model_cache.h"
-#include "cli/progress.h"
+#include "util/progress.h"
 #include "import/import.h"
 #include "prep/hierarchy.h"
 #include "prep/prepare.h"

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "cli/commands.h"
-#include "cli/progress.h"
+#include "util/progress.h"
 
 #include "device_memory.h"
 #include "net/emulated_link.h"
@@ -21,7 +21,7 @@
 #include "render/png_writer.h"
 #include "render/sort_last.h"
 #include "render/window.h"
-#include "util/limits.h"
+#include "util/config.h"
 #endif
 
 #include <atomic>

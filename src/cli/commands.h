@@ -1,15 +1,13 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include "util/config.h"
+
 #include <CLI/CLI.hpp>
 
 #include <functional>
 
 namespace occ::cli {
-
-// The model gen tiles and bench measures when none is given: the engine of assimp-testmodels.
-inline constexpr const char* kDefaultModel =
-    "/usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
 
 // Each subcommand registers itself and its options on the app and returns the action to run
 // when it is chosen. Actions return the process exit status; errors are thrown (InputError, UsageError).
@@ -18,7 +16,7 @@ struct Command {
     std::function<int()> run;
 };
 
-// Parses a viewport "WxH" (1 <= W, H <= kMaxViewportSide, util/limits.h); throws UsageError naming `option` otherwise.
+// Parses a viewport "WxH" (1 <= W, H <= kMaxViewportSide, util/config.h); throws UsageError naming `option` otherwise.
 void parseViewportSize(const std::string& option, const std::string& text, uint32_t& width, uint32_t& height);
 
 // Parses --pvs-occluders: "auto" (PipelineOptions::kAutoOccluderTriangles) or a triangle count

@@ -11,7 +11,7 @@
 #include "occluder_weight.h"
 #include "reform.h"
 #include "scene/errors.h"
-#include "util/limits.h"
+#include "util/config.h"
 
 #include <xxhash.h>
 

@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-namespace occ::cli {
+namespace occ::bench {
 
 struct BenchAllOptions {
     std::string out;       // results folder (created if missing)
@@ -24,4 +24,4 @@ struct BenchAllOptions {
 // Throws UsageError for impossible options, SystemError when a run fails (naming its log).
 int runBenchAll(const BenchAllOptions& options);
 
-}  // namespace occ::cli
+}  // namespace occ::bench

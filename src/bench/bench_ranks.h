@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-namespace occ::cli {
+namespace occ::bench {
 
 struct BenchRanksOptions {
     std::string out;                          // results folder (created if missing)
@@ -52,4 +52,4 @@ struct BenchLinksOptions {
 // plots/links.png (with gnuplot) into --out and prints the summary's path.
 int runBenchLinks(const BenchLinksOptions& options);
 
-}  // namespace occ::cli
+}  // namespace occ::bench

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-#include "cli/bench_pipeline.h"
+#include "bench/bench_pipeline.h"
 
 #include "device_memory.h"
 #include "pipeline/pipeline.h"
@@ -15,7 +15,7 @@
 #include <fstream>
 #include <vector>
 
-namespace occ::cli {
+namespace occ::bench {
 
 namespace {
 
@@ -165,4 +165,4 @@ int runPipelineBench(const PipelineBenchOptions& o) {
     return 0;
 }
 
-}  // namespace occ::cli
+}  // namespace occ::bench

@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: MIT
-#include "cli/progress.h"
+#include "util/progress.h"
 
 #include <cstdio>
 #include <unistd.h>
 
-namespace occ::cli {
+namespace occ {
 
 ProgressBar::ProgressBar(std::string label, std::string unit, std::string rate_unit, std::function<Sample()> sample)
     : label_(std::move(label)), unit_(std::move(unit)), rate_unit_(std::move(rate_unit)), sample_(std::move(sample)),
@@ -42,4 +42,4 @@ void ProgressBar::draw() {
     std::fflush(stderr);
 }
 
-}  // namespace occ::cli
+}  // namespace occ

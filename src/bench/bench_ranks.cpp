@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
-#include "cli/bench_ranks.h"
+#include "bench/bench_ranks.h"
 
-#include "cli/bench_runner.h"
+#include "bench/runner.h"
 #include "cli/commands.h"
 #include "net/messages.h"
 #include "scene/atomic_file.h"
@@ -11,11 +11,10 @@
 #include <map>
 #include <set>
 
-namespace occ::cli {
+namespace occ::bench {
 
 namespace {
 
-using namespace bench;
 
 // `mpirun -np N` with this project's fault grace (docs/protocol.md), as root where needed.
 std::vector<std::string> mpirunArgv(const std::string& mpirun, int ranks) {
@@ -170,7 +169,7 @@ Prediction predict(const Layout& measured, int partitions, double gbps, uint32_t
 
 int runBenchRanks(const BenchRanksOptions& o) {
     uint32_t width = 0, height = 0;
-    parseViewportSize("--size", o.size, width, height);
+    cli::parseViewportSize("--size", o.size, width, height);
     if (o.ranks.empty()) throw UsageError("bench ranks: --ranks needs at least one layout");
     for (int n : o.ranks)
         if (n < 1 || n > 64) throw UsageError("bench ranks: --ranks " + std::to_string(n) + ": expected 1 to 64");
@@ -337,7 +336,7 @@ double switchModelBytes(double n, double packets, double h) { return 8.0 * n + p
 
 int runBenchLinks(const BenchLinksOptions& o) {
     uint32_t width = 0, height = 0;
-    parseViewportSize("--size", o.size, width, height);
+    cli::parseViewportSize("--size", o.size, width, height);
     if (o.layouts.empty()) throw UsageError("bench links: --layouts needs at least one rank count");
     for (int n : o.layouts)
         if (n < 3 || n > 64) throw UsageError("bench links: --layouts " + std::to_string(n) + ": expected 3 to 64 (the switch, or 2 + P)");
@@ -540,4 +539,4 @@ int runBenchLinks(const BenchLinksOptions& o) {
     return 0;
 }
 
-}  // namespace occ::cli
+}  // namespace occ::bench

@@ -7,7 +7,7 @@
 #include <string>
 #include <thread>
 
-namespace occ::cli {
+namespace occ {
 
 // A progress line redrawn in place on stderr while work runs on other threads, only when stderr
 // is a terminal (logs and CI get the caller's one summary line instead).
@@ -31,4 +31,4 @@ private:
     bool enabled_ = false;
 };
 
-}  // namespace occ::cli
+}  // namespace occ

@@ -32,7 +32,7 @@
 
 extern char** environ;
 
-namespace occ::cli::bench {
+namespace occ::bench {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
@@ -271,4 +271,4 @@ struct RenderStats {
     std::vector<size_t> measured;  // the same without frame 0
 };
 
-}  // namespace occ::cli::bench
+}  // namespace occ::bench

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
-#include "cli/bench_massive.h"
+#include "bench/bench_massive.h"
 
-#include "cli/bench_runner.h"
+#include "bench/runner.h"
 #include "scene/atomic_file.h"
 #include "scene/oss_file.h"
 
@@ -9,11 +9,10 @@
 #include <iomanip>
 #include <map>
 
-namespace occ::cli {
+namespace occ::bench {
 
 namespace {
 
-using namespace bench;
 
 // What one step that makes a file cost, kept beside the file so that a later run that reuses
 // it can still report it.
@@ -303,4 +302,4 @@ int runBenchMassive(const BenchMassiveOptions& options) {
     return Massive(options).run();
 }
 
-}  // namespace occ::cli
+}  // namespace occ::bench

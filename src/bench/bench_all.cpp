@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
-#include "cli/bench_all.h"
+#include "bench/bench_all.h"
 
-#include "cli/bench_runner.h"
+#include "bench/runner.h"
 
 #include "scene/atomic_file.h"
 #include "scene/csv.h"
@@ -32,11 +32,10 @@
 #include <vector>
 
 
-namespace occ::cli {
+namespace occ::bench {
 
 namespace {
 
-using namespace bench;
 
 // ---------------------------------------------------------------------------------------------
 // Configurations
@@ -1119,4 +1118,4 @@ int runBenchAll(const BenchAllOptions& options) {
     return bench.run();
 }
 
-}  // namespace occ::cli
+}  // namespace occ::bench

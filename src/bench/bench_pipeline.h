@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <string>
 
-namespace occ::cli {
+namespace occ::bench {
 
 struct PipelineBenchOptions {
     std::string scene, path, out_dir;
@@ -20,4 +20,4 @@ struct PipelineBenchOptions {
 // Prints a table; with out_dir, also writes pipeline_bench.csv there.
 int runPipelineBench(const PipelineBenchOptions& options);
 
-}  // namespace occ::cli
+}  // namespace occ::bench

@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <string>
 
-namespace occ::cli {
+namespace occ::bench {
 
 struct BenchMassiveOptions {
     std::string out;                  // results folder (created if missing)
@@ -26,4 +26,4 @@ struct BenchMassiveOptions {
 // DIR/logs; prints the summary's path on stdout.
 int runBenchMassive(const BenchMassiveOptions& options);
 
-}  // namespace occ::cli
+}  // namespace occ::bench
