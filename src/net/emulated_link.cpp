@@ -141,7 +141,10 @@ void EmulatedLink::send(int dest, MessageKind kind, std::vector<uint8_t> bytes) 
     }
     const int64_t now = nowNs();
     int64_t arrival = now;
-    if (dest != rank()) {
+    if (dest != rank() && kind == MessageKind::Report) {
+        arrival = std::max(now, last_arrival_ns_[size_t(dest)]);
+        last_arrival_ns_[size_t(dest)] = arrival;
+    } else if (dest != rank()) {
         const LinkSpec& link_ = to_rank_[size_t(dest)];
         int64_t& free = link_free_ns_[size_t(dest)];
         const double wire_ns = link_.mbps > 0 ? double(bytes.size()) * 8.0 / (link_.mbps * 1e6) * 1e9 : 0.0;

@@ -10,7 +10,10 @@
 // (+ a seeded jitter in [0, jitter]) to arrive. The sender stamps the arrival time (system
 // clock, ns) in front of the bytes; the receiver does not hand the message over before it:
 // receive() waits, poll() says no. Arrivals to one destination never go backwards, so the
-// order per pair is kept. Ranks on one host share the clock; across hosts the emulation is as
+// order per pair is kept. The end-of-run report (MessageKind::Report) is the run's bookkeeping,
+// not frame traffic: it crosses without the link's latency and bandwidth (only after what the
+// pair sent before it), so that a narrow link's run still ends within the ranks' end-of-run
+// limit instead of spending minutes shipping its stats rows. Ranks on one host share the clock; across hosts the emulation is as
 // good as their clocks' agreement (NTP: about a millisecond).
 //
 // Counters are the inner transport's with the stamps taken out, and the time waited for the

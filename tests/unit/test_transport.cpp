@@ -199,6 +199,31 @@ TEST(EmulatedLinkTransport, DelaysEachMessageByLatencyAndBytesAtTheBandwidthInOr
     other.join();
 }
 
+// The end-of-run report is the run's bookkeeping: it crosses an emulated link without its
+// latency and bandwidth (after what the pair sent before it), and leaves the link free for what
+// follows. At 40 kb/s its 50 000 bytes would take 10 s; the end-of-run limit is 5 s by default.
+TEST(EmulatedLinkTransport, TheEndOfRunReportCrossesWithoutTheLinksDelay) {
+    InProcessHub hub(2);
+    const LinkSpec spec = parseLinkSpec("100:0.04");  // 100 ms, 40 kb/s: 5 000 bytes a second
+    EmulatedLink a(hub.connect(0), spec), b(hub.connect(1), spec);
+    const auto start = std::chrono::steady_clock::now();
+    a.send(1, MessageKind::Delta, {1, 2, 3});
+    a.send(1, MessageKind::Report, std::vector<uint8_t>(50000, 4));
+    EXPECT_EQ(b.receive(0, MessageKind::Delta, 5s), (std::vector<uint8_t>{1, 2, 3}));
+    EXPECT_GE(std::chrono::steady_clock::now() - start, 99ms) << "the delta did not wait for the link";
+    EXPECT_EQ(b.receive(0, MessageKind::Report, 5s), std::vector<uint8_t>(50000, 4));
+    EXPECT_LT(std::chrono::steady_clock::now() - start, 3s) << "the report paid the link's bandwidth";
+    // The link is as free as the delta left it: a camera sent now waits only its own bytes.
+    const auto camera = std::chrono::steady_clock::now();
+    a.send(1, MessageKind::Camera, {9});
+    EXPECT_EQ(b.receive(0, MessageKind::Camera, 5s), (std::vector<uint8_t>{9}));
+    EXPECT_GE(std::chrono::steady_clock::now() - camera, 99ms);
+    EXPECT_LT(std::chrono::steady_clock::now() - camera, 3s) << "the report took up the link";
+    std::thread other([&] { a.finish(2s); });
+    b.finish(2s);
+    other.join();
+}
+
 TEST(EmulatedLinkTransport, LinkSpecsParseOrSayWhichPartIsWrong) {
     const LinkSpec s = parseLinkSpec("20:100:2");
     EXPECT_DOUBLE_EQ(s.latency_ms, 20.0);
