@@ -489,6 +489,15 @@ const char* RankLayout::roleOf(int rank) const {
     return partitionOf(rank) >= 0 ? "rvg" : "or+hc";
 }
 
+uint32_t RankLayout::resolveOccluderLag(uint32_t requested) const {
+    if (requested == 0) return occluderLag();
+    if (requested < occluderLag())
+        throw OptionError("pvs_occluder_lag", std::to_string(requested) + " with " + std::to_string(size_) +
+                                                  " ranks: the switch's occluder rank has the PVS of " +
+                                                  std::to_string(occluderLag()) + " frames back at the newest");
+    return requested;
+}
+
 std::vector<uint16_t> partitionObjects(const OssFile& file, int parts, int cells) {
     if (parts < 1 || parts > 65535) throw std::invalid_argument("partitionObjects: parts outside [1, 65535]");
     if (cells < 1 || cells > kMaxSortLastCells)
@@ -578,11 +587,7 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
         if (frames == 0) throw UsageError("render: the camera path has no frames");
         if (run.live && rank == 0 && !run.next_camera) throw std::logic_error("runRanks: a live run without cameras");
         PipelineOptions o = options;
-        if (o.pvs_occluder_lag == 0) o.pvs_occluder_lag = layout.occluderLag();
-        if (o.pvs_occluder_lag < layout.occluderLag())
-            throw OptionError("pvs_occluder_lag", std::to_string(o.pvs_occluder_lag) + " with " +
-                             std::to_string(layout.size()) + " ranks: the switch's occluder rank has the PVS of " +
-                             std::to_string(layout.occluderLag()) + " frames back at the newest");
+        o.pvs_occluder_lag = layout.resolveOccluderLag(o.pvs_occluder_lag);
         if (o.hierarchy && layout.displays() > 1)
             throw OptionError("hierarchy", "on with " + std::to_string(layout.size()) +
                                                " ranks: sort-last partitions are of objects; the hierarchy runs on 1 to 3 ranks");

@@ -34,6 +34,10 @@ public:
     // occluders: the switch's OR works on frame f + 1 while frame f is being culled, so its
     // newest PVS is frame f - 1's.
     uint32_t occluderLag() const { return size_ >= 3 ? 2 : 1; }
+    // The occluder lag a run of this layout uses when `requested` was asked for: 0 takes
+    // occluderLag(); less than it throws OptionError (the occluder rank has no newer PVS). The one
+    // place the lag is defaulted and checked against the ranks; the pipeline checks its range.
+    uint32_t resolveOccluderLag(uint32_t requested) const;
     // Frames between the display sending a camera and drawing it: 0 with one rank; with more,
     // the display sends frame f + 1's camera before it draws frame f, so that the other ranks
     // work on f + 1 meanwhile.

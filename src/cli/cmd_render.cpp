@@ -4,6 +4,7 @@
 
 #include "device_memory.h"
 #include "net/emulated_link.h"
+#include "net/process_transport.h"
 #include "net/transport.h"
 #include "pipeline/pipeline.h"
 #include "roles/occlusion_switch.h"
@@ -12,9 +13,6 @@
 #include "scene/errors.h"
 #include "view/camera_path.h"
 
-#ifdef OCC_HAVE_MPI
-#include "net/mpi_transport.h"
-#endif
 #ifdef OCC_HAVE_GL
 #include "render/frame_display.h"
 #include "render/headless_context.h"
@@ -118,7 +116,6 @@ int runInWindow(RenderOptions& o, const OssFile& file, Transport& transport, int
     run.live = true;
     try {
         if (layout.size() == 1) {
-            if (o.pipeline.pvs_occluder_lag == 0) o.pipeline.pvs_occluder_lag = 1;
             return render::runWindow(file, o.pipeline, w);
         }
         if (!rank0) {
@@ -181,7 +178,6 @@ int runRender(RenderOptions o) {
         throw UsageError("--hierarchy " + o.hierarchy + ": expected on or off");
     o.pipeline.hierarchy = o.hierarchy == "on";
     o.pipeline.stream = parseStreamMode(o.stream);
-    if (o.pipeline.pvs_occluder_lag > 2) throw UsageError("render: --pvs-occluder-lag must be 1 or 2");
     if (o.occluder_ms >= 0) o.pipeline.occluder_ms = o.occluder_ms;
     if (o.no_display && o.headless) throw UsageError("render: --no-display and --headless exclude each other");
     const bool draws = !o.no_display;
@@ -207,9 +203,6 @@ int runRender(RenderOptions o) {
         throw UsageError(std::string("render: --path P.cam is required with ") +
                          (o.headless ? "--headless" : "--no-display"));
 
-    // Before anything touches the device: each rank on a node its own GPU.
-    const k::DeviceInfo device = k::selectDevice(o.device);
-    const OssFile file = OssFile::open(preparedScene(o.scene));
     if (!(o.rank_timeout > 0 && o.rank_timeout <= 3600))
         throw UsageError("render: --rank-timeout must be in (0, 3600] seconds");
     if (!o.link.empty()) {
@@ -219,33 +212,17 @@ int runRender(RenderOptions o) {
             throw UsageError(std::string("--link ") + e.what());
         }
     }
+    // Before anything touches the device: each rank on a node its own GPU.
+    const k::DeviceInfo device = k::selectDevice(o.device);
     // Under mpirun every rank runs this command; rank 0 displays, writes and prints.
-    std::unique_ptr<InProcessHub> hub;
-    std::unique_ptr<Transport> transport;
-#ifdef OCC_HAVE_MPI
-    if (std::getenv("OMPI_COMM_WORLD_SIZE") || std::getenv("PMI_SIZE"))
-        transport = std::make_unique<MpiTransport>(nullptr, nullptr);
-#endif
-    if (!transport) {
-        hub = std::make_unique<InProcessHub>(1);
-        transport = hub->connect(0);
-    }
-    std::string link_summary;
-    if (!o.link_file.empty()) {
-        const std::vector<std::vector<LinkSpec>> table = readLinkTable(o.link_file, transport->size(), o.link_spec);
-        std::vector<LinkSpec> to = table[size_t(transport->rank())];
-        for (int a = 0; a < transport->size(); ++a)
-            for (int b = a + 1; b < transport->size(); ++b)
-                link_summary += (link_summary.empty() ? "" : "; ") + std::to_string(a) + "-" + std::to_string(b) + " " +
-                                table[size_t(a)][size_t(b)].describe();
-        if (std::any_of(to.begin(), to.end(), [](const LinkSpec& s) { return s.active(); }) || o.link_spec.active())
-            transport = std::make_unique<EmulatedLink>(std::move(transport), std::move(to));
-        link_summary = "emulated per pair of ranks from " + o.link_file + ": " +
-                       (link_summary.empty() ? "(one rank: no pairs)" : link_summary);
-    } else if (o.link_spec.active()) {
-        transport = std::make_unique<EmulatedLink>(std::move(transport), o.link_spec);
-        link_summary = "emulated between every pair of ranks: " + o.link_spec.describe();
-    }
+    ProcessTransport process = openProcessTransport(o.link_spec, o.link_file);
+    std::unique_ptr<Transport>& transport = process.transport;
+    const std::string& link_summary = process.links;
+    // The options are whole once the ranks are known (the occluder lag follows their layout);
+    // checked before the scene is opened.
+    o.pipeline.pvs_occluder_lag = roles::RankLayout(transport->size()).resolveOccluderLag(o.pipeline.pvs_occluder_lag);
+    validatePipelineOptions(o.pipeline);
+    const OssFile file = OssFile::open(preparedScene(o.scene));
 #ifdef OCC_HAVE_GL
     if (draws && !o.headless) return runInWindow(o, file, *transport, device.ordinal);
 #endif

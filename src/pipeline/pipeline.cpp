@@ -55,7 +55,7 @@ StreamMode parseStreamMode(const std::string& s) {
     throw OptionError("stream", "'" + s + "': expected sc, snc or ns");
 }
 
-Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(file), options_(options) {
+void validatePipelineOptions(const PipelineOptions& options) {
     if (options.width == 0 || options.height == 0 || options.width > kMaxViewportSide || options.height > kMaxViewportSide)
         throw OptionError("viewport", std::to_string(options.width) + "x" + std::to_string(options.height) +
                           ": width and height must be in [1, " + std::to_string(kMaxViewportSide) + "]");
@@ -74,7 +74,10 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
         throw OptionError("tau", OptionError::value(options.tau) + ": must be a positive number of pixels");
     if (!(options.draw_cost >= 0.0f && std::isfinite(options.draw_cost)))
         throw OptionError("draw_cost", OptionError::value(options.draw_cost) + ": must be a number of triangles >= 0");
+}
 
+Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(file), options_(options) {
+    validatePipelineOptions(options);
     if (options.hierarchy && file.nodeCount() == 0)
         throw OptionError("hierarchy", "on: " + file.path() +
                                            " has no hierarchy (prepare it with occswitch prep --hierarchy on)");

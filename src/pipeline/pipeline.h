@@ -153,6 +153,12 @@ LodRule parseLodRule(const std::string& s);  // "budget" or "error"; OptionError
 // its LOD counts (for the network and the history), the blocks that lack geometry and a few
 // totals; it gathers what those blocks lack from the mapped file and sends it over the bus.
 // FrameStats' bus columns count every byte.
+// Throws OptionError naming the first parameter outside its range (the viewport, the AOS, alpha,
+// pet, the budget, the LOD hysteresis, the occluder lag, tau, the draw cost). Pipeline's
+// constructor calls it; a command line calls it once the options are resolved, before it loads
+// anything.
+void validatePipelineOptions(const PipelineOptions& options);
+
 class Pipeline {
 public:
     // file must outlive the pipeline. Throws UsageError for impossible options.
