@@ -68,7 +68,7 @@ Command addBenchCommand(CLI::App& app) {
                "(Table 4), SC/SnC/NS streaming (Peng & Cao 2012 Table 1), visible-set bytes with and without\n"
                "deltas (Govindaraju et al. 2003 Figure 3), latency and waiting on 1, 2 and 3 ranks, fps over\n"
                "the walk (Peng 2014 Figure 6) and scaling from 10^5 triangles up. Writes CSVs, summary.md and\n"
-               "gnuplot PNGs into --out. Sizes: tiny (seconds, for tests), small (about 22 minutes: 7 M-triangle\n"
+               "gnuplot PNGs into --out. Sizes: tiny (seconds, for tests), small (about 10 minutes: 7 M-triangle\n"
                "grid, 5 000-object plant, scaling up to 1.1x10^8 triangles), full (longer than small: 110 M-triangle\n"
                "grid, 20 000-object plant; docs/results.md).");
     all->add_option("--out", ao->out, "results folder (created if missing)")->required();
