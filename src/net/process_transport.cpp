@@ -38,7 +38,8 @@ ProcessTransport openProcessTransport(const LinkSpec& every_pair, const std::str
         std::vector<LinkSpec> to = table[size_t(p.transport->rank())];
         if (std::any_of(to.begin(), to.end(), [](const LinkSpec& s) { return s.active(); }) || every_pair.active())
             p.transport = std::make_unique<EmulatedLink>(std::move(p.transport), std::move(to));
-        p.links = "emulated per pair of ranks from " + link_file + ": " + (pairs.empty() ? "(one rank: no pairs)" : pairs);
+        p.links = "emulated per pair of ranks from " + link_file + ": " +
+                  (pairs.empty() ? "(one rank: no pairs)" : pairs);
     } else if (every_pair.active()) {
         p.transport = std::make_unique<EmulatedLink>(std::move(p.transport), every_pair);
         p.links = "emulated between every pair of ranks: " + every_pair.describe();
