@@ -3,7 +3,6 @@
 
 #include "net/messages.h"
 #include "net/rank_error.h"
-#include "scene/csv.h"
 #include "scene/errors.h"
 #include "util/config.h"
 
@@ -11,7 +10,6 @@
 #include <chrono>
 #include <cstdio>
 #include <map>
-#include <sstream>
 
 namespace occ::roles {
 
@@ -29,29 +27,15 @@ constexpr std::chrono::milliseconds kStartupAllowance{60000};
 
 constexpr MessageKind kFrameKinds[] = {MessageKind::Camera, MessageKind::Delta, MessageKind::EndOfFrame};
 
-// The message columns of one row: what the rank sent since its last row.
-struct NetColumns {
-    uint64_t bytes[3] = {}, messages[3] = {};
-    uint64_t full_pvs_bytes = 0;
-    double latency_ms = -1;   // rows of the display only
-    int64_t latency_frames = -1;
-    double ms_wait = 0;
-    uint64_t visible_hash = 0;
-    uint64_t added = 0, removed = 0, changed = 0;  // entries of the frame's visible-set message
-    int partition = -1;                            // display rows: the partition drawn
-    uint64_t composite_bytes = 0;
-    double ms_composite = 0;
-};
-
 // Per-row differences of the transport's cumulative counters.
 class CounterWindow {
 public:
     explicit CounterWindow(const Transport& t) : transport_(t), last_(t.counters()) {}
-    NetColumns take() {
+    NetFigures take() {
         const TransportCounters now = transport_.counters();
         const TransportCounters d = now - last_;
         last_ = now;
-        NetColumns c;
+        NetFigures c;
         for (int i = 0; i < 3; ++i) {
             c.bytes[i] = d[kFrameKinds[i]].bytes_sent;
             c.messages[i] = d[kFrameKinds[i]].messages_sent;
@@ -67,31 +51,9 @@ private:
     TransportCounters last_;
 };
 
-std::string fixed3(double v) {
-    char b[64];
-    std::snprintf(b, sizeof b, "%.3f", v);
-    return b;
-}
-
-std::string netRow(const NetColumns& c) {
-    char b[640];
-    std::snprintf(b, sizeof b, ",%llu,%llu,%llu,%llu,%llu,%llu,%llu,%llu,%llu,%llu,%s,%s,%.3f,%016llx,%s,%llu,%.3f",
-                  static_cast<unsigned long long>(c.bytes[0]), static_cast<unsigned long long>(c.bytes[1]),
-                  static_cast<unsigned long long>(c.bytes[2]), static_cast<unsigned long long>(c.messages[0]),
-                  static_cast<unsigned long long>(c.messages[1]), static_cast<unsigned long long>(c.messages[2]),
-                  static_cast<unsigned long long>(c.full_pvs_bytes), static_cast<unsigned long long>(c.added),
-                  static_cast<unsigned long long>(c.removed), static_cast<unsigned long long>(c.changed),
-                  c.latency_ms < 0 ? "" : fixed3(c.latency_ms).c_str(),
-                  c.latency_frames < 0 ? "" : std::to_string(c.latency_frames).c_str(), c.ms_wait,
-                  static_cast<unsigned long long>(c.visible_hash),
-                  c.partition < 0 ? "" : std::to_string(c.partition).c_str(),
-                  static_cast<unsigned long long>(c.composite_bytes), c.ms_composite);
-    return b;
-}
-
 // A row's message columns: what the transport counted since the last row, with what the
 // frame's culling or display recorded about it (hash, delta entries, latency, partition).
-NetColumns rowColumns(const NetColumns& counted, NetColumns frame) {
+NetFigures rowColumns(const NetFigures& counted, NetFigures frame) {
     std::copy(std::begin(counted.bytes), std::end(counted.bytes), frame.bytes);
     std::copy(std::begin(counted.messages), std::end(counted.messages), frame.messages);
     frame.ms_wait = counted.ms_wait;
@@ -144,7 +106,7 @@ public:
     }
 
     // HC of frame f (after occluders(f)): returns the frame's OR + HC stats; the delta is sent.
-    FrameStats cull(uint64_t f, NetColumns& net) {
+    FrameStats cull(uint64_t f, NetFigures& net) {
         if (pose_frame_ != f) throw std::logic_error("Culler::cull before occluders of the frame");
         // The display may lag at most two frames behind the culling.
         while (f >= 2 && eof_seen_ + 2 < f + 1) receiveEndOfFrame();
@@ -317,10 +279,12 @@ public:
         for (int r = 1; r < layout_.size(); ++r) t_.send(r, MessageKind::Camera, encodeCameraPacket(p, t_.rank()));
     }
 
-    // Displays frame f at display step `step`, adding to `stats` (which holds the culling's
-    // stages on one rank). Returns the draw callback's columns.
-    // `last`: no frame follows (the culling ranks are told with the end-of-frame).
-    std::string display(uint64_t f, uint64_t step, FrameStats& stats, NetColumns& net, bool last) {
+    // Displays frame f at display step `step` into `record`, adding to its stats (which hold the
+    // culling's stages on one rank) what streaming costs, its messages and what the drawing
+    // measured. `last`: no frame follows (the culling ranks are told with the end-of-frame).
+    void display(uint64_t f, uint64_t step, FrameRecord& record, bool last) {
+        FrameStats& stats = record.stats;
+        NetFigures& net = record.net;
         const int64_t start_ns = nowNs();
         const int from = layout_.culler(f);
         const std::chrono::milliseconds limit = f < 2 ? std::max(run_.timeout, kStartupAllowance) : run_.timeout;
@@ -351,7 +315,10 @@ public:
         stats.objects_in_frustum = pipeline_.frustumCount();
         stats.objects_occluded = stats.objects_in_frustum - std::min<uint64_t>(stats.objects_in_frustum, ids.size());
         pipeline_.streamPass(f, stats);
-        const std::string drawn = run_.draw ? run_.draw(pipeline_, pose, f) : std::string();
+        if (run_.draw) {
+            record.display = run_.draw(pipeline_, pose, f);
+            record.displayed = true;
+        }
         net.latency_ms = double(nowNs() - sent_ns_[f]) / 1e6;
         net.latency_frames = int64_t(step - sent_step_[f]);
         net.visible_hash = shown_.hash();
@@ -363,7 +330,6 @@ public:
         const std::vector<uint8_t> bytes = encodeEndOfFrame(e, t_.rank());
         for (int r : layout_.cullingRanks()) t_.send(r, MessageKind::EndOfFrame, bytes);
         net.partition = layout_.partitionOf(t_.rank());
-        return drawn;
     }
 
 private:
@@ -387,81 +353,6 @@ private:
     std::vector<int64_t> sent_ns_;
     std::vector<uint64_t> sent_step_;
 };
-
-std::string emptyColumns(const std::string& header) {
-    return std::string(size_t(std::count(header.begin(), header.end(), ',')), ',');
-}
-
-std::string row(int rank, const char* role, const FrameStats& s, const NetColumns& net, const std::string& drawn) {
-    return std::to_string(rank) + "," + role + "," + frameStatsRow(s) + netRow(net) + drawn + "\n";
-}
-
-// The frame of a stats row (rank,role,frame,...); InputError when it has none.
-uint64_t frameOfRow(const std::string& line) {
-    const std::vector<std::string> fields = csvFields(line, "stats row");
-    const std::string& frame = fields.size() > 2 ? fields[2] : std::string();
-    char* end = nullptr;
-    const unsigned long long f = std::strtoull(frame.c_str(), &end, 10);
-    if (frame.empty() || frame[0] == '-' || *end != '\0') throw InputError("stats row", "no frame number");
-    return f;
-}
-
-void addToSummary(RunSummary& sum, const FrameStats& s, const NetColumns& net, double ms_frame) {
-    sum.frames += 1;
-    sum.ms_frame += ms_frame;
-    sum.objects_in_frustum += double(s.objects_in_frustum);
-    sum.objects_visible += double(s.objects_visible);
-    sum.active_triangles += double(s.active_triangles);
-    sum.streamed_triangles += double(s.streamed_triangles);
-    sum.ms_wait += net.ms_wait;
-    sum.ms_composite += net.ms_composite;
-    if (s.frame > 0) {
-        sum.bus_h2d_bytes += s.bus_h2d_bytes;
-        sum.bus_d2h_bytes += s.bus_d2h_bytes;
-        sum.streamed_bytes += s.streamed_bytes;
-        sum.pvs_churn += double(s.pvs_added + s.pvs_removed);
-        sum.latency_ms += net.latency_ms;
-        sum.latency_frames = uint32_t(net.latency_frames);
-    }
-}
-
-// What one row adds to its rank's totals (sent with the report; rank 0 sums them).
-void addToTotals(ReportTotals& t, const FrameStats& s, const NetColumns& net) {
-    t.bytes_camera += net.bytes[0];
-    t.bytes_delta += net.bytes[1];
-    t.bytes_eof += net.bytes[2];
-    t.full_pvs_bytes += net.full_pvs_bytes;
-    t.bytes_composite += net.composite_bytes;
-    if (net.partition < 0) return;
-    t.partition = net.partition;
-    t.frames_displayed += 1;
-    t.objects_visible += double(s.objects_visible);
-    t.active_triangles += double(s.active_triangles);
-    t.streamed_triangles += double(s.streamed_triangles);
-}
-
-// The run's totals over every rank's into the summary.
-void addTotals(RunSummary& sum, const std::vector<ReportTotals>& all) {
-    sum.partition_triangles.assign(size_t(sum.displays), 0.0);
-    // Sort-last: rank 0's pipeline holds its partition only; the frame's figures are the sums
-    // over the display ranks.
-    if (sum.displays > 1) sum.objects_visible = sum.active_triangles = sum.streamed_triangles = 0;
-    for (const ReportTotals& t : all) {
-        sum.bytes_camera += t.bytes_camera;
-        sum.bytes_delta += t.bytes_delta;
-        sum.bytes_eof += t.bytes_eof;
-        sum.full_pvs_bytes += t.full_pvs_bytes;
-        sum.bytes_composite += t.bytes_composite;
-        if (t.partition < 0 || t.frames_displayed == 0) continue;
-        if (size_t(t.partition) < sum.partition_triangles.size())
-            sum.partition_triangles[size_t(t.partition)] = t.active_triangles / double(t.frames_displayed);
-        if (sum.displays > 1) {
-            sum.objects_visible += t.objects_visible;
-            sum.active_triangles += t.active_triangles;
-            sum.streamed_triangles += t.streamed_triangles;
-        }
-    }
-}
 
 }  // namespace
 
@@ -571,15 +462,121 @@ std::vector<uint16_t> partitionObjects(const OssFile& file, int parts, int cells
 }
 
 std::string rankStatsHeader(const RunOptions& run) {
-    return "rank,role," + frameStatsHeader() +
-           ",bytes_camera,bytes_delta,bytes_eof,msgs_camera,msgs_delta,msgs_eof,full_pvs_bytes,delta_added,"
-           "delta_removed,delta_changed,latency_ms,"
-           "latency_frames,ms_wait,visible_hash,partition,bytes_composite,ms_composite" +
-           run.draw_header;
+    return "rank,role," + frameStatsHeader() + netFiguresHeader() +
+           (run.display_columns ? displayStatsHeader(*run.display_columns) : std::string());
 }
 
-std::string runRanks(Transport& transport, const OssFile& file, const PipelineOptions& options, const RunOptions& run,
-                     RunSummary& summary) {
+std::string rankStatsRows(const std::vector<FrameRecord>& records, const RankLayout& layout, const RunOptions& run) {
+    // The display's columns stay empty in the rows of a rank that did not draw the frame.
+    std::string no_display;
+    if (run.display_columns) {
+        const std::string header = displayStatsHeader(*run.display_columns);
+        no_display.assign(size_t(std::count(header.begin(), header.end(), ',')), ',');
+    }
+    std::string text;
+    for (const FrameRecord& r : records) {
+        text += std::to_string(r.rank) + "," + layout.roleOf(r.rank) + "," + frameStatsRow(r.stats) +
+                netFiguresRow(r.net);
+        if (run.display_columns) text += r.displayed ? displayStatsRow(r.display, *run.display_columns) : no_display;
+        text += '\n';
+    }
+    return text;
+}
+
+RunSummary summarize(const std::vector<FrameRecord>& records, const RankLayout& layout) {
+    RunSummary sum;
+    sum.displays = layout.displays();
+    sum.partition_triangles.assign(size_t(sum.displays), 0.0);
+    sum.min_psnr_db = 1e9;
+    // Per display rank: frames drawn and the sums over them (sort-last: the frame's figures are
+    // the sums over the display ranks; rank 0's pipeline holds its partition only).
+    std::vector<double> frames(size_t(sum.displays), 0.0), visible(frames), active(frames), streamed(frames);
+    for (const FrameRecord& r : records) {
+        const FrameStats& s = r.stats;
+        const NetFigures& net = r.net;
+        sum.bytes_camera += net.bytes[0];
+        sum.bytes_delta += net.bytes[1];
+        sum.bytes_eof += net.bytes[2];
+        sum.full_pvs_bytes += net.full_pvs_bytes;
+        sum.bytes_composite += net.composite_bytes;
+        if (net.partition >= 0 && net.partition < sum.displays) {
+            const size_t p = size_t(net.partition);
+            frames[p] += 1;
+            visible[p] += double(s.objects_visible);
+            active[p] += double(s.active_triangles);
+            streamed[p] += double(s.streamed_triangles);
+        }
+        if (r.rank != 0) continue;
+        sum.frames += 1;
+        sum.ms_frame += r.ms_frame;
+        sum.objects_in_frustum += double(s.objects_in_frustum);
+        sum.objects_visible += double(s.objects_visible);
+        sum.active_triangles += double(s.active_triangles);
+        sum.streamed_triangles += double(s.streamed_triangles);
+        sum.ms_wait += net.ms_wait;
+        sum.ms_composite += net.ms_composite;
+        if (s.frame > 0) {
+            sum.bus_h2d_bytes += s.bus_h2d_bytes;
+            sum.bus_d2h_bytes += s.bus_d2h_bytes;
+            sum.streamed_bytes += s.streamed_bytes;
+            sum.pvs_churn += double(s.pvs_added + s.pvs_removed);
+            sum.latency_ms += net.latency_ms;
+            sum.latency_frames = uint32_t(net.latency_frames);
+        }
+        if (!r.displayed) continue;
+        const DisplayStats& d = r.display;
+        sum.ms_draw += d.ms_draw;
+        sum.false_culls += double(d.false_culls);
+        sum.exact_occluded += double(d.exact_occluded);
+        sum.culling_accuracy += d.culling_accuracy;
+        if (s.frame > 0) sum.exact_churn += double(d.exact_added + d.exact_removed);
+        sum.psnr_db += d.psnr_db;
+        sum.min_psnr_db = std::min(sum.min_psnr_db, d.psnr_db);
+        sum.changed_pixel_share += d.changed_pixel_share;
+    }
+    for (size_t p = 0; p < frames.size(); ++p)
+        if (frames[p] > 0) sum.partition_triangles[p] = active[p] / frames[p];
+    if (sum.displays > 1) {
+        sum.objects_visible = sum.active_triangles = sum.streamed_triangles = 0;
+        for (size_t p = 0; p < frames.size(); ++p) {
+            sum.objects_visible += visible[p];
+            sum.active_triangles += active[p];
+            sum.streamed_triangles += streamed[p];
+        }
+    }
+    return sum;
+}
+
+namespace {
+
+// The frames a rank culls or displays in a run of `frames` frames.
+uint64_t framesOfRank(const RankLayout& layout, int rank, uint64_t frames) {
+    if (layout.size() >= 3 && layout.partitionOf(rank) < 0) return (frames + (rank == 1 ? 1 : 0)) / 2;
+    return frames;
+}
+
+// Rank 0: every other rank's records, checked against the layout, merged with rank 0's by
+// frame, then rank.
+std::vector<FrameRecord> gatherRecords(Transport& transport, const RankLayout& layout, std::vector<FrameRecord> own,
+                                       uint64_t frames, uint32_t items, std::chrono::milliseconds timeout) {
+    for (int r = 1; r < layout.size(); ++r) {
+        const std::vector<FrameRecord> theirs = decodeReport(transport.receive(r, MessageKind::Report, timeout),
+                                                             {r, framesOfRank(layout, r, frames), items});
+        for (const FrameRecord& record : theirs)
+            if (record.net.partition != layout.partitionOf(r))
+                throw RankError(r, "report: partition " + std::to_string(record.net.partition) + ", expected " +
+                                       std::to_string(layout.partitionOf(r)));
+        own.insert(own.end(), theirs.begin(), theirs.end());
+    }
+    std::stable_sort(own.begin(), own.end(),
+                     [](const FrameRecord& a, const FrameRecord& b) { return a.stats.frame < b.stats.frame; });
+    return own;
+}
+
+}  // namespace
+
+std::vector<FrameRecord> runRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
+                                  const RunOptions& run, RunSummary& summary) {
     try {
         const RankLayout layout(transport.size());
         const int rank = transport.rank();
@@ -597,11 +594,16 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
         Pipeline pipeline(file, o);
         CounterWindow window(transport);
         BusWindow bus;  // after the pipeline's start-up copies
-        const std::string no_draw = emptyColumns(run.draw_header);
-        std::vector<std::string> rows;
-        ReportTotals totals;
+        std::vector<FrameRecord> records;
         summary = RunSummary{};
         std::chrono::milliseconds finish_limit = run.timeout;
+        // A frame's record is done: its bus bytes and the messages the transport counted for it.
+        const auto record = [&](FrameRecord& r) {
+            r.rank = rank;
+            r.net = rowColumns(window.take(), r.net);
+            bus.take(r.stats);
+            records.push_back(r);
+        };
 
         // The camera of frame f: the path's, or in a live run the newest one when it is asked.
         const auto camera = [&](uint64_t f, CameraPose& pose) {
@@ -621,18 +623,11 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 const auto start = Clock::now();
                 display.sendCamera(f, f, pose);
                 culler.occluders(f);
-                NetColumns net;
-                FrameStats s = culler.cull(f, net);
-                NetColumns shown;
-                const std::string drawn = display.display(f, f, s, shown, !run.live && f + 1 == frames);
-                net.latency_ms = shown.latency_ms;
-                net.latency_frames = shown.latency_frames;
-                net.partition = shown.partition;
-                net = rowColumns(window.take(), net);
-                bus.take(s);
-                rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
-                addToTotals(totals, s, net);
-                addToSummary(summary, s, net, std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+                FrameRecord r;
+                r.stats = culler.cull(f, r.net);
+                display.display(f, f, r, !run.live && f + 1 == frames);
+                r.ms_frame = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+                record(r);
                 if (run.on_frame) run.on_frame(f + 1);
                 more = camera(f + 1, pose);
                 if (!more) frames = f + 1;
@@ -652,14 +647,10 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                 const bool more = camera(f + 1, pose);
                 if (more) display.sendCamera(f + 1, f, pose);
                 else frames = f + 1;
-                FrameStats s;
-                NetColumns shown;
-                const std::string drawn = display.display(f, f, s, shown, !more);
-                const NetColumns net = rowColumns(window.take(), shown);
-                bus.take(s);
-                rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
-                addToTotals(totals, s, net);
-                addToSummary(summary, s, net, std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+                FrameRecord r;
+                display.display(f, f, r, !more);
+                r.ms_frame = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+                record(r);
                 if (run.on_frame) run.on_frame(f + 1);
             }
             if (run.live) display.sendStop(frames);
@@ -671,13 +662,9 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
                     frames = f;
                     break;
                 }
-                FrameStats s;
-                NetColumns shown;
-                const std::string drawn = display.display(f, f, s, shown, !run.live && f + 1 == frames);
-                const NetColumns net = rowColumns(window.take(), shown);
-                bus.take(s);
-                rows.push_back(row(rank, layout.roleOf(rank), s, net, drawn));
-                addToTotals(totals, s, net);
+                FrameRecord r;
+                display.display(f, f, r, !run.live && f + 1 == frames);
+                record(r);
             }
         } else {
             Culler culler(transport, pipeline, layout, run, partition);
@@ -685,12 +672,9 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             const uint64_t step = layout.size() >= 3 ? 2 : 1;
             bool more = first < frames && culler.occluders(first);
             for (uint64_t f = first; more; f += step) {
-                NetColumns sent;
-                FrameStats s = culler.cull(f, sent);
-                bus.take(s);
-                const NetColumns net = rowColumns(window.take(), sent);
-                rows.push_back(row(rank, layout.roleOf(rank), s, net, no_draw));
-                addToTotals(totals, s, net);
+                FrameRecord r;
+                r.stats = culler.cull(f, r.net);
+                record(r);
                 more = f + step < frames && culler.occluders(f + step);
             }
             culler.drainEndOfFrames();
@@ -698,44 +682,14 @@ std::string runRanks(Transport& transport, const OssFile& file, const PipelineOp
             finish_limit = culler.finishLimit();
         }
 
-        std::string text;
-        for (const std::string& r : rows) text += r;
-        std::vector<ReportTotals> all_totals{totals};
         if (rank != 0) {
-            transport.send(0, MessageKind::Report, encodeReport({totals, text}, rows.size(), rank));
-        } else if (layout.size() > 1) {
-            // Every rank's rows, ordered by frame, then rank.
-            std::vector<std::pair<uint64_t, std::string>> merged;
-            for (const std::string& r : rows) merged.emplace_back(frameOfRow(r), r);
-            for (int r = 1; r < layout.size(); ++r) {
-                const uint64_t expected =
-                    layout.size() >= 3 && layout.partitionOf(r) < 0 ? (frames + (r == 1 ? 1 : 0)) / 2 : frames;
-                const Report report =
-                    decodeReport(transport.receive(r, MessageKind::Report, run.timeout), {r, expected, pipeline.itemCount()});
-                if (report.totals.partition != layout.partitionOf(r))
-                    throw RankError(r, "report: partition " + std::to_string(report.totals.partition) + ", expected " +
-                                           std::to_string(layout.partitionOf(r)));
-                all_totals.push_back(report.totals);
-                std::istringstream lines(report.text);
-                for (std::string line; std::getline(lines, line);) {
-                    try {
-                        merged.emplace_back(frameOfRow(line), line + "\n");
-                    } catch (const std::exception&) {
-                        throw RankError(r, "report: a row without a frame number");
-                    }
-                }
-            }
-            std::stable_sort(merged.begin(), merged.end(),
-                             [](const auto& a, const auto& b) { return a.first < b.first; });
-            text.clear();
-            for (const auto& entry : merged) text += entry.second;
-        }
-        if (rank == 0) {
-            summary.displays = layout.displays();
-            addTotals(summary, all_totals);
+            transport.send(0, MessageKind::Report, encodeReport(records, rank));
+        } else {
+            records = gatherRecords(transport, layout, std::move(records), frames, pipeline.itemCount(), run.timeout);
+            summary = summarize(records, layout);
         }
         transport.finish(finish_limit);
-        return text;
+        return records;
     } catch (const RankError& e) {
         transport.fail(e.rank(), e.detail());
         throw;

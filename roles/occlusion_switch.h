@@ -2,11 +2,13 @@
 #pragma once
 
 #include "net/transport.h"
+#include "pipeline/frame_record.h"
 #include "pipeline/pipeline.h"
 #include "view/camera.h"
 
 #include <chrono>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -77,11 +79,12 @@ struct RunOptions {
     int sort_last_cells = 1;  // 2 + P ranks: regions per display partition (partitionObjects)
     // How long a rank waits for a message before it declares the sender dead.
     std::chrono::milliseconds timeout{5000};
-    // The display's drawing (RVG, rank 0), called after each frame's streaming with the
-    // pipeline whose visible set and active arrays are that frame's; returns the extra CSV
-    // columns, each with a leading comma (may be empty), and draw_header names them.
-    std::function<std::string(Pipeline& pipeline, const CameraPose& pose, uint64_t frame)> draw;
-    std::string draw_header;
+    // The display's drawing (RVG: rank 0, and the sort-last display ranks), called after each
+    // frame's streaming with the pipeline whose visible set and active arrays are that frame's;
+    // returns what it drew and measured (the frame's record keeps it). display_columns: which
+    // of those figures the stats CSV shows (none: a run that does not draw, or a window).
+    std::function<DisplayStats(Pipeline& pipeline, const CameraPose& pose, uint64_t frame)> draw;
+    std::optional<DisplayColumns> display_columns;
     // Called on rank 0 after every displayed frame (progress).
     std::function<void(uint64_t frames_done)> on_frame;
     // A live run (a window under mpirun, or a path replayed in real time with --pace recorded;
@@ -96,7 +99,7 @@ struct RunOptions {
     std::function<void()> idle;
 };
 
-// What rank 0 prints after a run.
+// What rank 0 prints after a run, made from every rank's frame records (summarize).
 struct RunSummary {
     uint64_t frames = 0;
     double ms_frame = 0;                  // rank 0: mean wall time per displayed frame
@@ -114,18 +117,26 @@ struct RunSummary {
     // Rank 0, frames after the first: host <-> device bytes and the streamed geometry among them.
     uint64_t bus_h2d_bytes = 0, bus_d2h_bytes = 0, streamed_bytes = 0;
     double pvs_churn = 0;                 // rank 0, frames after the first: sum of pvs_added + pvs_removed
+    // Rank 0's display, over the frames it drew: sums (exact_churn: frames after the first) and
+    // the lowest PSNR.
+    double ms_draw = 0, false_culls = 0, exact_occluded = 0, culling_accuracy = 0, exact_churn = 0;
+    double psnr_db = 0, min_psnr_db = 0, changed_pixel_share = 0;
 };
 
-// The --stats header of a multi-role run: "rank,role," + frameStatsHeader() + the message
-// columns (partition, composite bytes and ms among them) + draw_header.
+// The run's summary from every rank's records (runRanks' on rank 0).
+RunSummary summarize(const std::vector<FrameRecord>& records, const RankLayout& layout);
+
+// The --stats CSV of a run: "rank,role," + frameStatsHeader() + the message columns
+// (netFiguresHeader) + the display's (run.display_columns), and one row per record, in order.
 std::string rankStatsHeader(const RunOptions& run);
+std::string rankStatsRows(const std::vector<FrameRecord>& records, const RankLayout& layout, const RunOptions& run);
 
 // Runs the camera path as rank transport.rank() of transport.size() ranks (all ranks call it
-// with the same file, options and cameras). Returns this rank's CSV rows; rank 0's are every
-// rank's rows merged (one row per rank and frame, ordered by frame, then rank) and it fills
+// with the same file, options and cameras). Returns this rank's frame records; rank 0's are
+// every rank's (one per rank and frame, ordered by frame, then rank), from which it fills
 // `summary`. Throws RankError when a rank fails (after telling the others), UsageError for a
 // layout that does not exist.
-std::string runRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
-                     const RunOptions& run, RunSummary& summary);
+std::vector<FrameRecord> runRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
+                                  const RunOptions& run, RunSummary& summary);
 
 }  // namespace occ::roles

@@ -8,6 +8,8 @@
 #include "scene/errors.h"
 #include "scene/oss_file.h"
 
+#include <nlohmann/json.hpp>
+
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
@@ -107,14 +109,6 @@ std::string dimsName(const GridDims& d) {
 }
 
 void writeFileAtomic(const fs::path& path, const std::string& text) { occ::writeFileAtomic(path.string(), text); }
-
-// The first line of `text` that starts with `prefix`, without the prefix; empty if none.
-std::string lineStartingWith(const std::string& text, const std::string& prefix) {
-    std::istringstream in(text);
-    for (std::string line; std::getline(in, line);)
-        if (line.rfind(prefix, 0) == 0) return line.substr(prefix.size());
-    return {};
-}
 
 // ---------------------------------------------------------------------------------------------
 // Child processes
@@ -277,21 +271,22 @@ RunResult Bench::render(const std::string& name, const PreparedScene& scene, std
     }
     const std::vector<std::string> base{exe_,  "render", scene.oss.string(), "--path", scene.cam.string(),
                                         "--stats", (raw_ / (name + ".csv")).string(),
+                                        "--summary", (raw_ / (name + ".summary.json")).string(),
                                         "--budget", "10%"};
     argv.insert(argv.end(), base.begin(), base.end());
     argv.insert(argv.end(), extra.begin(), extra.end());
     RunResult r = runner_.run(name, argv);
     if (!backend_.empty() && !display_.empty()) return r;
-    // The summary names the kernels' backend and the GL renderer, as the first run printed them.
-    const std::string log = readText(r.log);
-    if (backend_.empty()) {
-        const std::string line = lineStartingWith(log, "render: ");
-        const size_t at = line.find("backend ");
-        if (at != std::string::npos) backend_ = line.substr(at + 8, line.find(',', at) - at - 8);
-    }
-    if (display_.empty()) {
-        const std::string line = lineStartingWith(log, "display: ");
-        display_ = line.substr(0, line.find(", mean"));
+    // The summary names the kernels' backend and the GL renderer, from the first run's summary
+    // file that has them (render --summary).
+    const fs::path summary = raw_ / (name + ".summary.json");
+    if (!fs::exists(summary)) return r;
+    try {
+        const nlohmann::json j = nlohmann::json::parse(readText(summary));
+        if (backend_.empty()) backend_ = j.value("backend", "");
+        if (display_.empty()) display_ = j.value("renderer", "");
+    } catch (const nlohmann::json::exception& e) {
+        throw InputError(summary.string(), std::string("not a render summary: ") + e.what());
     }
     return r;
 }

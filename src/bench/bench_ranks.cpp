@@ -7,6 +7,8 @@
 #include "scene/atomic_file.h"
 #include "scene/oss_file.h"
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 #include <map>
 #include <set>
@@ -334,7 +336,9 @@ double switchModelBytes(double n, double packets, double h) { return 8.0 * n + p
 
 }  // namespace
 
-int runBenchLinks(const BenchLinksOptions& o) {
+namespace {
+
+void checkLinksOptions(const BenchLinksOptions& o) {
     uint32_t width = 0, height = 0;
     cli::parseViewportSize("--size", o.size, width, height);
     if (o.layouts.empty()) throw UsageError("bench links: --layouts needs at least one rank count");
@@ -348,90 +352,82 @@ int runBenchLinks(const BenchLinksOptions& o) {
     if (!(o.path_fps > 0 && o.path_fps <= 1000)) throw UsageError("bench links: --path-fps must be in (0, 1000]");
     if (!(o.saturate_fps >= 0 && o.saturate_fps < o.path_fps))
         throw UsageError("bench links: --saturate-fps must be in [0, --path-fps)");
-    const std::string mpirun = findInPath("mpirun");
-    if (mpirun.empty()) throw SystemError("bench links: mpirun not found (run launch/setup)");
-    const InterruptHandlers interrupts;
-    const fs::path out(o.out);
-    makeOutputFolder(o.out);
-    for (const char* sub : {"scenes", "raw", "logs", "plots"}) fs::create_directories(out / sub);
-    Runner runner(out / "logs", o.run_timeout_s, "bench links");
-    const std::string exe = fs::read_symlink("/proc/self/exe").string();
+}
 
-    fs::path scene = o.scene;
-    if (scene.empty())
-        scene = sceneOnce(runner, exe, out / "scenes" / "grid_4x4x4.oss", {"grid", "--nx", "4", "--ny", "4", "--nz", "4"},
-                          {"--hierarchy", "off"});
-    const OssFile file = OssFile::open(scene.string());
-    const fs::path cam = out / "scenes" / ("walk" + std::to_string(o.frames) + ".cam");
-    runner.run("path", {exe, "path", "walk", scene.string(), "--frames", std::to_string(o.frames), "-o", cam.string()});
-    const double h = double(kMessageHeaderSize);
+// The runs of bench links: the scene, its walk and mpirun, and one paced render per link.
+struct LinkPlayer {
+    const BenchLinksOptions& o;
+    Runner& runner;
+    const std::string& exe;
+    const std::string& mpirun;
+    const fs::path& out;
+    const fs::path& scene;
+    const fs::path& cam;
 
-    const auto play = [&](int ranks, double latency_ms, double mbps, bool saturating) {
-        LinkRun run;
-        run.ranks = ranks, run.latency_ms = latency_ms, run.mbps = mbps, run.saturating = saturating;
-        std::string name = "np" + std::to_string(ranks) + "_";
-        name += (latency_ms == 0 && mbps == 0) ? std::string("none") : fixed(latency_ms, 1) + "ms_" + fixed(mbps, 3) + "mbps";
-        const fs::path csv = out / "raw" / (name + ".csv");
-        std::vector<std::string> argv = mpirunArgv(mpirun, ranks);
-        for (const std::string& a : {exe, std::string("render"), scene.string(), std::string("--path"), cam.string(),
-                                     std::string("--headless"), std::string("--size"), o.size, std::string("--pace"),
-                                     std::string("recorded"), std::string("--path-fps"), fixed(o.path_fps, 3),
-                                     std::string("--stats"), csv.string()})
-            argv.push_back(a);
-        if (latency_ms > 0 || mbps > 0) {
-            argv.push_back("--link");
-            argv.push_back(fixed(latency_ms, 3) + (mbps > 0 ? ":" + fixed(mbps, 6) : std::string()));
-        }
-        const RunResult r = runner.run(name, argv);
-        run.layout = measure(ranks, csv);
-        const std::string log = readText(r.log);
-        const size_t at = log.find("pace: recorded");
-        unsigned long long shown = 0, skipped = 0;
-        if (at == std::string::npos) throw SystemError("bench links: " + name + ": no pace line (log: " + r.log.string() + ")");
-        const size_t frames_at = log.find("frames shown", at);
-        const size_t colon = log.rfind(':', frames_at);
-        if (frames_at == std::string::npos || colon == std::string::npos ||
-            std::sscanf(log.c_str() + colon + 1, " %llu frames shown, %llu poses skipped", &shown, &skipped) != 2)
-            throw SystemError("bench links: " + name + ": unreadable pace line (log: " + r.log.string() + ")");
-        run.shown = shown, run.skipped = skipped, run.poses = shown + skipped;
-        run.fps = double(shown) * o.path_fps / double(std::max<uint64_t>(1, run.poses));
-        // Per frame: the delta entries and messages, and the bytes each rank sent.
-        const CsvTable t = CsvTable::read(csv.string());
-        std::map<int, double> sent;
-        double rows0 = 0;
-        for (size_t i = 0; i < t.rows(); ++i) {
-            if (t.num(i, "frame") == 0) continue;
-            const int rank = int(t.num(i, "rank"));
-            run.n += num(t, i, "delta_added") + num(t, i, "delta_removed") + num(t, i, "delta_changed");
-            run.delta_messages += num(t, i, "msgs_delta");
-            sent[rank] += num(t, i, "bytes_camera") + num(t, i, "bytes_delta") + num(t, i, "bytes_eof") +
-                          num(t, i, "bytes_composite");
-            rows0 += rank == 0;
-        }
-        const double frames = std::max(1.0, rows0);
-        run.n /= frames, run.delta_messages /= frames;
-        for (const auto& [rank, bytes] : sent) run.busiest_rank_bytes = std::max(run.busiest_rank_bytes, bytes / frames);
-        for (const auto& [rank, k] : run.layout.per_rank) {
-            run.max_wait = std::max(run.max_wait, k.wait);
-            if (rank == 0) run.display_wait = k.wait;
-        }
-        std::fprintf(stderr, "bench links: %d ranks, link %s: %.1f fps shown, latency %.2f frames / %.1f ms, %llu of %llu "
-                             "poses skipped (%.1f s)\n",
-                     ranks, linkLabel(run).c_str(), run.fps, run.layout.latency_frames, run.layout.latency_ms, skipped,
-                     shown + skipped, r.seconds);
-        return run;
-    };
-
-    std::vector<LinkRun> runs;
-    for (int ranks : o.layouts) {
-        runs.push_back(play(ranks, 0, 0, false));
-        const LinkRun base = runs.back();
-        for (double mbps : o.mbps)
-            for (double latency : o.latencies_ms) runs.push_back(play(ranks, latency, mbps, false));
-        if (o.saturate_fps > 0 && base.busiest_rank_bytes > 0)
-            runs.push_back(play(ranks, 0, base.busiest_rank_bytes * 8.0 * o.saturate_fps / 1e6, true));
+    LinkRun play(int ranks, double latency_ms, double mbps, bool saturating) {
+    LinkRun run;
+    run.ranks = ranks, run.latency_ms = latency_ms, run.mbps = mbps, run.saturating = saturating;
+    std::string name = "np" + std::to_string(ranks) + "_";
+    name += (latency_ms == 0 && mbps == 0) ? std::string("none") : fixed(latency_ms, 1) + "ms_" + fixed(mbps, 3) + "mbps";
+    const fs::path csv = out / "raw" / (name + ".csv");
+    std::vector<std::string> argv = mpirunArgv(mpirun, ranks);
+    for (const std::string& a : {exe, std::string("render"), scene.string(), std::string("--path"), cam.string(),
+                                 std::string("--headless"), std::string("--size"), o.size, std::string("--pace"),
+                                 std::string("recorded"), std::string("--path-fps"), fixed(o.path_fps, 3),
+                                 std::string("--stats"), csv.string()})
+        argv.push_back(a);
+    if (latency_ms > 0 || mbps > 0) {
+        argv.push_back("--link");
+        argv.push_back(fixed(latency_ms, 3) + (mbps > 0 ? ":" + fixed(mbps, 6) : std::string()));
     }
+    const fs::path summary = out / "raw" / (name + ".summary.json");
+    argv.push_back("--summary");
+    argv.push_back(summary.string());
+    const RunResult r = runner.run(name, argv);
+    run.layout = measure(ranks, csv);
+    // The poses the paced run showed and skipped, from its summary (render --summary).
+    try {
+        const nlohmann::json pace = nlohmann::json::parse(readText(summary)).at("pace");
+        run.shown = pace.at("frames_shown").get<uint64_t>();
+        run.skipped = pace.at("poses_skipped").get<uint64_t>();
+    } catch (const nlohmann::json::exception& e) {
+        throw InputError(summary.string(), std::string("no pace in the render summary: ") + e.what());
+    }
+    const uint64_t shown = run.shown, skipped = run.skipped;
+    run.poses = shown + skipped;
+    run.fps = double(shown) * o.path_fps / double(std::max<uint64_t>(1, run.poses));
+    // Per frame: the delta entries and messages, and the bytes each rank sent.
+    const CsvTable t = CsvTable::read(csv.string());
+    std::map<int, double> sent;
+    double rows0 = 0;
+    for (size_t i = 0; i < t.rows(); ++i) {
+        if (t.num(i, "frame") == 0) continue;
+        const int rank = int(t.num(i, "rank"));
+        run.n += num(t, i, "delta_added") + num(t, i, "delta_removed") + num(t, i, "delta_changed");
+        run.delta_messages += num(t, i, "msgs_delta");
+        sent[rank] += num(t, i, "bytes_camera") + num(t, i, "bytes_delta") + num(t, i, "bytes_eof") +
+                      num(t, i, "bytes_composite");
+        rows0 += rank == 0;
+    }
+    const double frames = std::max(1.0, rows0);
+    run.n /= frames, run.delta_messages /= frames;
+    for (const auto& [rank, bytes] : sent) run.busiest_rank_bytes = std::max(run.busiest_rank_bytes, bytes / frames);
+    for (const auto& [rank, k] : run.layout.per_rank) {
+        run.max_wait = std::max(run.max_wait, k.wait);
+        if (rank == 0) run.display_wait = k.wait;
+    }
+    std::fprintf(stderr, "bench links: %d ranks, link %s: %.1f fps shown, latency %.2f frames / %.1f ms, %llu of %llu "
+                         "poses skipped (%.1f s)\n",
+                 ranks, linkLabel(run).c_str(), run.fps, run.layout.latency_frames, run.layout.latency_ms,
+                 static_cast<unsigned long long>(skipped), static_cast<unsigned long long>(shown + skipped), r.seconds);
+    return run;
+    }
+};
 
+// links.csv and links.md from the runs.
+void writeLinksTables(const BenchLinksOptions& o, const std::vector<LinkRun>& runs, const fs::path& out,
+                      const fs::path& scene, const OssFile& file) {
+    const double h = double(kMessageHeaderSize);
     std::ostringstream md, csv;
     csv << "ranks,link,latency_ms,mbps,saturating,frames_shown,poses_skipped,fps,latency_frames,display_latency_ms,"
            "bytes_camera,bytes_delta,bytes_eof,bytes_total,delta_entries,delta_messages,switch_model_bytes,"
@@ -508,6 +504,10 @@ int runBenchLinks(const BenchLinksOptions& o) {
        << "messages (" << fixed(h + kEndOfFramePayloadSize, 0) << " bytes each) that the formula has no term for.\n";
     writeFileAtomic((out / "links.csv").string(), csv.str());
     writeFileAtomic((out / "links.md").string(), md.str());
+}
+
+// plots/links.png (fps and latency against the link's latency), when gnuplot is there.
+void plotLinks(const BenchLinksOptions& o, Runner& runner, const fs::path& out) {
     const std::string gnuplot = findInPath("gnuplot");
     if (!gnuplot.empty()) {
         const fs::path script = out / "plots" / "links.gp";
@@ -535,6 +535,41 @@ int runBenchLinks(const BenchLinksOptions& o) {
         writeFileAtomic(script.string(), gp + "\n" + lat + "\nunset multiplot\n");
         runner.run("gnuplot_links", {gnuplot, "-e", "cd '" + fs::absolute(out).string() + "'", fs::absolute(script).string()});
     }
+}
+
+}  // namespace
+
+int runBenchLinks(const BenchLinksOptions& o) {
+    checkLinksOptions(o);
+    const std::string mpirun = findInPath("mpirun");
+    if (mpirun.empty()) throw SystemError("bench links: mpirun not found (run launch/setup)");
+    const InterruptHandlers interrupts;
+    const fs::path out(o.out);
+    makeOutputFolder(o.out);
+    for (const char* sub : {"scenes", "raw", "logs", "plots"}) fs::create_directories(out / sub);
+    Runner runner(out / "logs", o.run_timeout_s, "bench links");
+    const std::string exe = fs::read_symlink("/proc/self/exe").string();
+
+    fs::path scene = o.scene;
+    if (scene.empty())
+        scene = sceneOnce(runner, exe, out / "scenes" / "grid_4x4x4.oss", {"grid", "--nx", "4", "--ny", "4", "--nz", "4"},
+                          {"--hierarchy", "off"});
+    const OssFile file = OssFile::open(scene.string());
+    const fs::path cam = out / "scenes" / ("walk" + std::to_string(o.frames) + ".cam");
+    runner.run("path", {exe, "path", "walk", scene.string(), "--frames", std::to_string(o.frames), "-o", cam.string()});
+
+    LinkPlayer player{o, runner, exe, mpirun, out, scene, cam};
+    std::vector<LinkRun> runs;
+    for (int ranks : o.layouts) {
+        runs.push_back(player.play(ranks, 0, 0, false));
+        const LinkRun base = runs.back();
+        for (double mbps : o.mbps)
+            for (double latency : o.latencies_ms) runs.push_back(player.play(ranks, latency, mbps, false));
+        if (o.saturate_fps > 0 && base.busiest_rank_bytes > 0)
+            runs.push_back(player.play(ranks, 0, base.busiest_rank_bytes * 8.0 * o.saturate_fps / 1e6, true));
+    }
+    writeLinksTables(o, runs, out, scene, file);
+    plotLinks(o, runner, out);
     std::printf("%s\n", (out / "links.md").c_str());
     return 0;
 }

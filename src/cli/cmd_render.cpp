@@ -11,6 +11,7 @@
 #include "cli/model_cache.h"
 #include "scene/atomic_file.h"
 #include "scene/errors.h"
+#include "util/number_format.h"
 #include "view/camera_path.h"
 
 #ifdef OCC_HAVE_GL
@@ -21,6 +22,8 @@
 #include "render/window.h"
 #include "util/config.h"
 #endif
+
+#include <nlohmann/json.hpp>
 
 #include <atomic>
 #include <cmath>
@@ -40,6 +43,7 @@ namespace {
 // The occluders' raster time a window aims at per frame (--occluder-ms): a tenth of a 10 fps frame.
 constexpr double kWindowOccluderMs = 10.0;
 
+// The command line as given (CLI11 fills it).
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto", budget = "auto";
     std::string pace = "fast", lod = "budget", visibility_weighted = "off", hierarchy = "off", late_pass = "on", colours = "object";
@@ -50,14 +54,117 @@ struct RenderOptions {
     double rank_timeout = 5.0;
     std::string link;  // --link LATENCY_MS[:MBPS[:JITTER_MS]]
     std::string link_file;  // --link-file F: per pair of ranks
-    LinkSpec link_spec;
     int sort_last_cells = 1;
     int device = -1;
-    std::string out, debug_views;
+    std::string out, debug_views, summary;
     std::vector<uint64_t> debug_frames;
     PipelineOptions pipeline;
 };
 
+// The run a command line asks for, every option parsed and checked (resolveRender), and once the
+// ranks are known their layout's (resolveForLayout), before the scene is opened.
+struct RenderConfig {
+    RenderOptions cli;  // as given: names for messages and the summary
+    PipelineOptions pipeline;
+    LinkSpec link;
+    bool draws = false;   // draws frames (not --no-display)
+    bool window = false;  // in a window (drawing, not --headless)
+    bool paced = false;   // --pace recorded
+    std::chrono::milliseconds rank_timeout{5000};
+};
+
+std::string onOff(const std::string& option, const std::string& value) {
+    if (value != "on" && value != "off") throw UsageError(option + " " + value + ": expected on or off");
+    return value;
+}
+
+RenderConfig resolveRender(const RenderOptions& o) {
+    RenderConfig c;
+    c.cli = o;
+    PipelineOptions& p = c.pipeline = o.pipeline;
+    parseViewportSize("--size", o.size, p.width, p.height);
+    p.pvs_occluder_triangles = parseOccluderTriangles(o.pvs_occluders);
+    parseBudget(o.budget, p.budget, p.budget_share);
+    p.mode = parseCullMode(o.mode);
+    p.lod = parseLodRule(o.lod);
+    p.visibility_weighted = onOff("--visibility-weighted", o.visibility_weighted) == "on";
+    if (o.raster != "masked" && o.raster != "exact")
+        throw UsageError("--raster " + o.raster + ": expected masked or exact");
+    p.raster = o.raster == "masked" ? OccluderRaster::Masked : OccluderRaster::Exact;
+    p.late_pass = onOff("--late-pass", o.late_pass) == "on";
+    p.hierarchy = onOff("--hierarchy", o.hierarchy) == "on";
+    p.stream = parseStreamMode(o.stream);
+    if (o.occluder_ms >= 0) p.occluder_ms = o.occluder_ms;
+    if (o.no_display && o.headless) throw UsageError("render: --no-display and --headless exclude each other");
+    c.draws = !o.no_display;
+    c.window = c.draws && !o.headless;
+    if (!c.draws && (o.exact || o.reference || !o.out.empty() || !o.debug_views.empty()))
+        throw UsageError("render: --exact, --reference, --out and --debug-views need drawing; drop --no-display");
+    if (!o.debug_frames.empty() && o.debug_views.empty())
+        throw UsageError("render: --debug-frames chooses frames for --debug-views DIR, which is missing");
+#ifndef OCC_HAVE_GL
+    if (c.draws)
+        throw UsageError("render: this occswitch was built without the OpenGL display (OCC_GL=OFF); "
+                         "run with --no-display");
+#endif
+    if (o.pace != "fast" && o.pace != "recorded")
+        throw UsageError("--pace " + o.pace + ": expected fast (every pose, as fast as the frames go) or recorded "
+                         "(the path in real time at --path-fps)");
+    c.paced = o.pace == "recorded";
+    if (!(o.path_fps > 0 && o.path_fps <= 100000)) {
+        char v[64];
+        std::snprintf(v, sizeof v, "%g", o.path_fps);
+        throw UsageError(std::string("--path-fps ") + v + ": expected poses per second in (0, 100000]");
+    }
+    if (o.path.empty() && !c.window)
+        throw UsageError(std::string("render: --path P.cam is required with ") +
+                         (o.headless ? "--headless" : "--no-display"));
+    if (!(o.rank_timeout > 0 && o.rank_timeout <= 3600))
+        throw UsageError("render: --rank-timeout must be in (0, 3600] seconds");
+    c.rank_timeout = std::chrono::milliseconds(int64_t(o.rank_timeout * 1000));
+    if (!o.link.empty()) {
+        try {
+            c.link = parseLinkSpec(o.link);
+        } catch (const std::invalid_argument& e) {
+            throw UsageError(std::string("--link ") + e.what());
+        }
+    }
+    if (c.window) {
+        // In a window the frame rate is what matters: the occluders follow the raster's speed.
+        if (o.occluder_ms < 0) p.occluder_ms = kWindowOccluderMs;
+        if (o.exact || o.reference || !o.debug_views.empty())
+            throw UsageError("render: --exact, --reference and --debug-views measure recorded runs: add --headless "
+                             "and --path P.cam");
+        if (c.paced)
+            throw UsageError("render: --pace recorded replays --path headless (--headless or --no-display); a window "
+                             "plays the path one pose per frame, then you fly");
+    }
+    return c;
+}
+
+// What the ranks' layout adds: the occluder lag, and the options a layout cannot run.
+void resolveForLayout(RenderConfig& c, const roles::RankLayout& layout) {
+    const RenderOptions& o = c.cli;
+    c.pipeline.pvs_occluder_lag = layout.resolveOccluderLag(c.pipeline.pvs_occluder_lag);
+    validatePipelineOptions(c.pipeline);
+    if (c.window && layout.size() == 1 && !o.stats.empty())
+        throw UsageError("render: --stats in a window needs 2 or more ranks (mpirun); on one rank record a path (R) "
+                         "and render it with --headless --stats");
+    if (layout.size() > 1 && !o.debug_views.empty())
+        throw UsageError("render: --debug-views draws the occluders' depth, which only the culling ranks have: "
+                         "run it with one rank");
+    if (layout.displays() > 1 && (o.exact || o.reference))
+        throw UsageError("render: --exact and --reference draw the whole scene on one display; with " +
+                         std::to_string(layout.size()) + " ranks each display rank holds a part: run them with 3 ranks");
+}
+
+roles::RunOptions runOptions(const RenderConfig& c) {
+    roles::RunOptions run;
+    run.deltas = !c.cli.no_deltas;
+    run.sort_last_cells = c.cli.sort_last_cells;
+    run.timeout = c.rank_timeout;
+    return run;
+}
 
 std::string frameName(uint64_t frame) {
     char b[32];
@@ -65,8 +172,9 @@ std::string frameName(uint64_t frame) {
     return b;
 }
 
-// The stats CSV appears whole or not at all: rows go to a temporary that replaces the file
-// only when the run succeeds.
+// The stats CSV appears whole or not at all: opened (a temporary beside it) before the run, so
+// that a path that cannot be written fails at once; it replaces the file only when the run
+// succeeds.
 class StatsFile {
 public:
     StatsFile(const std::string& path, const std::string& header) {
@@ -74,11 +182,10 @@ public:
         file_ = std::make_unique<AtomicFile>(path);
         file_->write(header + "\n");
     }
-    void write(const std::string& rows) {
-        if (file_) file_->write(rows);
-    }
-    void commit() {
-        if (file_) file_->commit();
+    void commit(const std::string& rows) {
+        if (!file_) return;
+        file_->write(rows);
+        file_->commit();
         file_.reset();
     }
 
@@ -86,38 +193,123 @@ private:
     std::unique_ptr<AtomicFile> file_;
 };
 
+// --pace recorded: pose i of the path is due i / path_fps seconds after the first; each frame
+// takes the newest pose due when it starts (a slow frame skips poses, as a user's would), and a
+// frame quicker than the path waits for the next pose.
+class PathPacer {
+public:
+    PathPacer(const std::vector<CameraPose>& cameras, double fps) : cameras_(cameras), fps_(fps) {}
+
+    bool next(uint64_t f, CameraPose& pose) {
+        using namespace std::chrono;
+        const auto now = steady_clock::now();
+        if (f == 0) start_ = now;
+        uint64_t i = uint64_t(duration<double>(now - start_).count() * fps_);
+        if (f > 0 && i <= shown_.back()) {
+            i = shown_.back() + 1;
+            if (i < cameras_.size())
+                std::this_thread::sleep_until(start_ + duration_cast<steady_clock::duration>(duration<double>(double(i) / fps_)));
+        }
+        if (i >= cameras_.size()) return false;
+        pose = cameras_[i];
+        shown_.push_back(i);
+        return true;
+    }
+    // The path's poses done after `frames` frames: the newest one shown.
+    uint64_t posesDone(uint64_t frames) const { return shown_.at(frames - 1) + 1; }
+
+    uint64_t framesShown() const { return shown_.size(); }
+    uint64_t posesSkipped() const { return cameras_.size() - shown_.size(); }
+    // The longest run of poses no frame showed.
+    uint64_t longestSkip() const {
+        uint64_t longest = shown_.empty() ? 0 : shown_.front();
+        for (size_t j = 1; j < shown_.size(); ++j) longest = std::max(longest, shown_[j] - shown_[j - 1] - 1);
+        return longest;
+    }
+
+    void print() const {
+        const uint64_t longest = longestSkip(), shown = framesShown(), skipped = posesSkipped();
+        std::printf("pace: recorded, the path's %zu poses at %g per second (%.2f s): %llu frames shown, %llu poses "
+                    "skipped (%.1f%%), at most %llu in a row\n",
+                    cameras_.size(), fps_, double(cameras_.size()) / fps_, static_cast<unsigned long long>(shown),
+                    static_cast<unsigned long long>(skipped), 100.0 * double(skipped) / double(cameras_.size()),
+                    static_cast<unsigned long long>(longest));
+    }
+
+private:
+    const std::vector<CameraPose>& cameras_;
+    double fps_;
+    std::chrono::steady_clock::time_point start_;
+    std::vector<uint64_t> shown_;  // the pose each frame showed
+};
+
 #ifdef OCC_HAVE_GL
+// The drawing of a headless run on a display rank: each frame offscreen, composited (sort-last),
+// measured and written as the options ask. `install` makes it the run's drawing.
+class HeadlessDrawing {
+public:
+    HeadlessDrawing(const RenderConfig& c, const roles::RankLayout& layout, Transport& transport, int device_ordinal,
+                    std::set<uint64_t> debug_frames)
+        : c_(c), debug_frames_(std::move(debug_frames)) {
+        options_.exact = c.cli.exact;
+        options_.reference = c.cli.reference;
+        options_.uniform_colour = c.cli.colours == "uniform";
+        // Sort-last: every display rank draws its partition; the pictures are composited into rank 0's.
+        const std::vector<int> display_ranks = layout.displayRanks();
+        options_.items = display_ranks.size() > 1;
+        if (layout.partitionOf(transport.rank()) < 0) return;
+        if (display_ranks.size() > 1)
+            compositor_ = std::make_unique<render::SortLastCompositor>(transport, display_ranks, c.rank_timeout);
+        context_ = std::make_unique<render::HeadlessContext>(device_ordinal);
+    }
+    ~HeadlessDrawing() { display_.reset(); }
+
+    void install(roles::RunOptions& run) {
+        run.display_columns = render::displayColumns(options_);  // every rank's rows have the columns
+        if (!context_) return;
+        run.draw = [this](Pipeline& pipeline, const CameraPose& pose, uint64_t f) { return draw(pipeline, pose, f); };
+    }
+    std::string description() const { return context_ ? context_->description() : std::string(); }
+
+private:
+    DisplayStats draw(Pipeline& pipeline, const CameraPose& pose, uint64_t f) {
+        const PipelineOptions& p = c_.pipeline;
+        if (!display_) display_ = std::make_unique<render::FrameDisplay>(pipeline, p.width, p.height, options_);
+        const DisplayStats d = display_->display(pipeline, pose);
+        const std::vector<uint8_t>* picture = &display_->picture();
+        if (compositor_) {
+            picture = compositor_->composite(*display_);
+            if (!picture) return d;  // not rank 0
+        }
+        if (!c_.cli.out.empty())
+            render::writePng(c_.cli.out + "/" + frameName(f) + ".png", p.width, p.height, 3, picture->data());
+        if (debug_frames_.count(f)) display_->writeDebugViews(pipeline, pose, c_.cli.debug_views, frameName(f));
+        return d;
+    }
+
+    const RenderConfig& c_;
+    std::set<uint64_t> debug_frames_;
+    render::DisplayOptions options_;
+    std::unique_ptr<render::SortLastCompositor> compositor_;
+    std::unique_ptr<render::HeadlessContext> context_;
+    std::unique_ptr<render::FrameDisplay> display_;
+};
+
 // `render` in a window: with one rank the single-process pipeline; under mpirun with 2 or more
 // ranks rank 0 opens the one window and displays, the others cull (no window, no GL).
-int runInWindow(RenderOptions& o, const OssFile& file, Transport& transport, int device_ordinal) {
+int runInWindow(const RenderConfig& c, const OssFile& file, Transport& transport, int device_ordinal) {
     const roles::RankLayout layout(transport.size());
-    // In a window the frame rate is what matters: the occluders follow the raster's speed.
-    if (o.occluder_ms < 0) o.pipeline.occluder_ms = kWindowOccluderMs;
     render::WindowOptions w;
-    w.width = o.pipeline.width;
-    w.height = o.pipeline.height;
-    w.path = o.path;
-    w.out = o.out.empty() ? "." : o.out;
-    if (o.exact || o.reference || !o.debug_views.empty())
-        throw UsageError("render: --exact, --reference and --debug-views measure recorded runs: add --headless "
-                         "and --path P.cam");
-    if (o.pace != "fast")
-        throw UsageError("render: --pace recorded replays --path headless (--headless or --no-display); a window "
-                         "plays the path one pose per frame, then you fly");
-    if (layout.size() == 1 && !o.stats.empty())
-        throw UsageError("render: --stats in a window needs 2 or more ranks (mpirun); on one rank record a path (R) "
-                         "and render it with --headless --stats");
+    w.width = c.pipeline.width;
+    w.height = c.pipeline.height;
+    w.path = c.cli.path;
+    w.out = c.cli.out.empty() ? "." : c.cli.out;
     const bool rank0 = transport.rank() == 0;
-    if (rank0 && !o.out.empty()) makeOutputFolder(o.out);
-    roles::RunOptions run;
-    run.deltas = !o.no_deltas;
-    run.sort_last_cells = o.sort_last_cells;
-    run.timeout = std::chrono::milliseconds(int64_t(o.rank_timeout * 1000));
+    if (rank0 && !c.cli.out.empty()) makeOutputFolder(c.cli.out);
+    roles::RunOptions run = runOptions(c);
     run.live = true;
     try {
-        if (layout.size() == 1) {
-            return render::runWindow(file, o.pipeline, w);
-        }
+        if (layout.size() == 1) return render::runWindow(file, c.pipeline, w);
         if (!rank0) {
             // A sort-last display rank (2 + P) draws its partition offscreen for rank 0's window.
             std::unique_ptr<render::HeadlessContext> context;
@@ -129,29 +321,27 @@ int runInWindow(RenderOptions& o, const OssFile& file, Transport& transport, int
                 run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t) {
                     render::DisplayOptions d;
                     d.items = true;
-                    if (!display)
-                        display = std::make_unique<render::FrameDisplay>(pipeline, w.width, w.height, d);
-                    display->display(pipeline, pose);
+                    if (!display) display = std::make_unique<render::FrameDisplay>(pipeline, w.width, w.height, d);
+                    const DisplayStats drawn = display->display(pipeline, pose);
                     compositor->composite(*display);
-                    return std::string();
+                    return drawn;
                 };
             }
             roles::RunSummary ignored;
-            roles::runRanks(transport, file, o.pipeline, run, ignored);
+            roles::runRanks(transport, file, c.pipeline, run, ignored);
             display.reset();
             return 0;
         }
-        StatsFile stats(o.stats, roles::rankStatsHeader(run));
+        StatsFile stats(c.cli.stats, roles::rankStatsHeader(run));
         roles::RunSummary sum;
-        std::string rows;
+        std::vector<FrameRecord> records;
         try {
-            rows = render::runWindowRanks(transport, file, o.pipeline, w, run, sum);
+            records = render::runWindowRanks(transport, file, c.pipeline, w, run, sum);
         } catch (const render::WindowUnavailable& e) {
             transport.fail(0, e.what());  // the culling ranks stop at once instead of timing out
             throw;
         }
-        stats.write(rows);
-        stats.commit();
+        stats.commit(roles::rankStatsRows(records, layout, run));
         return 0;
     } catch (const render::WindowUnavailable& e) {
         throw SystemError(std::string(e.what()) + "; --headless renders without a window");
@@ -159,195 +349,40 @@ int runInWindow(RenderOptions& o, const OssFile& file, Transport& transport, int
 }
 #endif
 
-int runRender(RenderOptions o) {
-    parseViewportSize("--size", o.size, o.pipeline.width, o.pipeline.height);
-    o.pipeline.pvs_occluder_triangles = parseOccluderTriangles(o.pvs_occluders);
-    parseBudget(o.budget, o.pipeline.budget, o.pipeline.budget_share);
-    o.pipeline.mode = parseCullMode(o.mode);
-    o.pipeline.lod = parseLodRule(o.lod);
-    if (o.visibility_weighted != "on" && o.visibility_weighted != "off")
-        throw UsageError("--visibility-weighted " + o.visibility_weighted + ": expected on or off");
-    o.pipeline.visibility_weighted = o.visibility_weighted == "on";
-    if (o.raster != "masked" && o.raster != "exact")
-        throw UsageError("--raster " + o.raster + ": expected masked or exact");
-    o.pipeline.raster = o.raster == "masked" ? OccluderRaster::Masked : OccluderRaster::Exact;
-    if (o.late_pass != "on" && o.late_pass != "off")
-        throw UsageError("--late-pass " + o.late_pass + ": expected on or off");
-    o.pipeline.late_pass = o.late_pass == "on";
-    if (o.hierarchy != "on" && o.hierarchy != "off")
-        throw UsageError("--hierarchy " + o.hierarchy + ": expected on or off");
-    o.pipeline.hierarchy = o.hierarchy == "on";
-    o.pipeline.stream = parseStreamMode(o.stream);
-    if (o.occluder_ms >= 0) o.pipeline.occluder_ms = o.occluder_ms;
-    if (o.no_display && o.headless) throw UsageError("render: --no-display and --headless exclude each other");
-    const bool draws = !o.no_display;
-    if (!draws && (o.exact || o.reference || !o.out.empty() || !o.debug_views.empty()))
-        throw UsageError("render: --exact, --reference, --out and --debug-views need drawing; drop --no-display");
-    if (!o.debug_frames.empty() && o.debug_views.empty())
-        throw UsageError("render: --debug-frames chooses frames for --debug-views DIR, which is missing");
-#ifndef OCC_HAVE_GL
-    if (draws)
-        throw UsageError("render: this occswitch was built without the OpenGL display (OCC_GL=OFF); "
-                         "run with --no-display");
-#endif
-    if (o.pace != "fast" && o.pace != "recorded")
-        throw UsageError("--pace " + o.pace + ": expected fast (every pose, as fast as the frames go) or recorded "
-                         "(the path in real time at --path-fps)");
-    if (!(o.path_fps > 0 && o.path_fps <= 100000))
-    {
-        char v[64];
-        std::snprintf(v, sizeof v, "%g", o.path_fps);
-        throw UsageError(std::string("--path-fps ") + v + ": expected poses per second in (0, 100000]");
-    }
-    if (o.path.empty() && (o.no_display || o.headless))
-        throw UsageError(std::string("render: --path P.cam is required with ") +
-                         (o.headless ? "--headless" : "--no-display"));
-
-    if (!(o.rank_timeout > 0 && o.rank_timeout <= 3600))
-        throw UsageError("render: --rank-timeout must be in (0, 3600] seconds");
-    if (!o.link.empty()) {
-        try {
-            o.link_spec = parseLinkSpec(o.link);
-        } catch (const std::invalid_argument& e) {
-            throw UsageError(std::string("--link ") + e.what());
-        }
-    }
-    // Before anything touches the device: each rank on a node its own GPU.
-    const k::DeviceInfo device = k::selectDevice(o.device);
-    // Under mpirun every rank runs this command; rank 0 displays, writes and prints.
-    ProcessTransport process = openProcessTransport(o.link_spec, o.link_file);
-    std::unique_ptr<Transport>& transport = process.transport;
-    const std::string& link_summary = process.links;
-    // The options are whole once the ranks are known (the occluder lag follows their layout);
-    // checked before the scene is opened.
-    o.pipeline.pvs_occluder_lag = roles::RankLayout(transport->size()).resolveOccluderLag(o.pipeline.pvs_occluder_lag);
-    validatePipelineOptions(o.pipeline);
-    const OssFile file = OssFile::open(preparedScene(o.scene));
-#ifdef OCC_HAVE_GL
-    if (draws && !o.headless) return runInWindow(o, file, *transport, device.ordinal);
-#endif
-    const std::vector<CameraPose> cameras = readCameraPath(o.path);
-    const bool rank0 = transport->rank() == 0;
-    const roles::RankLayout layout(transport->size());
-    if (layout.size() > 1 && !o.debug_views.empty())
-        throw UsageError("render: --debug-views draws the occluders' depth, which only the culling ranks have: "
-                         "run it with one rank");
-    if (layout.displays() > 1 && (o.exact || o.reference))
-        throw UsageError("render: --exact and --reference draw the whole scene on one display; with " +
-                         std::to_string(layout.size()) + " ranks each display rank holds a part: run them with 3 ranks");
-    const int partition = layout.partitionOf(transport->rank());
-    const bool displays = partition >= 0;  // this rank draws (its partition)
-    std::set<uint64_t> debug_frames(o.debug_frames.begin(), o.debug_frames.end());
-    if (!o.debug_views.empty() && debug_frames.empty())
-        debug_frames = {0, cameras.size() / 2, cameras.size() - 1};
-    for (uint64_t f : debug_frames)
-        if (f >= cameras.size())
+// The debug views' frames: those asked for (default first, middle, last), each on the path.
+std::set<uint64_t> debugFrames(const RenderOptions& o, size_t cameras) {
+    std::set<uint64_t> frames(o.debug_frames.begin(), o.debug_frames.end());
+    if (!o.debug_views.empty() && frames.empty()) frames = {0, cameras / 2, cameras - 1};
+    for (uint64_t f : frames)
+        if (f >= cameras)
             throw UsageError("render: --debug-frames " + std::to_string(f) + " is past the path's last frame " +
-                             std::to_string(cameras.size() - 1));
-    // Folders only once every option is known to be good: a refused run creates nothing.
-    if (rank0 && !o.out.empty()) makeOutputFolder(o.out);
-    if (rank0 && !o.debug_views.empty()) makeOutputFolder(o.debug_views);
+                             std::to_string(cameras - 1));
+    return frames;
+}
 
-    roles::RunOptions run;
-    run.cameras = cameras;
-    run.deltas = !o.no_deltas;
-    run.sort_last_cells = o.sort_last_cells;
-    run.timeout = std::chrono::milliseconds(int64_t(o.rank_timeout * 1000));
-    // --pace recorded: pose i of the path is due i / path_fps seconds after the first; each frame
-    // takes the newest pose due when it starts (a slow frame skips poses, as a user's would), and a
-    // frame quicker than the path waits for the next pose.
-    const bool paced = o.pace == "recorded";
-    std::vector<uint64_t> pose_of;  // rank 0, paced: the pose each frame showed
-    std::chrono::steady_clock::time_point pace_start;
-    if (paced) {
-        run.live = true;
-        run.next_camera = [&](uint64_t f, CameraPose& pose) {
-            using namespace std::chrono;
-            const auto now = steady_clock::now();
-            if (f == 0) pace_start = now;
-            uint64_t i = uint64_t(duration<double>(now - pace_start).count() * o.path_fps);
-            if (f > 0 && i <= pose_of.back()) {
-                i = pose_of.back() + 1;
-                if (i < cameras.size())
-                    std::this_thread::sleep_until(pace_start + duration_cast<steady_clock::duration>(
-                                                                   duration<double>(double(i) / o.path_fps)));
-            }
-            if (i >= cameras.size()) return false;
-            pose = cameras[i];
-            pose_of.push_back(i);
-            return true;
-        };
-    }
-    double false_culls = 0, accuracy = 0, exact_occluded = 0, psnr = 0, min_psnr = 1e9, changed = 0, draw_ms = 0;
-    double exact_churn = 0;  // frames after the first
-#ifdef OCC_HAVE_GL
-    std::unique_ptr<render::HeadlessContext> context;
-    std::unique_ptr<render::FrameDisplay> display;
-    render::DisplayOptions display_options;
-    display_options.exact = o.exact;
-    display_options.reference = o.reference;
-    display_options.uniform_colour = o.colours == "uniform";
-    // Sort-last: every display rank draws its partition; the pictures are composited into rank 0's.
-    const std::vector<int> display_ranks = layout.displayRanks();
-    std::unique_ptr<render::SortLastCompositor> compositor;
-    if (display_ranks.size() > 1)
-        compositor = std::make_unique<render::SortLastCompositor>(*transport, display_ranks, run.timeout);
-    display_options.items = display_ranks.size() > 1;
-    if (draws && displays) {
-        context = std::make_unique<render::HeadlessContext>(device.ordinal);
-        run.draw_header = render::displayStatsHeader(display_options);
-        run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t f) {
-            if (!display)
-                display = std::make_unique<render::FrameDisplay>(pipeline, o.pipeline.width, o.pipeline.height,
-                                                                 display_options);
-            const render::DisplayStats d = display->display(pipeline, pose);
-            const std::vector<uint8_t>* picture = &display->picture();
-            if (compositor) {
-                picture = compositor->composite(*display);
-                if (!picture) return render::displayStatsRow(d, display_options);  // not rank 0
-            }
-            draw_ms += d.ms_draw;
-            false_culls += double(d.false_culls);
-            exact_occluded += double(d.exact_occluded);
-            accuracy += d.culling_accuracy;
-            if (f > 0) exact_churn += double(d.exact_added + d.exact_removed);
-            psnr += d.psnr_db;
-            min_psnr = std::min(min_psnr, d.psnr_db);
-            changed += d.changed_pixel_share;
-            if (!o.out.empty())
-                render::writePng(o.out + "/" + frameName(f) + ".png", o.pipeline.width, o.pipeline.height, 3,
-                                 picture->data());
-            if (debug_frames.count(f)) display->writeDebugViews(pipeline, pose, o.debug_views, frameName(f));
-            return render::displayStatsRow(d, display_options);
-        };
-    } else if (draws) {
-        // The other ranks' rows leave the display's columns empty; the header must match.
-        run.draw_header = render::displayStatsHeader(display_options);
-    }
-#endif
-    StatsFile stats(rank0 ? o.stats : std::string(), roles::rankStatsHeader(run));
-    std::atomic<uint64_t> frames_done{0};
-    // Progress counts the path's poses (paced: the newest one shown).
-    run.on_frame = [&](uint64_t done) { frames_done = paced ? pose_of.at(done - 1) + 1 : done; };
-    std::unique_ptr<ProgressBar> progress;
-    if (rank0)
-        progress = std::make_unique<ProgressBar>("render", "frames", "frames", [&] {
-            const double done = double(frames_done.load());
-            return ProgressBar::Sample{done, double(cameras.size()), done};
-        });
-    roles::RunSummary sum;
-    const std::string rows = roles::runRanks(*transport, file, o.pipeline, run, sum);
-    progress.reset();
-    if (!rank0) return 0;
-    stats.write(rows);
-    stats.commit();
+// What a run printed, as printed and (--summary) as JSON.
+struct RunReport {
+    const RenderConfig& config;
+    const roles::RankLayout& layout;
+    const OssFile& file;
+    const roles::RunSummary& sum;
+    const roles::RunOptions& run;
+    const k::DeviceInfo& device;
+    std::string links, renderer;  // the emulated links, the GL renderer (empty: none)
+    const PathPacer* pacer = nullptr;
+};
+
+void printRunSummary(const RunReport& r) {
+    const RenderOptions& o = r.config.cli;
+    const roles::RunSummary& sum = r.sum;
     const double frames = double(std::max<uint64_t>(1, sum.frames));
     std::printf("render: %s, %zu frames at %ux%u, mode %s, stream %s, backend %s, %d rank%s: mean %.2f ms/frame "
                 "(%.1f fps); %.1f of %u objects in the frustum, %.1f%% of those occluded, %.1f visible; "
                 "%.0f active triangles, %.4f%% of them streamed per frame\n",
-                o.scene.c_str(), size_t(sum.frames), o.pipeline.width, o.pipeline.height, o.mode.c_str(),
-                o.stream.c_str(), k::deviceBackend(), layout.size(), layout.size() > 1 ? "s" : "", sum.ms_frame / frames,
-                1000.0 * frames / sum.ms_frame, sum.objects_in_frustum / frames, file.objectCount(),
+                o.scene.c_str(), size_t(sum.frames), r.config.pipeline.width, r.config.pipeline.height, o.mode.c_str(),
+                o.stream.c_str(), k::deviceBackend(), r.layout.size(), r.layout.size() > 1 ? "s" : "",
+                sum.ms_frame / frames, 1000.0 * frames / sum.ms_frame, sum.objects_in_frustum / frames,
+                r.file.objectCount(),
                 sum.objects_in_frustum > 0 ? 100.0 * (sum.objects_in_frustum - sum.objects_visible) / sum.objects_in_frustum
                                            : 0.0,
                 sum.objects_visible / frames, sum.active_triangles / frames,
@@ -355,27 +390,17 @@ int runRender(RenderOptions o) {
     std::printf("messages: %s; visible-set messages %.0f bytes/frame, full sets would be %.0f (%.1f%% less); "
                 "cameras %.0f, end-of-frames %.0f bytes/frame; camera-to-display latency %u frame%s, %.2f ms; "
                 "display waited %.2f ms/frame\n",
-                run.deltas ? "deltas" : "full sets (--no-deltas)", double(sum.bytes_delta) / frames,
+                r.run.deltas ? "deltas" : "full sets (--no-deltas)", double(sum.bytes_delta) / frames,
                 double(sum.full_pvs_bytes) / frames,
                 sum.full_pvs_bytes ? 100.0 * (1.0 - double(sum.bytes_delta) / double(sum.full_pvs_bytes)) : 0.0,
                 double(sum.bytes_camera) / frames, double(sum.bytes_eof) / frames, sum.latency_frames,
                 sum.latency_frames == 1 ? "" : "s", frames > 1 ? sum.latency_ms / (frames - 1) : 0.0,
                 sum.ms_wait / frames);
-    if (!link_summary.empty())
+    if (!r.links.empty())
         std::printf("link: %s (each message delayed by the latency, its bytes at the bandwidth, one queue per "
                     "destination)\n",
-                    link_summary.c_str());
-    if (paced) {
-        // The longest run of poses no frame showed.
-        uint64_t longest = pose_of.empty() ? 0 : pose_of.front();
-        for (size_t j = 1; j < pose_of.size(); ++j) longest = std::max(longest, pose_of[j] - pose_of[j - 1] - 1);
-        const uint64_t shown = pose_of.size(), skipped = cameras.size() - shown;
-        std::printf("pace: recorded, the path's %zu poses at %g per second (%.2f s): %llu frames shown, %llu poses "
-                    "skipped (%.1f%%), at most %llu in a row\n",
-                    cameras.size(), o.path_fps, double(cameras.size()) / o.path_fps,
-                    static_cast<unsigned long long>(shown), static_cast<unsigned long long>(skipped),
-                    100.0 * double(skipped) / double(cameras.size()), static_cast<unsigned long long>(longest));
-    }
+                    r.links.c_str());
+    if (r.pacer) r.pacer->print();
     if (sum.displays > 1) {
         std::string parts;
         for (size_t p = 0; p < sum.partition_triangles.size(); ++p)
@@ -385,27 +410,115 @@ int runRender(RenderOptions o) {
                     sum.displays, parts.c_str(), double(sum.bytes_composite) / frames, sum.ms_composite / frames);
     }
     const double later = std::max(1.0, frames - 1);
+    const k::DeviceInfo& device = r.device;
     std::printf("device: %s%s%s; host <-> device bus on rank 0: %.0f bytes/frame to the device, %.0f back "
                 "(frames after the first), of which streamed geometry %.0f\n",
                 device.ordinal >= 0 ? ("CUDA device " + std::to_string(device.ordinal) + ", ").c_str() : "",
                 device.name.c_str(), device.uuid.empty() ? "" : (", UUID " + device.uuid).c_str(),
                 double(sum.bus_h2d_bytes) / later, double(sum.bus_d2h_bytes) / later, double(sum.streamed_bytes) / later);
-#ifdef OCC_HAVE_GL
-    if (draws) std::printf("display: %s, mean %.2f ms/frame to draw\n", context->description().c_str(), draw_ms / frames);
+    if (r.config.draws)
+        std::printf("display: %s, mean %.2f ms/frame to draw\n", r.renderer.c_str(), sum.ms_draw / frames);
     if (o.exact)
         std::printf("exact: %.0f false culls in all (must be 0), %.1f exactly occluded objects per frame, "
                     "culling accuracy %.2f%% (mean over frames); churn per frame (added + removed) of the PVS "
                     "%.1f, of the exact visible set %.1f\n",
-                    false_culls, exact_occluded / frames, accuracy / frames, sum.pvs_churn / later,
-                    exact_churn / later);
+                    sum.false_culls, sum.exact_occluded / frames, sum.culling_accuracy / frames, sum.pvs_churn / later,
+                    sum.exact_churn / later);
     if (o.reference)
-        std::printf("reference: PSNR %.2f dB mean, %.2f dB lowest; %.3f%% of pixels changed (mean)\n", psnr / frames,
-                    min_psnr, changed / frames);
+        std::printf("reference: PSNR %.2f dB mean, %.2f dB lowest; %.3f%% of pixels changed (mean)\n",
+                    sum.psnr_db / frames, sum.min_psnr_db, sum.changed_pixel_share / frames);
     if (!o.out.empty()) std::printf("frames: %s/frame_*.png\n", o.out.c_str());
     if (!o.debug_views.empty()) std::printf("debug views: %s/\n", o.debug_views.c_str());
-#else
-    (void)false_culls, (void)exact_churn, (void)accuracy, (void)exact_occluded, (void)psnr, (void)min_psnr, (void)changed, (void)draw_ms;
+}
+
+// --summary F.json: the run's figures for programs (bench all reads the backend and renderer).
+void writeSummaryJson(const std::string& path, const RunReport& r) {
+    if (path.empty()) return;
+    const roles::RunSummary& sum = r.sum;
+    const double frames = double(std::max<uint64_t>(1, sum.frames));
+    nlohmann::ordered_json j;
+    j["scene"] = r.config.cli.scene;
+    j["frames"] = sum.frames;
+    j["ranks"] = r.layout.size();
+    j["backend"] = k::deviceBackend();
+    j["device"] = r.device.name;
+    j["renderer"] = r.renderer;
+    j["ms_frame"] = sum.ms_frame / frames;
+    j["objects_in_frustum"] = sum.objects_in_frustum / frames;
+    j["objects_visible"] = sum.objects_visible / frames;
+    j["active_triangles"] = sum.active_triangles / frames;
+    j["delta_bytes"] = double(sum.bytes_delta) / frames;
+    j["full_set_bytes"] = double(sum.full_pvs_bytes) / frames;
+    j["latency_frames"] = sum.latency_frames;
+    if (r.config.draws) j["ms_draw"] = sum.ms_draw / frames;
+    if (r.config.cli.exact) {
+        j["false_culls"] = sum.false_culls;
+        j["culling_accuracy"] = sum.culling_accuracy / frames;
+    }
+    if (r.config.cli.reference) j["min_psnr_db"] = sum.min_psnr_db;
+    if (r.pacer)
+        j["pace"] = {{"poses", r.pacer->framesShown() + r.pacer->posesSkipped()},
+                     {"frames_shown", r.pacer->framesShown()},
+                     {"poses_skipped", r.pacer->posesSkipped()},
+                     {"longest_skip", r.pacer->longestSkip()}};
+    writeFileAtomic(path, j.dump(2) + "\n");
+}
+
+int runRender(const RenderOptions& options) {
+    RenderConfig c = resolveRender(options);
+    // Before anything touches the device: each rank on a node its own GPU.
+    const k::DeviceInfo device = k::selectDevice(c.cli.device);
+    // Under mpirun every rank runs this command; rank 0 displays, writes and prints.
+    ProcessTransport process = openProcessTransport(c.link, c.cli.link_file);
+    Transport& transport = *process.transport;
+    const roles::RankLayout layout(transport.size());
+    resolveForLayout(c, layout);
+    const OssFile file = OssFile::open(preparedScene(c.cli.scene));
+#ifdef OCC_HAVE_GL
+    if (c.window) return runInWindow(c, file, transport, device.ordinal);
 #endif
+    const std::vector<CameraPose> cameras = readCameraPath(c.cli.path);
+    const std::set<uint64_t> debug_frames = debugFrames(c.cli, cameras.size());
+    const bool rank0 = transport.rank() == 0;
+    // Folders only once every option is known to be good: a refused run creates nothing.
+    if (rank0 && !c.cli.out.empty()) makeOutputFolder(c.cli.out);
+    if (rank0 && !c.cli.debug_views.empty()) makeOutputFolder(c.cli.debug_views);
+
+    roles::RunOptions run = runOptions(c);
+    run.cameras = cameras;
+    PathPacer pacer(cameras, c.cli.path_fps);
+    if (c.paced) {
+        run.live = true;
+        run.next_camera = [&](uint64_t f, CameraPose& pose) { return pacer.next(f, pose); };
+    }
+#ifdef OCC_HAVE_GL
+    std::unique_ptr<HeadlessDrawing> drawing;
+    if (c.draws) {
+        drawing = std::make_unique<HeadlessDrawing>(c, layout, transport, device.ordinal, debug_frames);
+        drawing->install(run);
+    }
+#endif
+    StatsFile stats(rank0 ? c.cli.stats : std::string(), roles::rankStatsHeader(run));
+    // Progress counts the path's poses (paced: the newest one shown).
+    std::atomic<uint64_t> frames_done{0};
+    run.on_frame = [&](uint64_t done) { frames_done = c.paced ? pacer.posesDone(done) : done; };
+    std::unique_ptr<ProgressBar> progress;
+    if (rank0)
+        progress = std::make_unique<ProgressBar>("render", "frames", "frames", [&] {
+            const double done = double(frames_done.load());
+            return ProgressBar::Sample{done, double(cameras.size()), done};
+        });
+    roles::RunSummary sum;
+    const std::vector<FrameRecord> records = roles::runRanks(transport, file, c.pipeline, run, sum);
+    progress.reset();
+    if (!rank0) return 0;
+    stats.commit(roles::rankStatsRows(records, layout, run));
+    RunReport report{c, layout, file, sum, run, device, process.links, {}, c.paced ? &pacer : nullptr};
+#ifdef OCC_HAVE_GL
+    if (drawing) report.renderer = drawing->description();
+#endif
+    printRunSummary(report);
+    writeSummaryJson(c.cli.summary, report);
     return 0;
 }
 
@@ -489,6 +602,8 @@ Command addRenderCommand(CLI::App& app) {
         ->delimiter(',');
     sub->add_option("--stats", o->stats,
                     "write per-frame statistics to this CSV file (under mpirun: every rank's rows, with a rank column)");
+    sub->add_option("--summary", o->summary,
+                    "also write the run's summary (backend, renderer, mean figures per frame) as JSON to this file");
     sub->add_flag("--no-deltas", o->no_deltas, "send the full visible set every frame instead of what changed");
     sub->add_option("--sort-last-cells", o->sort_last_cells,
                     "with more than 3 ranks: regions of the scene per display rank (1 = one coherent region\n"

@@ -377,62 +377,96 @@ std::vector<uint8_t> encodeEndOfFrame(const EndOfFrame& eof, int sender) {
     return finishMessage(w);
 }
 
-std::vector<uint8_t> encodeReport(const Report& report, uint64_t frames, int sender) {
-    if (report.text.size() > kMaxReportBytes) throw std::invalid_argument("encodeReport: text over kMaxReportBytes");
-    const ReportTotals& t = report.totals;
-    ByteWriter w = startMessage(MessageKind::Report, 0, sender, frames, kReportTotalsSize + report.text.size());
-    w.u64(t.bytes_camera);
-    w.u64(t.bytes_delta);
-    w.u64(t.bytes_eof);
-    w.u64(t.full_pvs_bytes);
-    w.u64(t.bytes_composite);
-    w.u32(uint32_t(t.partition));
-    w.u32(0);
-    w.u64(t.frames_displayed);
-    w.f64(t.objects_visible);
-    w.f64(t.active_triangles);
-    w.f64(t.streamed_triangles);
-    for (char c : report.text) w.u8(uint8_t(c));
+namespace {
+
+// A record's fields onto the wire (visitRecordFields' order), and back.
+struct RecordWriter {
+    ByteWriter& w;
+    void operator()(int32_t v) { w.u32(uint32_t(v)); }
+    void operator()(bool v) { w.u8(v ? 1 : 0); }
+    void operator()(uint64_t v) { w.u64(v); }
+    void operator()(int64_t v) { w.i64(v); }
+    void operator()(double v) { w.f64(v); }
+};
+
+struct RecordSize {
+    size_t bytes = 0;
+    void operator()(int32_t) { bytes += 4; }
+    void operator()(bool) { bytes += 1; }
+    void operator()(uint64_t) { bytes += 8; }
+    void operator()(int64_t) { bytes += 8; }
+    void operator()(double) { bytes += 8; }
+};
+
+// Reads one record at `at`; `bad` names the first field that cannot be a figure (a flag other
+// than 0 or 1, a double that is not finite), or stays empty.
+struct RecordReader {
+    const ByteReader& r;
+    size_t at;
+    std::string bad;
+    void operator()(int32_t& v) { v = int32_t(r.u32(at)), at += 4; }
+    void operator()(bool& v) {
+        const uint8_t b = r.u8(at++);
+        if (b > 1 && bad.empty()) bad = "a flag byte " + std::to_string(b);
+        v = b == 1;
+    }
+    void operator()(uint64_t& v) { v = r.u64(at), at += 8; }
+    void operator()(int64_t& v) { v = int64_t(r.u64(at)), at += 8; }
+    void operator()(double& v) {
+        v = r.f64(at), at += 8;
+        if (!std::isfinite(v) && bad.empty()) bad = "a figure that is not finite";
+    }
+};
+
+}  // namespace
+
+size_t frameRecordWireSize() {
+    static const size_t size = [] {
+        RecordSize counter;
+        FrameRecord r;
+        visitRecordFields(r, counter);
+        return counter.bytes;
+    }();
+    return size;
+}
+
+std::vector<uint8_t> encodeReport(std::span<const FrameRecord> records, int sender) {
+    const size_t size = frameRecordWireSize() * records.size();
+    if (size > kMaxReportBytes) throw std::invalid_argument("encodeReport: records over kMaxReportBytes");
+    ByteWriter w = startMessage(MessageKind::Report, 0, sender, records.size(), size);
+    RecordWriter writer{w};
+    for (const FrameRecord& r : records) {
+        if (r.rank != sender) throw std::invalid_argument("encodeReport: a record of another rank");
+        visitRecordFields(r, writer);
+    }
     return finishMessage(w);
 }
 
-Report decodeReport(std::span<const uint8_t> bytes, const DecodeContext& ctx) {
+std::vector<FrameRecord> decodeReport(std::span<const uint8_t> bytes, const DecodeContext& ctx) {
     const auto [flags, payload] = checkHeader(bytes, MessageKind::Report, ctx);
     const std::string what = frameWhat(MessageKind::Report, ctx.expected_frame);
     checkFlags(ctx, MessageKind::Report, ctx.expected_frame, flags, 0);
-    if (payload.size() < kReportTotalsSize)
-        fail(ctx, what + ": " + std::to_string(payload.size()) + " payload bytes, shorter than the " +
-                      std::to_string(kReportTotalsSize) + " bytes of totals");
-    if (payload.size() - kReportTotalsSize > kMaxReportBytes)
-        fail(ctx, what + ": " + std::to_string(payload.size() - kReportTotalsSize) + " bytes of text");
+    const size_t record_size = frameRecordWireSize();
+    if (ctx.expected_frame > kMaxReportBytes / record_size || payload.size() != ctx.expected_frame * record_size)
+        fail(ctx, what + ": " + std::to_string(payload.size()) + " payload bytes, not " +
+                      std::to_string(ctx.expected_frame) + " records of " + std::to_string(record_size));
     const ByteReader r(payload);
-    Report report;
-    ReportTotals& t = report.totals;
-    t.bytes_camera = r.u64(0);
-    t.bytes_delta = r.u64(8);
-    t.bytes_eof = r.u64(16);
-    t.full_pvs_bytes = r.u64(24);
-    t.bytes_composite = r.u64(32);
-    t.partition = int32_t(r.u32(40));
-    if (r.u32(44) != 0) fail(ctx, what + ": the totals' padding is not zero");
-    t.frames_displayed = r.u64(48);
-    t.objects_visible = r.f64(56);
-    t.active_triangles = r.f64(64);
-    t.streamed_triangles = r.f64(72);
-    if (t.partition < -1 || t.partition >= 65535) fail(ctx, what + ": partition " + std::to_string(t.partition));
-    for (double v : {t.objects_visible, t.active_triangles, t.streamed_triangles})
-        if (!std::isfinite(v) || v < 0) fail(ctx, what + ": a total is negative or not finite");
-    if (t.partition < 0 && t.frames_displayed != 0) fail(ctx, what + ": displayed frames without a partition");
-    if (t.frames_displayed > ctx.expected_frame)
-        fail(ctx, what + ": " + std::to_string(t.frames_displayed) + " frames displayed of " +
-                      std::to_string(ctx.expected_frame));
-    report.text.assign(payload.begin() + std::ptrdiff_t(kReportTotalsSize), payload.end());
-    const std::string& text = report.text;
-    for (size_t i = 0; i < text.size(); ++i)
-        if (!(text[i] == '\n' || (text[i] >= 0x20 && text[i] < 0x7f)))
-            fail(ctx, what + ": byte " + std::to_string(i) + " of the text is not printable ASCII");
-    if (!text.empty() && text.back() != '\n') fail(ctx, what + ": the text does not end with a newline");
-    return report;
+    std::vector<FrameRecord> records(ctx.expected_frame);
+    for (size_t i = 0; i < records.size(); ++i) {
+        FrameRecord& record = records[i];
+        RecordReader reader{r, i * record_size, {}};
+        visitRecordFields(record, reader);
+        const std::string which = what + ": record " + std::to_string(i);
+        if (!reader.bad.empty()) fail(ctx, which + ": " + reader.bad);
+        if (record.rank != ctx.sender) fail(ctx, which + " is rank " + std::to_string(record.rank) + "'s");
+        if (record.net.partition < -1 || record.net.partition >= 65535)
+            fail(ctx, which + ": partition " + std::to_string(record.net.partition));
+        if (record.net.latency_frames < -1) fail(ctx, which + ": latency of a negative number of frames");
+        if (i > 0 && record.stats.frame <= records[i - 1].stats.frame)
+            fail(ctx, which + ": frame " + std::to_string(record.stats.frame) + " after frame " +
+                          std::to_string(records[i - 1].stats.frame));
+    }
+    return records;
 }
 
 CameraPacket decodeCameraPacket(std::span<const uint8_t> bytes, const DecodeContext& ctx) {

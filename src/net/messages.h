@@ -7,6 +7,7 @@
 // marker. The wire format is docs/protocol.md; this file is that format, byte by byte.
 
 #include "net/rank_error.h"
+#include "pipeline/frame_record.h"
 #include "view/camera.h"
 
 #include <glm/glm.hpp>
@@ -23,8 +24,8 @@ namespace occ {
 static_assert(std::endian::native == std::endian::little,
               "the visible-set hash reads ids and counts in host order; a big-endian port needs byte swapping");
 
-// The three kinds of frame message, and the end-of-run report (each rank's stats rows, sent to
-// rank 0 to be merged into one CSV). The value is the `kind` byte of the header and the MPI tag.
+// The three kinds of frame message, and the end-of-run report (each rank's frame records, sent
+// to rank 0, which writes the stats CSV and the summary from them). The value is the `kind` byte of the header and the MPI tag.
 enum class MessageKind : uint8_t { Camera = 1, Delta = 2, EndOfFrame = 3, Report = 4 };
 inline constexpr int kMessageKindCount = 4;
 
@@ -33,13 +34,12 @@ const char* messageKindName(MessageKind kind);
 
 // Wire constants (docs/protocol.md). A receiver accepts exactly kProtocolVersion.
 inline constexpr uint32_t kMessageMagic = 0x4D53434Fu;  // "OCSM" read as little-endian u32
-inline constexpr uint16_t kProtocolVersion = 2;
+inline constexpr uint16_t kProtocolVersion = 3;
 inline constexpr size_t kMessageHeaderSize = 32;
 inline constexpr size_t kCameraPayloadSize = 56;
 inline constexpr size_t kDeltaPayloadHeaderSize = 24;
 inline constexpr size_t kEndOfFramePayloadSize = 16;
-inline constexpr size_t kMaxReportBytes = size_t(256) << 20;  // a report's text
-inline constexpr size_t kReportTotalsSize = 80;                // a report's typed totals, before its text
+inline constexpr size_t kMaxReportBytes = size_t(256) << 20;  // a report's records
 
 // What the display rank (RVG) sends every frame. sent_ns is the sender's steady clock at send
 // time; only the sender compares it (round-trip latency), other ranks carry it back unchanged.
@@ -52,21 +52,6 @@ struct CameraPacket {
     bool stop = false;
     CameraPose pose;
     int64_t sent_ns = 0;
-};
-
-// What a rank's run added up, sent with its report so that rank 0 builds the run's summary
-// from numbers, not by reading the CSV text back. Bytes are what the rank sent.
-struct ReportTotals {
-    uint64_t bytes_camera = 0, bytes_delta = 0, bytes_eof = 0, full_pvs_bytes = 0, bytes_composite = 0;
-    int32_t partition = -1;        // a display rank's partition, -1 for a culling rank
-    uint64_t frames_displayed = 0;  // a display rank's frames
-    double objects_visible = 0, active_triangles = 0, streamed_triangles = 0;  // sums over them
-    bool operator==(const ReportTotals&) const = default;
-};
-
-struct Report {
-    ReportTotals totals;
-    std::string text;
 };
 
 // The change of the visible set (PVS with each object's LOD vertex count) from frame - 1 to
@@ -136,9 +121,11 @@ VisibleSetDelta makeFullDelta(const VisibleSet& current, uint64_t frame);
 std::vector<uint8_t> encodeCameraPacket(const CameraPacket& packet, int sender);
 std::vector<uint8_t> encodeVisibleSetDelta(const VisibleSetDelta& delta, uint32_t object_count, int sender);
 std::vector<uint8_t> encodeEndOfFrame(const EndOfFrame& eof, int sender);
-// The report's frame field is the number of frames its text covers; text is CSV rows ending in
-// newlines: printable ASCII and '\n' only, at most kMaxReportBytes.
-std::vector<uint8_t> encodeReport(const Report& report, uint64_t frames, int sender);
+// The report: the sender's frame records (FrameRecord, visitRecordFields' fields in order, each
+// record frameRecordWireSize() bytes, at most kMaxReportBytes in all); its frame field is the
+// number of records. Every record's rank must be the sender.
+std::vector<uint8_t> encodeReport(std::span<const FrameRecord> records, int sender);
+size_t frameRecordWireSize();
 
 // Bytes encodeVisibleSetDelta() produces, without encoding.
 size_t encodedSize(const VisibleSetDelta& delta);
@@ -161,7 +148,8 @@ struct DecodeContext {
 CameraPacket decodeCameraPacket(std::span<const uint8_t> bytes, const DecodeContext& ctx);
 VisibleSetDelta decodeVisibleSetDelta(std::span<const uint8_t> bytes, const DecodeContext& ctx);
 EndOfFrame decodeEndOfFrame(std::span<const uint8_t> bytes, const DecodeContext& ctx);
-// ctx.expected_frame is the number of frames the report must cover.
-Report decodeReport(std::span<const uint8_t> bytes, const DecodeContext& ctx);
+// ctx.expected_frame is the number of records the report must hold; each must be ctx.sender's,
+// with finite figures, a partition in [-1, 65535), frames ascending.
+std::vector<FrameRecord> decodeReport(std::span<const uint8_t> bytes, const DecodeContext& ctx);
 
 }  // namespace occ

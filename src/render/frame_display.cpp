@@ -41,40 +41,6 @@ bool boxMayHavePixels(const k::Aabb& box, const glm::mat4& view_proj) {
 
 }  // namespace
 
-std::string displayStatsHeader(const DisplayOptions& options) {
-    std::string h = ",ms_draw,uploaded_bytes,draw_calls";
-    if (options.exact || options.reference) h += ",ms_exact";
-    if (options.exact) h += ",exact_visible,false_culls,exact_occluded,culling_accuracy,exact_added,exact_removed";
-    if (options.reference) h += ",psnr_db,changed_pixel_share";
-    return h;
-}
-
-std::string displayStatsRow(const DisplayStats& s, const DisplayOptions& options) {
-    // Appended piece by piece: GCC 12 warns falsely (-Wrestrict, its bug 105329) on "," + string.
-    std::string r;
-    const auto add = [&r](const std::string& v) {
-        r += ',';
-        r += v;
-    };
-    add(fixed(s.ms_draw, 3));
-    add(std::to_string(s.uploaded_bytes));
-    add(std::to_string(s.draw_calls));
-    if (options.exact || options.reference) add(fixed(s.ms_exact, 3));
-    if (options.exact) {
-        add(std::to_string(s.exact_visible));
-        add(std::to_string(s.false_culls));
-        add(std::to_string(s.exact_occluded));
-        add(fixed(s.culling_accuracy, 2));
-        add(std::to_string(s.exact_added));
-        add(std::to_string(s.exact_removed));
-    }
-    if (options.reference) {
-        add(fixed(s.psnr_db, 2));
-        add(fixed(s.changed_pixel_share, 3));
-    }
-    return r;
-}
-
 uint64_t markSeenObjects(const uint32_t* items, uint64_t pixels, uint32_t object_count, std::vector<uint8_t>& seen) {
     seen.assign(object_count, 0);
     uint64_t count = 0;

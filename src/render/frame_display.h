@@ -2,6 +2,7 @@
 #pragma once
 
 #include "device_memory.h"
+#include "pipeline/frame_record.h"
 #include "pipeline/pipeline.h"
 #include "render/scene_renderer.h"
 
@@ -28,29 +29,8 @@ struct DisplayOptions {
     bool uniform_colour = false;
 };
 
-// One frame of the display, appended to the pipeline's stats row.
-struct DisplayStats {
-    double ms_draw = 0;       // drawing the pipeline's frame, uploads included, until GL finished
-    double ms_exact = 0;      // the full-detail pass and the comparisons (not part of a frame's cost)
-    uint64_t uploaded_bytes = 0;
-    uint64_t draw_calls = 0;  // multi-draw calls (each draws many objects)
-    // With DisplayOptions::exact:
-    uint64_t exact_visible = 0;   // objects with at least one pixel in the full-detail item buffer
-    uint64_t false_culls = 0;     // of those, objects the pipeline left out of the PVS (must be 0)
-    uint64_t exact_occluded = 0;  // frustum objects whose box is behind the full-detail depth everywhere
-    double culling_accuracy = 0;  // percent: objects we culled by occlusion / exact_occluded (100 if 0 / 0)
-    // The exact visible set's churn against the previous frame displayed (compare pvs_added and
-    // pvs_removed: the least any PVS must change).
-    uint64_t exact_added = 0;
-    uint64_t exact_removed = 0;
-    // With DisplayOptions::reference:
-    double psnr_db = 0;               // RGB, against the full-detail picture; 100 for identical pictures
-    double changed_pixel_share = 0;   // percent of pixels that differ in any channel
-};
-
-// The CSV columns DisplayStats adds for these options, each with a leading comma.
-std::string displayStatsHeader(const DisplayOptions& options);
-std::string displayStatsRow(const DisplayStats& s, const DisplayOptions& options);
+// What DisplayOptions measures, as the stats CSV's columns.
+inline DisplayColumns displayColumns(const DisplayOptions& options) { return {options.exact, options.reference}; }
 
 // Exact visibility from an item buffer (object id + 1 per pixel, 0 = background): marks every
 // object with a pixel in `seen` (object_count bytes, cleared first) and returns how many.

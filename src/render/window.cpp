@@ -335,8 +335,8 @@ int runWindow(const OssFile& file, const PipelineOptions& options, const WindowO
     return 0;
 }
 
-std::string runWindowRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
-                           const WindowOptions& wo, roles::RunOptions run, roles::RunSummary& summary) {
+std::vector<FrameRecord> runWindowRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
+                                        const WindowOptions& wo, roles::RunOptions run, roles::RunSummary& summary) {
     Session session(file, wo);
     std::unique_ptr<FrameDisplay> display;  // made with the pipeline of the first frame
     const Pipeline* shown = nullptr;        // the pipeline whose frame the display holds
@@ -392,8 +392,9 @@ std::string runWindowRanks(Transport& transport, const OssFile& file, const Pipe
     run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t f) {
         if (!display) display = std::make_unique<FrameDisplay>(pipeline, wo.width, wo.height, display_options);
         shown = &pipeline;
+        DisplayStats drawn;
         if (session.frozen()) display->drawCullingView(pipeline, session.camera(view));
-        else display->display(pipeline, pose);
+        else drawn = display->display(pipeline, pose);
         if (compositor) composite = compositor->composite(*display, answer);
         show();
         presented = Clock::now();
@@ -408,7 +409,7 @@ std::string runWindowRanks(Transport& transport, const OssFile& file, const Pipe
                    (frames == 1 ? "" : "s") + " " + fixed(ms, 1) + " ms  " + std::to_string(visible) +
                    " visible objects  " + modeName(options.mode);
         });
-        return std::string();
+        return drawn;
     };
     // Sleeping in between, so that the culling ranks get the CPU.
     run.idle = [&] {
@@ -416,7 +417,7 @@ std::string runWindowRanks(Transport& transport, const OssFile& file, const Pipe
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
     };
     session.printStart(", " + std::to_string(ranks) + " ranks (rank 0 displays)");
-    const std::string rows = roles::runRanks(transport, file, options, run, summary);
+    std::vector<FrameRecord> records = roles::runRanks(transport, file, options, run, summary);
     session.finish();
     std::printf("window: %llu frames on %d ranks, latency %.2f frames and %.2f ms (mean of the frames after the "
                 "first)\n",
@@ -425,7 +426,7 @@ std::string runWindowRanks(Transport& transport, const OssFile& file, const Pipe
                 latency_count ? latency_ms / double(latency_count) : 0.0);
     std::fflush(stdout);
     display.reset();
-    return rows;
+    return records;
 }
 
 }  // namespace occ::render

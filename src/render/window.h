@@ -43,9 +43,9 @@ int runWindow(const OssFile& file, const PipelineOptions& options, const WindowO
 // rank. With 2 + P ranks the window shows the sort-last composite of every display rank's
 // partition (the other display ranks run runRanks with a drawing that composites, see
 // SortLastCompositor), and F is refused. The title shows fps, ranks, the latency in frames and ms, and visible objects. Esc
-// ends every rank. Returns runRanks's rows and fills `summary`; throws WindowUnavailable
+// ends every rank. Returns runRanks's records and fills `summary`; throws WindowUnavailable
 // before any message is sent when no window can be opened (the caller tells the other ranks).
-std::string runWindowRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
-                           const WindowOptions& window, roles::RunOptions run, roles::RunSummary& summary);
+std::vector<FrameRecord> runWindowRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
+                                        const WindowOptions& window, roles::RunOptions run, roles::RunSummary& summary);
 
 }  // namespace occ::render

@@ -77,7 +77,7 @@ TEST(Messages, CameraPacketRoundTripsBitExactly) {
 TEST(Messages, HeaderIsLittleEndianAsDocumented) {
     const std::vector<uint8_t> bytes = encodeEndOfFrame({0x0102030405060708ull, 7, 3, true}, 2);
     const std::vector<uint8_t> header(bytes.begin(), bytes.begin() + 24);
-    const std::vector<uint8_t> expected = {'O', 'C', 'S', 'M', 2, 0, 3, 1, 2, 0, 0, 0, 16, 0, 0, 0,
+    const std::vector<uint8_t> expected = {'O', 'C', 'S', 'M', 3, 0, 3, 1, 2, 0, 0, 0, 16, 0, 0, 0,
                                            8,   7,   6,   5,   4, 3, 2, 1};
     EXPECT_EQ(header, expected);
     // payload: compute_ns 7 (i64), visible_count 3 (u32), reserved 0 (u32)
@@ -260,10 +260,10 @@ TEST(Messages, DecodeRejectsHeaderMismatches) {
     EXPECT_EQ(decodeError(camera, {1, 42, kObjects}), "rank 1: delta message: header says kind 1 (camera)");
 
     std::vector<uint8_t> newer = delta;
-    newer[4] = 3;
+    newer[4] = 4;
     reseal(newer);
     EXPECT_EQ(decodeError(newer, {1, 7, kObjects}),
-              "rank 1: delta message: protocol version 3, this build speaks version 2 (mixed builds?)");
+              "rank 1: delta message: protocol version 4, this build speaks version 3 (mixed builds?)");
     std::vector<uint8_t> flagged = delta;
     flagged[7] = 0x80;
     reseal(flagged);
@@ -296,23 +296,57 @@ TEST(Messages, DecodeRejectsUnrenderableCameras) {
     EXPECT_THROW(decodeCameraPacket(encodeCameraPacket(p, 0), {0, 42, kObjects}), RankError);
 }
 
-TEST(Messages, ReportRoundTripsItsTotalsAndText) {
-    Report r;
-    r.totals = {11, 22, 33, 44, 55, 2, 7, 70.5, 1234, 56};
-    r.text = "0,rvg,1\n1,rvg,2\n";
-    const Report q = decodeReport(encodeReport(r, 7, 3), {3, 7, kObjects});
-    EXPECT_EQ(q.totals, r.totals);
-    EXPECT_EQ(q.text, r.text);
-    // A culling rank displays nothing; more displayed frames than the report covers is a lie.
-    r.totals.partition = -1;
-    EXPECT_THROW(decodeReport(encodeReport(r, 7, 3), {3, 7, kObjects}), RankError);
-    r.totals = {};
-    r.totals.partition = 0;
-    r.totals.frames_displayed = 8;
-    EXPECT_THROW(decodeReport(encodeReport(r, 7, 3), {3, 7, kObjects}), RankError);
-    r.totals.frames_displayed = 7;
-    r.totals.active_triangles = -1;
-    EXPECT_THROW(decodeReport(encodeReport(r, 7, 3), {3, 7, kObjects}), RankError);
+TEST(Messages, ReportRoundTripsItsRecords) {
+    std::vector<FrameRecord> records(3);
+    for (size_t i = 0; i < records.size(); ++i) {
+        FrameRecord& r = records[i];
+        r.rank = 3;
+        r.stats.frame = 2 * i + 1;
+        r.stats.objects_visible = 40 + i;
+        r.stats.pvs_hash = 0x0123456789abcdefull;
+        r.stats.ms[2] = 1.25;
+        r.net.bytes[1] = 700 + i;
+        r.net.latency_ms = -1;
+        r.net.partition = 2;
+        r.displayed = i == 1;
+        r.display.psnr_db = 100;
+        r.display.false_culls = 0;
+    }
+    const std::vector<FrameRecord> q = decodeReport(encodeReport(records, 3), {3, 3, kObjects});
+    ASSERT_EQ(q.size(), 3u);
+    for (size_t i = 0; i < q.size(); ++i) {
+        EXPECT_EQ(q[i].rank, 3);
+        EXPECT_EQ(q[i].stats.frame, records[i].stats.frame);
+        EXPECT_EQ(q[i].stats.objects_visible, records[i].stats.objects_visible);
+        EXPECT_EQ(q[i].stats.pvs_hash, records[i].stats.pvs_hash);
+        EXPECT_EQ(q[i].stats.ms[2], 1.25);
+        EXPECT_EQ(q[i].net.bytes[1], records[i].net.bytes[1]);
+        EXPECT_EQ(q[i].net.latency_ms, -1);
+        EXPECT_EQ(q[i].net.partition, 2);
+        EXPECT_EQ(q[i].displayed, i == 1);
+        EXPECT_EQ(q[i].display.psnr_db, 100);
+    }
+    // The count must be the one expected, every record the sender's, frames ascending and figures finite.
+    EXPECT_THROW(decodeReport(encodeReport(records, 3), {3, 4, kObjects}), RankError);
+    EXPECT_THROW(decodeReport(encodeReport(records, 3), {2, 3, kObjects}), RankError);
+    std::vector<FrameRecord> bad = records;
+    bad[2].stats.frame = 1;
+    EXPECT_THROW(decodeReport(encodeReport(bad, 3), {3, 3, kObjects}), RankError);
+    bad = records;
+    bad[0].stats.ms_total = std::numeric_limits<double>::infinity();
+    EXPECT_THROW(decodeReport(encodeReport(bad, 3), {3, 3, kObjects}), RankError);
+    bad = records;
+    bad[1].net.partition = -2;
+    EXPECT_THROW(decodeReport(encodeReport(bad, 3), {3, 3, kObjects}), RankError);
+    // A record of another rank is not encoded.
+    bad = records;
+    bad[0].rank = 1;
+    EXPECT_THROW(encodeReport(bad, 3), std::invalid_argument);
+    // A flag byte other than 0 or 1 (the `displayed` byte follows the rank's 4 bytes).
+    std::vector<uint8_t> bytes = encodeReport(records, 3);
+    bytes[kMessageHeaderSize + 4] = 7;
+    reseal(bytes);
+    EXPECT_THROW(decodeReport(bytes, {3, 3, kObjects}), RankError);
 }
 
 TEST(Messages, DecodeRejectsEndOfFrameBeyondTheScene) {

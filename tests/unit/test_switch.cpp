@@ -48,18 +48,20 @@ PipelineOptions options() {
     return o;
 }
 
-// Runs every rank of `size` on a thread of its own; rank 0's rows and summary come back.
+// Runs every rank of `size` on a thread of its own; rank 0's rows (its records as the stats CSV
+// writes them) and summary come back.
 std::string runAll(int size, const roles::RunOptions& run, roles::RunSummary& summary) {
     InProcessHub hub(size);
     std::vector<std::unique_ptr<Transport>> ends;
     for (int r = 0; r < size; ++r) ends.push_back(hub.connect(r));
-    std::vector<std::string> rows(size), errors(size);
+    std::vector<std::vector<FrameRecord>> records(size);
+    std::vector<std::string> errors(size);
     std::vector<roles::RunSummary> sums(size);
     std::vector<std::thread> threads;
     for (int r = 0; r < size; ++r)
         threads.emplace_back([&, r] {
             try {
-                rows[r] = roles::runRanks(*ends[r], *fixture().file, options(), run, sums[r]);
+                records[r] = roles::runRanks(*ends[r], *fixture().file, options(), run, sums[r]);
             } catch (const std::exception& e) {
                 errors[r] = e.what();
             }
@@ -67,7 +69,7 @@ std::string runAll(int size, const roles::RunOptions& run, roles::RunSummary& su
     for (std::thread& t : threads) t.join();
     for (int r = 0; r < size; ++r) EXPECT_EQ(errors[r], "") << "rank " << r;
     summary = sums[0];
-    return rows[0];
+    return roles::rankStatsRows(records[0], roles::RankLayout(size), run);
 }
 
 // rank -> frame -> visible_hash of the merged rows.
