@@ -3,6 +3,7 @@
 
 #include "device_memory.h"
 
+#include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <string>
@@ -58,6 +59,25 @@ struct FrameStats {
     uint64_t pvs_removed = 0;
     double ms[size_t(Stage::Count)] = {};
     double ms_total = 0;
+};
+
+// Adds the time since the last lap (or since construction) to a stage's column and to the total,
+// once the kernels finished: each stage of a frame laps its clock when it is done.
+class StageClock {
+public:
+    explicit StageClock(FrameStats& stats) : stats_(stats), mark_(std::chrono::steady_clock::now()) {}
+    void lap(Stage s) {
+        k::deviceSynchronize();
+        const auto now = std::chrono::steady_clock::now();
+        const double ms = std::chrono::duration<double, std::milli>(now - mark_).count();
+        stats_.ms[uint32_t(s)] += ms;
+        stats_.ms_total += ms;
+        mark_ = now;
+    }
+
+private:
+    FrameStats& stats_;
+    std::chrono::steady_clock::time_point mark_;
 };
 
 // The bus columns of a row: how far this thread's bus counters (kernels/device_memory.h) grew

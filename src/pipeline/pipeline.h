@@ -2,24 +2,21 @@
 #pragma once
 
 #include "block_layout.h"
-#include "defragment.h"
-#include "keep_visible.h"
-#include "lod_hysteresis.h"
-#include "draw_commands.h"
-#include "reform.h"
-#include "depth_raster.h"
-#include "masked_raster.h"
 #include "device_memory.h"
+#include "draw_commands.h"
+#include "hzm.h"
 #include "occluder_gather.h"
-#include "occluder_weight.h"
+#include "pipeline/cut_stage.h"
 #include "pipeline/device_scene.h"
 #include "pipeline/frame_stats.h"
-#include "scan.h"
-#include "stream_collect.h"
+#include "pipeline/frustum_stage.h"
+#include "pipeline/lod_stage.h"
+#include "pipeline/occlusion_stage.h"
+#include "pipeline/stream_stage.h"
+#include "pipeline/visible_history.h"
 #include "view/camera.h"
 
-#include "hzm.h"
-
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -201,193 +198,66 @@ public:
     CullMode mode() const { return options_.mode; }
 
     // Results of the last frame, valid until the next runFrame. Host memory:
-    const std::vector<uint32_t>& visibleObjects() const { return pvs_; }  // PVS, ascending ids
+    const std::vector<uint32_t>& visibleObjects() const { return visible_.ids; }  // PVS, ascending ids
     // Eq. 1's vertex count for each PVS object, in visibleObjects() order (0 = below the PET).
-    std::span<const uint32_t> visibleLodVertices() const { return {pvs_vc_.data(), pvs_.size()}; }
+    std::span<const uint32_t> visibleLodVertices() const { return {visible_.vertices.data(), visible_.ids.size()}; }
     // The layout of the active arrays, read back over the bus (for tests and measurements, not
     // part of a frame's work): one block per resident object, ascending ids, with what it holds
     // and what this frame draws of it (a prefix); blocks keep their place from frame to frame
     // and there may be gaps between them. Block j's triangles to draw are
     // indices()[3 * triangle_offset, + 3 * draw_triangle_count), local to the block: vertex v of
     // the block is activeVertices()[vertex_offset + v].
-    std::vector<k::LayoutBlock> downloadLayout() const;
-    uint32_t frustumCount() const { return frustum_count_; }
+    std::vector<k::LayoutBlock> downloadLayout() const { return stream_->downloadLayout(); }
+    uint32_t frustumCount() const { return frustum_->count(); }
     const DeviceScene& scene() const { return scene_; }
-    double budget() const { return budget_; }
+    double budget() const { return lod_->budget(); }
     // Device memory:
     // The active vertex array (vertexExtent() elements hold blocks) and the index buffer (3 x
     // triangleExtent() entries hold blocks).
-    k::DevicePtr<const glm::vec3> activeVertices() const { return active_.vertices.data(); }
-    k::DevicePtr<const uint32_t> indices() const { return indices_.ptr(); }
-    uint64_t vertexExtent() const { return heap_.vertex_top; }
-    uint64_t triangleExtent() const { return heap_.triangle_top; }
+    k::DevicePtr<const glm::vec3> activeVertices() const { return stream_->activeVertices(); }
+    k::DevicePtr<const uint32_t> indices() const { return stream_->indices(); }
+    uint64_t vertexExtent() const { return stream_->vertexExtent(); }
+    uint64_t triangleExtent() const { return stream_->triangleExtent(); }
     // The blocks the last frame draws, drawCount() of them, for the display's draw commands.
-    k::DevicePtr<const k::DrawBlock> drawBlocks() const { return lists_.draws.ptr(); }
-    uint32_t drawCount() const { return lists_.draw_count; }
-    k::DevicePtr<const float> occluderDepth() const { return hzm_.ptr(); }  // W x H, level 0 of the HZM
+    k::DevicePtr<const k::DrawBlock> drawBlocks() const { return stream_->drawBlocks(); }
+    uint32_t drawCount() const { return stream_->drawCount(); }
+    k::DevicePtr<const float> occluderDepth() const { return occlusion_->occluderDepth(); }  // W x H, level 0 of the HZM
     // The occluder triangles the last occluder raster drew (world space, near-clipped parts included).
-    const k::OccluderGeometry& occluderGeometry() const { return occluder_geometry_; }
+    const k::OccluderGeometry& occluderGeometry() const { return occlusion_->occluderGeometry(); }
     // Every level of the HZM (meaningful after an oc+lod frame).
-    k::HzmLevels hzmLevels() const;
+    k::HzmLevels hzmLevels() const { return occlusion_->hzmLevels(); }
     // Objects in the frustum, ascending ids, frustumCount() of them (with the hierarchy: the
     // nodes of the cut refined without occlusion; in oc+lod, after the cull, the cut and the
     // nodes its refinement found hidden, and before it every item in the frustum).
-    k::DevicePtr<const uint32_t> frustumIds() const { return frustum_ids_.ptr(); }
+    k::DevicePtr<const uint32_t> frustumIds() const { return frustum_->ids(); }
     // Items the visible set, the deltas and the layout are over: objects, or nodes.
     uint32_t itemCount() const { return scene_.object_count; }
     // The last cut's nodes tested (all levels), with the hierarchy; 0 without.
-    uint64_t nodesTested() const { return nodes_tested_; }
+    uint64_t nodesTested() const { return cut_ ? cut_->nodesTested() : 0; }
     // From now on the active vertex array's two buffers and the index buffer live in the
     // lender's slots kActiveVertexSlot + 0 / 1 and kIndexSlot (the display's GL buffers), which
     // streamPass brackets with its write calls; what they hold is copied over once. The lender
     // must outlive the pipeline. activeVertexSlot(): the slot the last frame's vertices are in.
     static constexpr uint32_t kActiveVertexSlot = 0, kIndexSlot = 2;
-    void lendActiveArrays(k::BufferProvider& lender);
-    uint32_t activeVertexSlot() const { return kActiveVertexSlot + active_.vertices.current; }
+    void lendActiveArrays(k::BufferProvider& lender) { stream_->lendActiveArrays(lender, kActiveVertexSlot, kIndexSlot); }
+    uint32_t activeVertexSlot() const { return kActiveVertexSlot + stream_->currentVertexBuffer(); }
     // Read back over the bus, for measurements and debug pictures (not part of a frame's work):
-    std::vector<uint32_t> downloadFrustumObjects() const;
-    std::vector<uint32_t> downloadOccluders() const;  // the last occluderPass's, AOS first
+    std::vector<uint32_t> downloadFrustumObjects() const { return frustum_->download(); }
+    std::vector<uint32_t> downloadOccluders() const { return occlusion_->downloadOccluders(); }  // AOS first
 
 private:
-    void chooseOccluders(const k::Camera& camera, k::DevicePtr<const uint32_t> source, uint32_t source_count);
-    void rasterOccluders(const k::Camera& camera, FrameStats& stats);
-    // Gathers objects ids[0, count) at full detail, near-clips them and rasters them into depth
-    // (W x H, cleared first) with the chosen raster; returns the triangles rastered.
-    uint64_t rasterObjects(const k::Camera& camera, k::DevicePtr<const uint32_t> ids, uint32_t count,
-                           k::OccluderGeometry& geometry, k::DevicePtr<float> depth);
-    // The frustum objects the HZM does not prove hidden, into out (ascending); returns how many.
-    void adaptOccluderBudget(const FrameStats& stats);
-    uint32_t hzmCull(const k::Camera& camera, k::DevicePtr<uint32_t> out);
-    // A per-object record's part for frame's parity (lag 2; the whole record with lag 1).
-    k::DevicePtr<uint32_t> lastVisible(uint64_t frame, k::DeviceArray<uint32_t>& record);
-    template <class StageClockT>
-    void latePass(const k::Camera& camera, uint64_t frame, FrameStats& stats, StageClockT& clock);
-    // With the hierarchy: the cut, into out (ascending node ids); returns its size. Needs
-    // in_frustum_ for this camera; occlusion: also the HZM test, level by level.
-    uint32_t refineCut(const k::Camera& camera, bool occlusion, k::DevicePtr<uint32_t> out);
-    // The error rule: the world error item may show (tau at its nearest depth, / share), or
-    // false when it is under the pixel threshold (not drawn).
-    bool cutAllowance(uint32_t item, const k::Camera& camera, float share, float& allowed) const;
-    // A visible tested node's kCutStop or kCutRefined (its visible share: 1 without the
-    // weighting); with the error rule also its cost drawn (cut_cost_). Nodes in parallel.
-    uint8_t decideNode(uint32_t id, const k::Camera& camera, float share);
-    // The error rule: triangles of item's coarsest level that gives up at most `allowed` world units.
-    uint32_t cutTriangles(uint32_t item, float allowed) const;
-    // options_.visibility_weighted in oc+lod: the PVS entries' visible shares; else null.
-    k::DevicePtr<const float> visibleShares(const k::Camera& camera, k::DevicePtr<const uint32_t> pvs, uint32_t count);
-
+    // The frame's stages, each owning its device memory (src/pipeline/*_stage.h), and what
+    // passes between them: the visible set and the history of the visible sets culled here.
     const OssFile& file_;
     PipelineOptions options_;
     DeviceScene scene_;
-    double budget_ = 0;
-    k::HostGeometry host_{};
-
-    // Device memory of the culling stages.
-    k::DeviceArray<uint8_t> in_frustum_, occluded_;
-    // keep_visible: the frame + 1 each object was last found visible (0 = never), the frustum
-    // objects neither visible nor kept, and the HZM-visible ones (the later occluder candidates).
-    k::DeviceArray<uint32_t> last_visible_, returned_;  // returned_: k::keepRecentlyVisible's
-    k::DeviceArray<uint8_t> dropped_;
-    k::DeviceArray<uint32_t> seen_;
-    uint32_t seen_count_ = 0;
-    // late_pass: the newly visible objects (ids, their places in frustum_ids_, their second
-    // test), the ones rastered, their geometry and depth buffer.
-    k::DeviceArray<uint32_t> late_ids_, late_index_, late_occluders_;
-    k::DeviceArray<uint8_t> late_occluded_;
-    k::OccluderGeometry late_geometry_;
-    k::DeviceArray<float> late_depth_;
-    k::DeviceArray<uint32_t> frustum_ids_;
-    uint32_t frustum_count_ = 0;
-    k::DeviceArray<float> weights_;
-    k::DeviceArray<uint8_t> in_cos_;  // one byte per object: in the COS (without the hierarchy)
-    k::DeviceArray<uint64_t> topk_keys_;
-    k::DeviceArray<uint32_t> occluders_;        // AOS, then the PVS occluders
-    uint32_t occluder_count_ = 0;
-    double occluder_budget_ = 0;  // triangles of PVS occluders this frame may raster
-    double raster_rate_ = 0;      // occluder triangles per ms, smoothed over the last frames (occluder_ms)
-    k::PvsOccluderScratch pvs_occluder_scratch_;
-    k::OccluderGeometry occluder_geometry_;
-    k::DepthRasterScratch raster_scratch_;
-    k::DeviceArray<float> occluder_keys_;  // sortFrontToBack's scratch
-    k::DeviceArray<float> hzm_;
-    k::DeviceArray<uint32_t> pvs_device_, pvs_vc_device_, pvs_tc_device_;
-    k::DeviceArray<float> lod_shares_;
-    // LodRule::Error: per mesh, vertex_count + 1 entries laid out as the maps (map_first): the
-    // largest collapse error of the level with k vertices; per object, its world scale.
-    k::DeviceArray<float> lod_error_, object_scale_;
-    // With nodes: per item, the world error its input already has (an HLOD's node error, 0 for
-    // leaves), and host copies of the three tables for the cut's costs.
-    k::DeviceArray<float> item_error_;
-    std::vector<float> host_lod_error_, host_scale_;
-    k::DeviceArray<float> visible_share_;  // visibility_weighted: per PVS entry
-    k::PinnedArray<k::LodEntry> previous_lod_;  // the hysteresis' last visible set, on its way up
-    k::DeviceArray<k::LodEntry> previous_lod_device_;
-    k::LodHysteresisScratch hysteresis_scratch_;
-    CameraPose frustum_pose_{};
-    bool has_frustum_pose_ = false;
-    // refineCut's level by level work: host lists and flags, the level's ids on the device.
-    enum : uint8_t { kCutNone = 0, kCutRefined, kCutStop, kCutHidden, kCutMerged };
-    std::vector<uint8_t> cut_in_frustum_, cut_hidden_;
-    // Per item, valid for the items the last refinement tested (the root, and the in-frustum
-    // children of refined nodes): its kCut* state; with the error rule its best cut's cost
-    // (triangles + draw_cost per draw) and, while the cut is gathered, whether a merged node
-    // lies above it.
-    std::vector<uint8_t> cut_state_, cut_covered_;
-    std::vector<double> cut_cost_;
-    std::vector<float> cut_share_;
-    std::vector<std::vector<uint32_t>> cut_levels_;  // the tested nodes, by depth
-    std::vector<uint32_t> cut_index_;
-    std::vector<uint32_t> cut_;
-    std::vector<uint32_t> fine_cut_;  // the error rule: the visible cut before coarsening
-    std::vector<uint32_t> cut_hidden_ids_;  // oc+lod: the nodes found hidden, then with the cut
-    k::DeviceArray<uint32_t> cut_level_device_;
-    k::DeviceArray<float> cut_share_device_;
-    uint64_t nodes_tested_ = 0;
-    float cut_pixels_at_1_ = 0.0f;  // this refinement's pixels per world unit at depth 1
-
-    // Host memory: the visible set, as the network sends it.
-    std::vector<uint32_t> drawn_pvs_;  // the visible set streamPass last laid out, for the churn
-    std::vector<uint32_t> pvs_, pvs_vc_, pvs_tc_;  // Eq. 1's choice for each PVS object (pvs_tc_: setVisible's)
-    // The visible sets of the last two frames this pipeline culled, newest first (frame
-    // UINT64_MAX: none yet): the PVS supplies a later frame's occluders, the counts the hysteresis.
-    struct CulledFrame {
-        uint64_t frame = UINT64_MAX;
-        std::vector<uint32_t> pvs;
-        // For the occluder choice: the same, or with the error rule's coarsened cut, the fine cut.
-        k::DeviceArray<uint32_t> device_pvs;
-        uint32_t occluder_count = 0;  // device_pvs' entries
-        std::vector<std::pair<uint32_t, uint32_t>> lod;
-    };
-    // The last four culled frames, newest first. The occluder pass of frame f takes as
-    // candidates the PVS of frame f - lag and of frame f - 2 lag (lag = pvs_occluder_lag):
-    // an object that was visible in either stays a candidate, so that the PVS cannot swing
-    // between two occluder sets frame by frame (a large PVS giving many occluders, then a small
-    // PVS giving few). Four frames, so that one rank with lag 2 has what the 3-rank switch's
-    // occluder rank has (frames f - 2 and f - 4).
-    static constexpr size_t kHistory = 4;
-    CulledFrame history_[kHistory];
-    k::DeviceArray<uint32_t> occluder_candidates_;
-    // The first frames have no earlier PVS: the occluder pass then culls the frame once with the
-    // AOS alone and takes that PVS as its candidates (bootstrap_pvs_), so that the first frame
-    // does not stream every object the AOS leaves visible.
-    k::DeviceArray<uint32_t> bootstrap_pvs_;
-
-    // The layout, on the device: the last frame's and this frame's blocks (layouts_[cur_index_ ^ 1]
-    // is the last built), each resident object's place, the heap's few totals (host) and the
-    // frame's lists; the host gets back the stream list.
-    k::DeviceArray<k::LayoutBlock> layouts_[2];
-    uint32_t layout_counts_[2] = {0, 0};
-    uint32_t cur_index_ = 0;
-    k::DeviceArray<k::BlockPlace> places_;
-    k::LayoutHeap heap_;
-    k::LayoutLists lists_;
-    k::LayoutScratch layout_scratch_;
-    k::PinnedArray<k::StreamBlock> stream_list_;
-    k::ReformScratch reform_scratch_;
-    k::StagingBuffers staging_;
-    k::ActiveArrays active_;
-    k::ProvidedBuffer<uint32_t> indices_;
-    k::BufferProvider* lender_ = nullptr;  // what indices_ holds: 3 x the triangles of the last reform
+    std::unique_ptr<LodStage> lod_;
+    std::unique_ptr<FrustumStage> frustum_;
+    std::unique_ptr<OcclusionStage> occlusion_;
+    std::unique_ptr<CutStage> cut_;  // with the hierarchy
+    std::unique_ptr<StreamStage> stream_;
+    VisibleItems visible_;
+    VisibleHistory history_;
 };
 
 CullMode parseCullMode(const std::string& s);      // "full", "lod", "oc+lod"

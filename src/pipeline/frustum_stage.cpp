@@ -1,0 +1,39 @@
+// SPDX-License-Identifier: MIT
+#include "pipeline/frustum_stage.h"
+
+#include "frustum_cull.h"
+
+#include <algorithm>
+#include <cstring>
+
+namespace occ {
+
+FrustumStage::FrustumStage(const DeviceScene& scene) : scene_(scene) {
+    const size_t room = std::max<uint32_t>(1, scene.object_count);
+    in_frustum_.resize(room);
+    ids_.resize(room);
+}
+
+void FrustumStage::run(const CameraPose& pose, const k::Camera& camera) {
+    const k::Frustum frustum = k::frustumFromViewProj(camera.view_proj);
+    count_ = k::frustumCull(scene_.objects.ptr(), scene_.object_count, frustum, in_frustum_.ptr(), ids_.ptr());
+    pose_ = pose;
+    has_pose_ = true;
+}
+
+bool FrustumStage::isFor(const CameraPose& pose) const {
+    return has_pose_ && std::memcmp(&pose_, &pose, sizeof pose) == 0;
+}
+
+void FrustumStage::replace(const std::vector<uint32_t>& ids) {
+    count_ = uint32_t(ids.size());
+    k::copyToDevice(ids_.ptr(), ids.data(), count_);
+}
+
+std::vector<uint32_t> FrustumStage::download() const {
+    std::vector<uint32_t> ids(count_);
+    k::copyToHost(ids.data(), ids_.ptr(), ids.size());
+    return ids;
+}
+
+}  // namespace occ

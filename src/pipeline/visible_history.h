@@ -1,0 +1,45 @@
+// SPDX-License-Identifier: MIT
+#pragma once
+
+#include "device_memory.h"
+#include "pipeline/occlusion_stage.h"
+
+#include <cstdint>
+#include <span>
+#include <utility>
+#include <vector>
+
+namespace occ {
+
+// The visible sets of the last frames a pipeline culled, newest first: one history that gives a
+// later frame its occluder candidates (the PVS `pvs_occluder_lag` and twice that many frames
+// back) and the LOD hysteresis its last frame.
+class VisibleHistory {
+public:
+    struct Frame {
+        uint64_t frame = UINT64_MAX;  // UINT64_MAX: none yet
+        std::vector<uint32_t> pvs;
+        // For the occluder choice: the HZM-visible ids (or with the error rule's coarsened cut,
+        // the fine cut) on the device.
+        k::DeviceArray<uint32_t> occluders;
+        uint32_t occluder_count = 0;
+        std::vector<std::pair<uint32_t, uint32_t>> lod;  // (id, vertex count), ascending ids
+    };
+    // Four frames, so that one rank with lag 2 has what the 3-rank switch's occluder rank has
+    // (frames f - 2 and f - 4). An item visible in either of a frame's two candidate sets stays
+    // a candidate, so that the PVS cannot swing between two occluder sets frame by frame (a
+    // large PVS giving many occluders, then a small PVS giving few).
+    static constexpr size_t kFrames = 4;
+
+    // The slot of newly culled `frame`: the oldest, which becomes the newest.
+    Frame& push(uint64_t frame);
+    // The occluder candidates of `frame`: the culled frames frame - lag and frame - 2 lag.
+    OccluderSources occluderSources(uint64_t frame, uint32_t lag, bool ascending) const;
+    // The visible set of frame - 1 when it is the newest culled frame (empty otherwise).
+    std::span<const std::pair<uint32_t, uint32_t>> lastFrameLods(uint64_t frame) const;
+
+private:
+    Frame frames_[kFrames];
+};
+
+}  // namespace occ
