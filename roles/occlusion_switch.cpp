@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cstdio>
 #include <map>
+#include <memory>
 
 namespace occ::roles {
 
@@ -62,14 +63,6 @@ NetFigures rowColumns(const NetFigures& counted, NetFigures frame) {
     return frame;
 }
 
-VisibleSet visibleSetOf(const Pipeline& p) {
-    const auto ids = p.visibleObjects();
-    const auto counts = p.visibleLodVertices();
-    std::vector<VisibleSet::Entry> entries(ids.size());
-    for (size_t j = 0; j < ids.size(); ++j) entries[j] = {ids[j], counts[j]};
-    return VisibleSet(std::move(entries));
-}
-
 // OR + HC on one rank: rasters a frame's occluders when its camera arrives, then culls it and
 // sends the visible-set delta to the display (and to the other switch rank).
 class Culler {
@@ -90,12 +83,7 @@ public:
             stop_frames_ = packet.frame;
             // The other switch rank sent its last frame's delta to this one too.
             const int other = layout_.size() >= 3 ? 3 - t_.rank() : -1;
-            if (other > 0 && packet.frame == f && f > 0) {
-                known_.apply(decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, waitLimit()),
-                                                   {other, f - 1, objects_}),
-                             other);
-                remember(f - 1, known_);
-            }
+            if (other > 0 && packet.frame == f && f > 0) receiveOthers(f - 1, other);
             return false;
         }
         pose_ = packet.pose;
@@ -110,22 +98,21 @@ public:
         if (pose_frame_ != f) throw std::logic_error("Culler::cull before occluders of the frame");
         // The display may lag at most two frames behind the culling.
         while (f >= 2 && eof_seen_ + 2 < f + 1) receiveEndOfFrame();
-        // V_{f-1}: this rank's own, or in the switch the other rank's, from its delta. The LOD
-        // hysteresis starts from it, and the delta of f is taken against it.
+        // V_{f-1}: this rank's own, or in the switch the other rank's, from its delta, in the
+        // pipeline's history. The LOD hysteresis starts from it, and the delta of f is taken
+        // against it.
         const int other = layout_.size() >= 3 ? 3 - t_.rank() : -1;
-        if (other > 0 && f > 0) {
-            const VisibleSetDelta d = decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, waitLimit()),
-                                                            {other, f - 1, objects_});
-            known_.apply(d, other);
-            remember(f - 1, known_);
-        }
+        if (other > 0 && f > 0) receiveOthers(f - 1, other);
         FrameStats stats = or_stats_;
         stats.frame = f;
-        pipeline_.cullPass(pose_, f, stats, known_.entries());
-        VisibleSet current = visibleSetOf(pipeline_);
+        pipeline_.cullPass(pose_, f, stats);
+        const VisibleSet& current = *pipeline_.culledSet(f);
         remember(f, current);
+        const VisibleSet* previous = f > 0 ? pipeline_.culledSet(f - 1) : nullptr;
+        if (run_.deltas && f > 0 && !previous)
+            throw std::logic_error("Culler::cull: frame " + std::to_string(f - 1) + " left the history");
         const VisibleSetDelta delta =
-            run_.deltas && f > 0 ? makeDelta(known_, current, f) : makeFullDelta(current, f);
+            run_.deltas && f > 0 ? makeDelta(*previous, current, f) : makeFullDelta(current, f);
         const std::vector<uint8_t> bytes = encodeVisibleSetDelta(delta, objects_, t_.rank());
         if (layout_.displays() == 1) {
             t_.send(0, MessageKind::Delta, bytes);
@@ -156,7 +143,6 @@ public:
         net.added = delta.added.size();
         net.removed = delta.removed.size();
         net.changed = delta.changed.size();
-        known_ = std::move(current);
         return stats;
     }
 
@@ -176,6 +162,18 @@ public:
     }
 
 private:
+    // The other switch rank's V_g from its delta (against V_{g-1}, this rank's own), into the
+    // pipeline's history.
+    void receiveOthers(uint64_t g, int other) {
+        const VisibleSetDelta d =
+            decodeVisibleSetDelta(t_.receive(other, MessageKind::Delta, waitLimit()), {other, g, objects_});
+        const VisibleSet* base = g > 0 ? pipeline_.culledSet(g - 1) : nullptr;
+        VisibleSet v = base ? *base : VisibleSet();
+        v.apply(d, other);
+        remember(g, v);
+        pipeline_.recordCulledElsewhere(g, std::move(v));
+    }
+
     // The end-of-frame of frame eof_seen_ from every display rank.
     void receiveEndOfFrame() {
         for (int r : layout_.displayRanks()) {
@@ -231,7 +229,6 @@ private:
     CameraPose pose_;
     uint64_t pose_frame_ = UINT64_MAX;
     FrameStats or_stats_;
-    VisibleSet known_;       // V of the last frame this rank knows
     uint64_t eof_seen_ = 0;  // end-of-frames received: frames 0 .. eof_seen_ - 1
     std::map<uint64_t, std::vector<uint32_t>> sizes_;  // remember()
     uint64_t stop_frames_ = UINT64_MAX;  // a live run: the frame count of the display's stop
@@ -303,20 +300,18 @@ public:
         net.added = d.added.size();
         net.removed = d.removed.size();
         net.changed = d.changed.size();
-        std::vector<uint32_t> ids(shown_.size()), counts(shown_.size());
-        for (size_t j = 0; j < shown_.size(); ++j) ids[j] = shown_.entries()[j].first, counts[j] = shown_.entries()[j].second;
         try {
-            pipeline_.setVisible(ids, counts);
+            pipeline_.setVisible(shown_);
         } catch (const std::invalid_argument& e) {
             throw RankError(from, "delta of frame " + std::to_string(f) + ": " + e.what());
         }
         const CameraPose pose = poses_.at(f);
         if (!pipeline_.frustumIsFor(pose)) pipeline_.frustumPass(pose, stats);
         stats.objects_in_frustum = pipeline_.frustumCount();
-        stats.objects_occluded = stats.objects_in_frustum - std::min<uint64_t>(stats.objects_in_frustum, ids.size());
+        stats.objects_occluded = stats.objects_in_frustum - std::min<uint64_t>(stats.objects_in_frustum, shown_.size());
         pipeline_.streamPass(f, stats);
         if (run_.draw) {
-            record.display = run_.draw(pipeline_, pose, f);
+            record.display = run_.draw(pipeline_, pose, f, stats);
             record.displayed = true;
         }
         net.latency_ms = double(nowNs() - sent_ns_[f]) / 1e6;
@@ -358,7 +353,7 @@ private:
 
 RankLayout::RankLayout(int size) : size_(size) {
     if (size < 1 || size > kMaxRanks)
-        throw UsageError("render: " + std::to_string(size) + " ranks: occswitch runs 1 (all roles), 2 (display + "
+        throw UsageError(std::to_string(size) + " ranks: occswitch runs 1 (all roles), 2 (display + "
                          "culling), 3 (display + occlusion switch) or 2 + P up to " + std::to_string(kMaxRanks) +
                          " (the switch and P sort-last display ranks)");
 }
@@ -575,13 +570,125 @@ std::vector<FrameRecord> gatherRecords(Transport& transport, const RankLayout& l
 
 }  // namespace
 
+namespace {
+
+// One rank's part of a run: the objects of its roles over its pipeline, and the frame loop.
+class RankRun {
+public:
+    RankRun(Transport& transport, const RankLayout& layout, const RunOptions& run, Pipeline& pipeline,
+            const PipelineOptions& options, const std::vector<uint16_t>& partition)
+        : transport_(transport), layout_(layout), run_(run), rank_(transport.rank()),
+          frames_(run.live ? UINT64_MAX : run.cameras.size()), window_(transport) {
+        if (culls()) culler_ = std::make_unique<Culler>(transport, pipeline, layout, run, partition);
+        if (displays()) display_ = std::make_unique<Display>(transport, pipeline, options, layout, run);
+    }
+
+    // The frame loop, the same on every rank of every layout: each step is done by the ranks
+    // whose roles it belongs to (one rank: all of them, in this order). Returns the frames run.
+    uint64_t loop() {
+        // With more than one rank the display sends frame f + 1's camera before it draws frame
+        // f: the culling ranks work on f + 1 meanwhile.
+        const uint32_t lead = layout_.cameraLead();
+        if (source())
+            for (uint64_t g = 0; g < lead && g < frames_; ++g)
+                if (!sendCamera(g, g)) frames_ = g;
+        for (uint64_t f = 0; f < frames_; ++f) {
+            auto start = Clock::now();
+            // 1. Camera: the source takes frame f + lead's and sends it.
+            if (source() && !sendCamera(f + lead, f)) frames_ = f + lead;
+            if (f >= frames_) break;
+            if (lead == 0) start = Clock::now();  // one rank: the frame starts once its camera is taken
+            FrameRecord r;
+            bool recorded = false;
+            // 2. Occluders (OR) and 3. cull (HC), sending the visible-set delta: the culling rank
+            // of frame f. A live run's stop ends the run here.
+            if (culls() && layout_.culler(f) == rank_) {
+                if (!culler_->occluders(f)) {
+                    frames_ = f;
+                    break;
+                }
+                r.stats = culler_->cull(f, r.net);
+                recorded = true;
+            }
+            // 4. The delta applied, stream, draw and present: every display rank (the other
+            // sort-last display ranks take rank 0's camera first).
+            if (displays()) {
+                if (!source() && !display_->receiveCamera(f)) {
+                    frames_ = f;
+                    break;
+                }
+                display_->display(f, f, r, frames_ != UINT64_MAX && f + 1 == frames_);
+                recorded = true;
+            }
+            // 5. Record.
+            if (!recorded) continue;
+            if (source()) r.ms_frame = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+            record(r);
+            if (source() && run_.on_frame) run_.on_frame(f + 1);
+        }
+        if (frames_ == UINT64_MAX) frames_ = 0;
+        return frames_;
+    }
+
+    // After the loop: the end-of-frames still due, a live run's stop. Returns how long this rank
+    // may wait for the others to finish.
+    std::chrono::milliseconds finishRoles() {
+        std::chrono::milliseconds limit = run_.timeout;
+        if (culls()) {
+            if (displays() && run_.live) culler_->endLive(frames_);
+            culler_->drainEndOfFrames();
+            // The display may still be drawing its last frame when this rank is done.
+            if (!displays()) limit = culler_->finishLimit();
+        }
+        if (source() && layout_.size() > 1 && run_.live) display_->sendStop(frames_);
+        return limit;
+    }
+
+    std::vector<FrameRecord>& records() { return records_; }
+
+private:
+    bool culls() const { return layout_.size() == 1 || layout_.partitionOf(rank_) < 0; }
+    bool displays() const { return layout_.partitionOf(rank_) >= 0; }
+    bool source() const { return rank_ == 0; }  // the display that takes the cameras
+
+    // The camera of frame g from the source (the path, or a live run's newest pose), sent to the
+    // ranks that need it; false ends the run before frame g.
+    bool sendCamera(uint64_t g, uint64_t step) {
+        CameraPose pose;
+        if (run_.live ? !run_.next_camera(g, pose) : g >= frames_) return false;
+        if (!run_.live) pose = run_.cameras[g];
+        display_->sendCamera(g, step, pose);
+        return true;
+    }
+
+    // A frame's record is done: its bus bytes and the messages the transport counted for it.
+    void record(FrameRecord& r) {
+        r.rank = rank_;
+        r.net = rowColumns(window_.take(), r.net);
+        bus_.take(r.stats);
+        records_.push_back(r);
+    }
+
+    Transport& transport_;
+    const RankLayout& layout_;
+    const RunOptions& run_;
+    const int rank_;
+    uint64_t frames_;  // a live run: UINT64_MAX until it ends
+    std::unique_ptr<Culler> culler_;
+    std::unique_ptr<Display> display_;
+    CounterWindow window_;
+    BusWindow bus_;  // after the pipeline's start-up copies
+    std::vector<FrameRecord> records_;
+};
+
+}  // namespace
+
 std::vector<FrameRecord> runRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
                                   const RunOptions& run, RunSummary& summary) {
     try {
         const RankLayout layout(transport.size());
         const int rank = transport.rank();
-        uint64_t frames = run.live ? UINT64_MAX : run.cameras.size();  // a live run: known at its end
-        if (frames == 0) throw UsageError("render: the camera path has no frames");
+        if (!run.live && run.cameras.empty()) throw UsageError("the camera path has no frames");
         if (run.live && rank == 0 && !run.next_camera) throw std::logic_error("runRanks: a live run without cameras");
         PipelineOptions o = options;
         o.pvs_occluder_lag = layout.resolveOccluderLag(o.pvs_occluder_lag);
@@ -592,96 +699,12 @@ std::vector<FrameRecord> runRanks(Transport& transport, const OssFile& file, con
             layout.displays() > 1 ? partitionObjects(file, layout.displays(), run.sort_last_cells)
                                   : std::vector<uint16_t>();
         Pipeline pipeline(file, o);
-        CounterWindow window(transport);
-        BusWindow bus;  // after the pipeline's start-up copies
-        std::vector<FrameRecord> records;
         summary = RunSummary{};
-        std::chrono::milliseconds finish_limit = run.timeout;
-        // A frame's record is done: its bus bytes and the messages the transport counted for it.
-        const auto record = [&](FrameRecord& r) {
-            r.rank = rank;
-            r.net = rowColumns(window.take(), r.net);
-            bus.take(r.stats);
-            records.push_back(r);
-        };
-
-        // The camera of frame f: the path's, or in a live run the newest one when it is asked.
-        const auto camera = [&](uint64_t f, CameraPose& pose) {
-            if (!run.live) {
-                if (f >= frames) return false;
-                pose = run.cameras[f];
-                return true;
-            }
-            return run.next_camera(f, pose);
-        };
-        if (layout.size() == 1) {
-            Culler culler(transport, pipeline, layout, run, partition);
-            Display display(transport, pipeline, o, layout, run);
-            CameraPose pose;
-            bool more = camera(0, pose);
-            for (uint64_t f = 0; more; ++f) {
-                const auto start = Clock::now();
-                display.sendCamera(f, f, pose);
-                culler.occluders(f);
-                FrameRecord r;
-                r.stats = culler.cull(f, r.net);
-                display.display(f, f, r, !run.live && f + 1 == frames);
-                r.ms_frame = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-                record(r);
-                if (run.on_frame) run.on_frame(f + 1);
-                more = camera(f + 1, pose);
-                if (!more) frames = f + 1;
-            }
-            if (frames == UINT64_MAX) frames = 0;
-            if (run.live) culler.endLive(frames);
-            culler.drainEndOfFrames();
-        } else if (rank == 0) {
-            Display display(transport, pipeline, o, layout, run);
-            // The camera of frame f + 1 leaves before frame f is displayed: the switch works on it
-            // meanwhile. A live run asks the user's newest pose each time.
-            CameraPose pose;
-            if (!camera(0, pose)) frames = 0;
-            else display.sendCamera(0, 0, pose);
-            for (uint64_t f = 0; f < frames; ++f) {
-                const auto start = Clock::now();
-                const bool more = camera(f + 1, pose);
-                if (more) display.sendCamera(f + 1, f, pose);
-                else frames = f + 1;
-                FrameRecord r;
-                display.display(f, f, r, !more);
-                r.ms_frame = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-                record(r);
-                if (run.on_frame) run.on_frame(f + 1);
-            }
-            if (run.live) display.sendStop(frames);
-        } else if (layout.partitionOf(rank) > 0) {
-            // A sort-last display rank: rank 0's cameras, its partition's deltas from the switch.
-            Display display(transport, pipeline, o, layout, run);
-            for (uint64_t f = 0; run.live || f < frames; ++f) {
-                if (!display.receiveCamera(f)) {
-                    frames = f;
-                    break;
-                }
-                FrameRecord r;
-                display.display(f, f, r, !run.live && f + 1 == frames);
-                record(r);
-            }
-        } else {
-            Culler culler(transport, pipeline, layout, run, partition);
-            const uint64_t first = layout.size() >= 3 ? uint64_t(rank - 1) : 0;
-            const uint64_t step = layout.size() >= 3 ? 2 : 1;
-            bool more = first < frames && culler.occluders(first);
-            for (uint64_t f = first; more; f += step) {
-                FrameRecord r;
-                r.stats = culler.cull(f, r.net);
-                record(r);
-                more = f + step < frames && culler.occluders(f + step);
-            }
-            culler.drainEndOfFrames();
-            // The display may still be drawing its last frame when this rank is done.
-            finish_limit = culler.finishLimit();
-        }
-
+        RankRun me(transport, layout, run, pipeline, o, partition);
+        const uint64_t frames = me.loop();
+        const std::chrono::milliseconds finish_limit = me.finishRoles();
+        std::vector<FrameRecord> records = std::move(me.records());
+        // Every rank's records to rank 0, which writes the CSV and the summary from them.
         if (rank != 0) {
             transport.send(0, MessageKind::Report, encodeReport(records, rank));
         } else {

@@ -80,10 +80,11 @@ struct RunOptions {
     // How long a rank waits for a message before it declares the sender dead.
     std::chrono::milliseconds timeout{5000};
     // The display's drawing (RVG: rank 0, and the sort-last display ranks), called after each
-    // frame's streaming with the pipeline whose visible set and active arrays are that frame's;
-    // returns what it drew and measured (the frame's record keeps it). display_columns: which
-    // of those figures the stats CSV shows (none: a run that does not draw, or a window).
-    std::function<DisplayStats(Pipeline& pipeline, const CameraPose& pose, uint64_t frame)> draw;
+    // frame's streaming with the pipeline whose visible set and active arrays are that frame's
+    // and the frame's figures so far; returns what it drew and measured (the frame's record
+    // keeps it). display_columns: which of those figures the stats CSV shows (none: a run that
+    // does not draw, or a window).
+    std::function<DisplayStats(Pipeline& pipeline, const CameraPose& pose, uint64_t frame, const FrameStats& stats)> draw;
     std::optional<DisplayColumns> display_columns;
     // Called on rank 0 after every displayed frame (progress).
     std::function<void(uint64_t frames_done)> on_frame;

@@ -267,7 +267,9 @@ public:
     void install(roles::RunOptions& run) {
         run.display_columns = render::displayColumns(options_);  // every rank's rows have the columns
         if (!context_) return;
-        run.draw = [this](Pipeline& pipeline, const CameraPose& pose, uint64_t f) { return draw(pipeline, pose, f); };
+        run.draw = [this](Pipeline& pipeline, const CameraPose& pose, uint64_t f, const FrameStats&) {
+            return draw(pipeline, pose, f);
+        };
     }
     std::string description() const { return context_ ? context_->description() : std::string(); }
 
@@ -295,8 +297,8 @@ private:
     std::unique_ptr<render::FrameDisplay> display_;
 };
 
-// `render` in a window: with one rank the single-process pipeline; under mpirun with 2 or more
-// ranks rank 0 opens the one window and displays, the others cull (no window, no GL).
+// `render` in a window: rank 0 opens the one window and displays (with one rank it also culls);
+// under mpirun the other ranks cull (no window, no GL) or, 2 + P, draw their partitions offscreen.
 int runInWindow(const RenderConfig& c, const OssFile& file, Transport& transport, int device_ordinal) {
     const roles::RankLayout layout(transport.size());
     render::WindowOptions w;
@@ -309,7 +311,6 @@ int runInWindow(const RenderConfig& c, const OssFile& file, Transport& transport
     roles::RunOptions run = runOptions(c);
     run.live = true;
     try {
-        if (layout.size() == 1) return render::runWindow(file, c.pipeline, w);
         if (!rank0) {
             // A sort-last display rank (2 + P) draws its partition offscreen for rank 0's window.
             std::unique_ptr<render::HeadlessContext> context;
@@ -318,7 +319,7 @@ int runInWindow(const RenderConfig& c, const OssFile& file, Transport& transport
             if (layout.partitionOf(transport.rank()) > 0) {
                 context = std::make_unique<render::HeadlessContext>(device_ordinal);
                 compositor = std::make_unique<render::SortLastCompositor>(transport, layout.displayRanks(), run.timeout);
-                run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t) {
+                run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t, const FrameStats&) {
                     render::DisplayOptions d;
                     d.items = true;
                     if (!display) display = std::make_unique<render::FrameDisplay>(pipeline, w.width, w.height, d);
@@ -336,7 +337,7 @@ int runInWindow(const RenderConfig& c, const OssFile& file, Transport& transport
         roles::RunSummary sum;
         std::vector<FrameRecord> records;
         try {
-            records = render::runWindowRanks(transport, file, c.pipeline, w, run, sum);
+            records = render::runWindow(transport, file, c.pipeline, w, run, sum);
         } catch (const render::WindowUnavailable& e) {
             transport.fail(0, e.what());  // the culling ranks stop at once instead of timing out
             throw;

@@ -112,8 +112,7 @@ void Pipeline::occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& 
     occlusion_->buildHzm(toKernelCamera(pose, options_.width, options_.height), *frustum_, sources, stats);
 }
 
-void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stats,
-                        std::span<const std::pair<uint32_t, uint32_t>> previous_lod) {
+void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stats) {
     if (!frustum_->isFor(pose)) frustumPass(pose, stats);
     StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
@@ -143,10 +142,12 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     k::copyToHost(visible_.ids.data(), pvs, count);
     const bool weighted = options_.visibility_weighted && options_.mode == CullMode::OcLod;
     const k::HzmLevels hzm = occlusion_->hzmLevels();
-    lod_->select(camera, visible_, previous_lod, weighted ? &hzm : nullptr);
+    // The hysteresis starts from the last frame's set: this pipeline's, or the other switch rank's.
+    lod_->select(camera, visible_, history_.lastFrameLods(frame), weighted ? &hzm : nullptr);
 
-    VisibleHistory::Frame& h = history_.push(frame);
-    h.pvs.assign(visible_.ids.begin(), visible_.ids.end());
+    std::vector<VisibleSet::Entry> entries(count);
+    for (size_t j = 0; j < count; ++j) entries[j] = {visible_.ids[j], visible_.vertices[j]};
+    VisibleHistory::Frame& h = history_.push(frame, VisibleSet(std::move(entries)));
     if (cut_ && !cut_->fineCut().empty()) {
         // The coarsened cut's HLODs are no occluders: the fine cut's visible items before the
         // coarsening (the leaves among them) are the candidates.
@@ -161,9 +162,15 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
         k::copyOnDevice(h.occluders.ptr(), kept ? occlusion_->seen() : k::DevicePtr<const uint32_t>(pvs),
                         h.occluder_count);
     }
-    h.lod.resize(count);
-    for (size_t j = 0; j < count; ++j) h.lod[j] = {visible_.ids[j], visible_.vertices[j]};
     clock.lap(Stage::LodSelect);
+}
+
+void Pipeline::recordCulledElsewhere(uint64_t frame, VisibleSet set) { history_.push(frame, std::move(set)); }
+
+void Pipeline::setVisible(const VisibleSet& set) {
+    std::vector<uint32_t> ids(set.size()), counts(set.size());
+    for (size_t j = 0; j < set.size(); ++j) ids[j] = set.entries()[j].first, counts[j] = set.entries()[j].second;
+    setVisible(ids, counts);
 }
 
 void Pipeline::setVisible(std::span<const uint32_t> ids, std::span<const uint32_t> vertex_counts) {
@@ -201,8 +208,7 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
     BusWindow bus;
     // The PVS `pvs_occluder_lag` frames back supplies this frame's extra occluders.
     occluderPass(pose, frame, stats);
-    // The last frame's visible set, if this pipeline culled it, for the hysteresis.
-    cullPass(pose, frame, stats, history_.lastFrameLods(frame));
+    cullPass(pose, frame, stats);
     streamPass(frame, stats);
     bus.take(stats);
     return stats;

@@ -161,30 +161,35 @@ public:
     // file must outlive the pipeline. Throws UsageError for impossible options.
     Pipeline(const OssFile& file, const PipelineOptions& options);
 
-    // The one-rank schedule of the roles' steps (roles/occlusion_switch.h runs the same steps
-    // on 1, 2 or 3 ranks): occluderPass, cullPass with this pipeline's own last visible set for
-    // the hysteresis, and streamPass. Returns the frame's counts, stage times and bus bytes.
+    // The pipeline's three steps of one frame, without messages: occluderPass, cullPass and
+    // streamPass, as the frame loop (roles::runRanks) runs them on one rank. For the library's
+    // tests and `bench pipeline`. Returns the frame's counts, stage times and bus bytes.
     // Drawing is the display's job.
     FrameStats runFrame(const CameraPose& pose, uint64_t frame);
 
     // The stages in three groups, the occlusion-switch roles (roles/), each adding its counts
-    // and stage times to `stats`. The pipeline keeps one history of the visible sets its
-    // cullPass chose (the last two frames'), which both the one-rank schedule and the roles use.
+    // and stage times to `stats`. The pipeline keeps one history of the visible sets of the
+    // last frames (VisibleHistory): the ones its cullPass chose and those recorded as culled
+    // elsewhere; every layout uses it for the occluders, the hysteresis and the deltas.
     // OR of `frame`: frustum culling for `pose`, the occluders (Eq. 3's AOS and the largest
     // objects of the PVS this pipeline chose for frame - options().pvs_occluder_lag, if it
     // culled that frame), their depth raster and the HZM. Nothing in modes full and lod.
     void occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& stats);
     // HC of `frame`: frustum culling (reused when the last occluderPass had this pose), the HZM
     // test against the HZM of the last occluderPass (oc+lod) and LOD selection: visibleObjects()
-    // and visibleLodVertices(), recorded in the history. previous_lod: the last frame's visible
-    // set as (id, vertex count) pairs, ascending ids, for the LOD hysteresis (empty: none; in
-    // the switch it is the other rank's).
-    void cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stats,
-                  std::span<const std::pair<uint32_t, uint32_t>> previous_lod = {});
+    // and visibleLodVertices(), recorded in the history. The LOD hysteresis starts from the
+    // history's set of frame - 1 (this pipeline's, or in the switch the other rank's).
+    void cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stats);
+    // HC in the switch: the other culling rank's visible set of `frame`, rebuilt from its delta,
+    // into the history (the next cullPass's hysteresis and delta base).
+    void recordCulledElsewhere(uint64_t frame, VisibleSet set);
+    // The history's visible set of `frame` (this pipeline's cullPass, or recorded), or null.
+    const VisibleSet* culledSet(uint64_t frame) const { return history_.find(frame); }
     // RVG: the visible set a cullPass elsewhere chose (ascending ids with their Eq. 1 vertex
     // counts, 0 = not drawn); throws std::invalid_argument for an entry that is not a valid
     // LOD (ids unsorted or >= object count, count above the object's vertices or below its q).
     void setVisible(std::span<const uint32_t> ids, std::span<const uint32_t> vertex_counts);
+    void setVisible(const VisibleSet& set);
     // RVG: frustum culling only, for the display's measurements (frustumObjects()).
     void frustumPass(const CameraPose& pose, FrameStats& stats);
     // Whether frustumObjects() are the last frustumPass's for exactly this pose.

@@ -5,10 +5,19 @@
 
 namespace occ {
 
-VisibleHistory::Frame& VisibleHistory::push(uint64_t frame) {
+VisibleHistory::Frame& VisibleHistory::push(uint64_t frame, VisibleSet set) {
     std::rotate(frames_, frames_ + kFrames - 1, frames_ + kFrames);  // the oldest becomes [0]
-    frames_[0].frame = frame;
-    return frames_[0];
+    Frame& h = frames_[0];
+    h.frame = frame;
+    h.set = std::move(set);
+    h.occluder_count = 0;
+    return h;
+}
+
+const VisibleSet* VisibleHistory::find(uint64_t frame) const {
+    for (const Frame& h : frames_)
+        if (h.frame == frame) return &h.set;
+    return nullptr;
 }
 
 OccluderSources VisibleHistory::occluderSources(uint64_t frame, uint32_t lag, bool ascending) const {
@@ -17,7 +26,7 @@ OccluderSources VisibleHistory::occluderSources(uint64_t frame, uint32_t lag, bo
     if (frame < lag) return s;
     for (const Frame& h : frames_) {
         if (h.frame == frame - lag) s.newer = h.occluders.ptr(), s.newer_count = h.occluder_count;
-        if (frame >= 2 * uint64_t(lag) && h.frame == frame - 2 * uint64_t(lag) && !h.pvs.empty()) {
+        if (frame >= 2 * uint64_t(lag) && h.frame == frame - 2 * uint64_t(lag) && !h.set.empty()) {
             s.older = h.occluders.ptr();
             s.older_count = h.occluder_count;
             s.has_older = true;
@@ -26,8 +35,8 @@ OccluderSources VisibleHistory::occluderSources(uint64_t frame, uint32_t lag, bo
     return s;
 }
 
-std::span<const std::pair<uint32_t, uint32_t>> VisibleHistory::lastFrameLods(uint64_t frame) const {
-    if (frame > 0 && frames_[0].frame == frame - 1) return frames_[0].lod;
+std::span<const VisibleSet::Entry> VisibleHistory::lastFrameLods(uint64_t frame) const {
+    if (frame > 0 && frames_[0].frame == frame - 1) return frames_[0].set.entries();
     return {};
 }
 

@@ -304,42 +304,11 @@ private:
 
 }  // namespace
 
-int runWindow(const OssFile& file, const PipelineOptions& options, const WindowOptions& wo) {
-    Session session(file, wo);
-    Pipeline pipeline(file, options);
-    FrameDisplay display(pipeline, wo.width, wo.height, DisplayOptions{});
-    session.printStart("");
-    uint64_t frame = 0;
-    FrameStats stats;
-    while (session.pump()) {
-        if (const std::optional<CullMode> m = session.takeMode()) {
-            pipeline.setMode(*m);
-            std::printf("window: mode %s\n", modeName(*m));
-        }
-        const CameraPose pose = session.nextPose();
-        if (!session.frozen()) {
-            stats = pipeline.runFrame(pose, frame++);
-            display.display(pipeline, pose);
-        } else {
-            // The frozen frame from where the camera is now, with what it culled.
-            display.drawCullingView(pipeline, session.camera(pose));
-        }
-        session.present(display.target());
-        session.frameShown([&] {
-            return std::to_string(stats.objects_visible) + " visible objects  " +
-                   std::to_string(stats.active_triangles) + " triangles  " + modeName(pipeline.mode());
-        });
-        std::fflush(stdout);
-    }
-    session.finish();
-    return 0;
-}
-
-std::vector<FrameRecord> runWindowRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
-                                        const WindowOptions& wo, roles::RunOptions run, roles::RunSummary& summary) {
+std::vector<FrameRecord> runWindow(Transport& transport, const OssFile& file, const PipelineOptions& options,
+                                   const WindowOptions& wo, roles::RunOptions run, roles::RunSummary& summary) {
     Session session(file, wo);
     std::unique_ptr<FrameDisplay> display;  // made with the pipeline of the first frame
-    const Pipeline* shown = nullptr;        // the pipeline whose frame the display holds
+    Pipeline* shown = nullptr;              // the pipeline whose frame the display holds
     const int ranks = transport.size();
     const roles::RankLayout layout(ranks);
     // Sort-last (2 + P ranks): the window shows the composite of every display rank's partition.
@@ -360,7 +329,8 @@ std::vector<FrameRecord> runWindowRanks(Transport& transport, const OssFile& fil
     std::vector<int64_t> taken_ns;
     CameraPose sent, view;  // the newest camera sent; where the user looks (the view of a frozen frame)
     double latency_ms = 0;
-    uint64_t latency_frames = 0, latency_count = 0, visible = 0;
+    uint64_t latency_frames = 0, latency_count = 0;
+    std::optional<CullMode> mode;  // a mode key not applied yet (one rank)
     const auto now_ns = [] {
         return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
     };
@@ -375,21 +345,33 @@ std::vector<FrameRecord> runWindowRanks(Transport& transport, const OssFile& fil
         presented = Clock::now();
     };
 
+    // The camera source: the user's newest pose when the frame loop asks (a camera buffer of one).
     run.live = true;
     run.next_camera = [&](uint64_t f, CameraPose& pose) {
         if (!session.pump()) return false;
-        if (session.takeMode())
-            std::printf("window: the mode keys need one rank; with %d ranks the mode is --mode (%s)\n", ranks,
-                        modeName(options.mode));
+        if (const std::optional<CullMode> m = session.takeMode()) {
+            if (ranks == 1) mode = m;
+            else
+                std::printf("window: the mode keys need one rank; with %d ranks the mode is --mode (%s)\n", ranks,
+                            modeName(options.mode));
+        }
+        // One rank: this pipeline culls the next frame; the mode changes before it.
+        if (mode && shown) {
+            shown->setMode(*mode);
+            std::printf("window: mode %s\n", modeName(*mode));
+            mode.reset();
+        }
         view = session.nextPose();
-        // A frozen frame stays what it was: the switch goes on culling the camera it had.
+        // A frozen frame stays what it was: the culling goes on with the camera it had.
         if (!session.frozen() || f == 0) sent = view;
         pose = sent;
-        if (taken_ns.size() != f) throw std::logic_error("runWindowRanks: cameras out of order");
+        if (taken_ns.size() != f) throw std::logic_error("runWindow: cameras out of order");
         taken_ns.push_back(now_ns());
         return true;
     };
-    run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t f) {
+    // The frame sink: draws the frame (or, frozen, the frozen frame from where the user flies),
+    // presents it and sets the title.
+    run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t f, const FrameStats& stats) {
         if (!display) display = std::make_unique<FrameDisplay>(pipeline, wo.width, wo.height, display_options);
         shown = &pipeline;
         DisplayStats drawn;
@@ -398,12 +380,20 @@ std::vector<FrameRecord> runWindowRanks(Transport& transport, const OssFile& fil
         if (compositor) composite = compositor->composite(*display, answer);
         show();
         presented = Clock::now();
+        if (ranks == 1) {
+            session.frameShown([&] {
+                return std::to_string(stats.objects_visible) + " visible objects  " +
+                       std::to_string(stats.active_triangles) + " triangles  " + modeName(pipeline.mode());
+            });
+            std::fflush(stdout);
+            return drawn;
+        }
         // The camera of frame f + 1 (or later) was taken before frame f is drawn.
         const double ms = double(now_ns() - taken_ns.at(f)) / 1e6;
         const uint64_t frames = taken_ns.size() - 1 - f;
         // The last frame has no later camera (the user quit): its 0 frames are no latency.
         if (f > 0 && frames > 0) latency_ms += ms, latency_frames += frames, ++latency_count;
-        visible = pipeline.visibleObjects().size();
+        const size_t visible = pipeline.visibleObjects().size();
         session.frameShown([&] {
             return std::to_string(ranks) + " ranks  latency " + std::to_string(frames) + " frame" +
                    (frames == 1 ? "" : "s") + " " + fixed(ms, 1) + " ms  " + std::to_string(visible) +
@@ -416,14 +406,15 @@ std::vector<FrameRecord> runWindowRanks(Transport& transport, const OssFile& fil
         answer();
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
     };
-    session.printStart(", " + std::to_string(ranks) + " ranks (rank 0 displays)");
+    session.printStart(ranks == 1 ? "" : ", " + std::to_string(ranks) + " ranks (rank 0 displays)");
     std::vector<FrameRecord> records = roles::runRanks(transport, file, options, run, summary);
     session.finish();
-    std::printf("window: %llu frames on %d ranks, latency %.2f frames and %.2f ms (mean of the frames after the "
-                "first)\n",
-                static_cast<unsigned long long>(summary.frames), ranks,
-                latency_count ? double(latency_frames) / double(latency_count) : 0.0,
-                latency_count ? latency_ms / double(latency_count) : 0.0);
+    if (ranks > 1)
+        std::printf("window: %llu frames on %d ranks, latency %.2f frames and %.2f ms (mean of the frames after the "
+                    "first)\n",
+                    static_cast<unsigned long long>(summary.frames), ranks,
+                    latency_count ? double(latency_frames) / double(latency_count) : 0.0,
+                    latency_count ? latency_ms / double(latency_count) : 0.0);
     std::fflush(stdout);
     display.reset();
     return records;

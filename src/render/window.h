@@ -23,29 +23,24 @@ struct WindowOptions {
     std::string out = ".";               // folder for screenshots (P) and recorded paths (R)
 };
 
-// Opens a GLFW window (OpenGL 4.5 core) and renders `file` interactively until Escape or the
-// window is closed. Keys: mouse drag with the left button = look around; W/A/S/D = move, Q/E =
-// down/up, scroll = speed; 1/2/3 = mode full / lod / oc+lod; F = freeze culling (fly around the
-// frozen frame: occlusion-culled objects as red boxes, its occluders purple); R = start / stop
-// recording the camera (stop writes OUT/recorded_N.cam); P = screenshot OUT/screenshot_N.png.
-// The title bar shows fps, visible objects and triangles. Each action is also printed on
-// stdout, one line each. Throws WindowUnavailable when no window can be opened (no X display,
-// no GLX). Returns the exit status.
-int runWindow(const OssFile& file, const PipelineOptions& options, const WindowOptions& window);
-
-// The same window as rank 0 of 2 or more ranks: rank 0 is the display (RVG) of a live
-// roles::runRanks, which every other rank runs with `live` set. Each frame's camera is the
-// user's newest pose (a camera buffer of one: poses made while the switch is busy are skipped);
-// while a culling rank works the window keeps answering and shows the newest complete frame.
-// F freezes: the switch goes on culling the frozen camera and the window draws the frozen
-// visible set from where the user flies (culled objects in the frustum as red boxes; the
-// occluders live on the culling ranks and are not drawn). The mode keys only work with one
-// rank. With 2 + P ranks the window shows the sort-last composite of every display rank's
-// partition (the other display ranks run runRanks with a drawing that composites, see
-// SortLastCompositor), and F is refused. The title shows fps, ranks, the latency in frames and ms, and visible objects. Esc
-// ends every rank. Returns runRanks's records and fills `summary`; throws WindowUnavailable
-// before any message is sent when no window can be opened (the caller tells the other ranks).
-std::vector<FrameRecord> runWindowRanks(Transport& transport, const OssFile& file, const PipelineOptions& options,
-                                        const WindowOptions& window, roles::RunOptions run, roles::RunSummary& summary);
+// Opens a GLFW window (OpenGL 4.5 core) on rank 0 and flies through `file` with the frame loop
+// (roles::runRanks, live) until Escape or the window is closed: the window is the loop's camera
+// source (the user's newest pose when a frame starts; poses made while the switch is busy are
+// skipped, never queued: the paper's camera buffer of one) and its frame sink (the frame drawn,
+// presented and the title set). Every other rank runs runRanks with `live` set. Keys: mouse drag
+// with the left button = look around; W/A/S/D = move, Q/E = down/up, scroll = speed; 1/2/3 = mode
+// full / lod / oc+lod (one rank only); F = freeze culling (the frozen frame from where the user
+// flies: occlusion-culled objects as red boxes, with one rank its occluders purple; refused with
+// 2 + P ranks); R = start / stop recording the camera (stop writes OUT/recorded_N.cam); P =
+// screenshot OUT/screenshot_N.png. While a culling rank works the window keeps answering and
+// shows the newest complete frame. With 2 + P ranks it shows the sort-last composite of every
+// display rank's partition (the other display ranks run runRanks with a drawing that
+// composites, see SortLastCompositor). The title shows fps, visible objects and, with one rank,
+// triangles and the mode, with more the ranks and the latency. Each action is also printed on
+// stdout, one line each. Esc ends every rank. Returns runRanks's records and fills `summary`;
+// throws WindowUnavailable before any message is sent when no window can be opened (no X
+// display, no GLX; the caller tells the other ranks).
+std::vector<FrameRecord> runWindow(Transport& transport, const OssFile& file, const PipelineOptions& options,
+                                   const WindowOptions& window, roles::RunOptions run, roles::RunSummary& summary);
 
 }  // namespace occ::render
