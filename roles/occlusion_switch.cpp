@@ -296,19 +296,26 @@ public:
             }
         }
         const VisibleSetDelta d = decodeVisibleSetDelta(t_.receive(from, MessageKind::Delta, limit), {from, f, objects_});
-        shown_.apply(d, from);
+        // V_f from V_{f-1} in the pipeline's history: the sets this display received (its
+        // partition's with 2 + P ranks), or on one rank the ones its own culling chose.
+        const VisibleSet* base = f > 0 ? pipeline_.culledSet(f - 1) : nullptr;
+        if (f > 0 && !base && !d.full)
+            throw std::logic_error("Display::display: frame " + std::to_string(f - 1) + " left the history");
+        VisibleSet shown = base ? *base : VisibleSet();
+        shown.apply(d, from);
         net.added = d.added.size();
         net.removed = d.removed.size();
         net.changed = d.changed.size();
+        if (!pipeline_.culledSet(f)) pipeline_.recordCulledElsewhere(f, shown);
         try {
-            pipeline_.setVisible(shown_);
+            pipeline_.setVisible(shown);
         } catch (const std::invalid_argument& e) {
             throw RankError(from, "delta of frame " + std::to_string(f) + ": " + e.what());
         }
         const CameraPose pose = poses_.at(f);
         if (!pipeline_.frustumIsFor(pose)) pipeline_.frustumPass(pose, stats);
         stats.objects_in_frustum = pipeline_.frustumCount();
-        stats.objects_occluded = stats.objects_in_frustum - std::min<uint64_t>(stats.objects_in_frustum, shown_.size());
+        stats.objects_occluded = stats.objects_in_frustum - std::min<uint64_t>(stats.objects_in_frustum, shown.size());
         pipeline_.streamPass(f, stats);
         if (run_.draw) {
             record.display = run_.draw(pipeline_, pose, f, stats);
@@ -316,10 +323,10 @@ public:
         }
         net.latency_ms = double(nowNs() - sent_ns_[f]) / 1e6;
         net.latency_frames = int64_t(step - sent_step_[f]);
-        net.visible_hash = shown_.hash();
+        net.visible_hash = shown.hash();
         EndOfFrame e;
         e.frame = f;
-        e.visible_count = uint32_t(shown_.size());
+        e.visible_count = uint32_t(shown.size());
         e.last = last;
         e.compute_ns = nowNs() - start_ns;
         const std::vector<uint8_t> bytes = encodeEndOfFrame(e, t_.rank());
@@ -343,7 +350,6 @@ private:
     const PipelineOptions& options_;
     const RankLayout& layout_;
     const RunOptions& run_;
-    VisibleSet shown_;
     std::vector<CameraPose> poses_;  // the camera sent for each frame
     std::vector<int64_t> sent_ns_;
     std::vector<uint64_t> sent_step_;
