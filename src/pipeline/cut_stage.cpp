@@ -58,7 +58,7 @@ uint8_t CutStage::decideNode(uint32_t id, const k::Camera& camera, float share) 
 
 const std::vector<uint32_t>& CutStage::refine(const k::Camera& camera, k::DevicePtr<const uint8_t> in_frustum,
                                               const k::HzmLevels* hzm) {
-    const uint32_t n = scene_.object_count;
+    const uint32_t n = scene_.item_count;
     in_frustum_.resize(n);
     k::copyToHost(in_frustum_.data(), in_frustum, n);
     const bool occlusion = hzm != nullptr;

@@ -40,7 +40,7 @@ DeviceScene DeviceScene::upload(const OssFile& file, bool hierarchy) {
     DeviceScene d;
     d.file = &file;
     d.nodes = hierarchy;
-    d.object_count = hierarchy ? file.nodeCount() : file.objectCount();
+    d.item_count = hierarchy ? file.nodeCount() : file.objectCount();
     d.mesh_count = file.meshCount();
     if (hierarchy && file.nodeCount() == 0)
         throw std::invalid_argument("DeviceScene::upload: " + file.path() + " has no hierarchy");
@@ -58,17 +58,17 @@ DeviceScene DeviceScene::upload(const OssFile& file, bool hierarchy) {
     const std::span<const uint32_t> triangles = file.allTriangles();
 
     const std::span<const oss::ObjectDisk> objects = file.objects();
-    d.host_objects.resize(d.object_count);
-    d.host_world.resize(d.object_count);
+    d.host_objects.resize(d.item_count);
+    d.host_world.resize(d.item_count);
     std::vector<uint32_t> item_of_object;  // with nodes: each object's leaf
     if (hierarchy) {
         const std::span<const oss::NodeDisk> nodes = file.nodes();
-        d.host_nodes.resize(d.object_count);
+        d.host_nodes.resize(d.item_count);
         item_of_object.resize(file.objectCount());
         // Bottom-up (children come after their parent): an HLOD shows the colour of its
         // subtree's object with the most triangles.
-        std::vector<uint64_t> colour_triangles(d.object_count, 0);
-        for (uint32_t i = d.object_count; i-- > 0;) {
+        std::vector<uint64_t> colour_triangles(d.item_count, 0);
+        for (uint32_t i = d.item_count; i-- > 0;) {
             const oss::NodeDisk& n = nodes[i];
             NodeLinks& links = d.host_nodes[i];
             links.first_child = n.first_child;
@@ -114,7 +114,7 @@ DeviceScene DeviceScene::upload(const OssFile& file, bool hierarchy) {
 
     // Once, at start-up: everything the frames read on the device. A GPU too small for it says so.
     const bool in_place = k::deviceReadsHostMemory();
-    const uint64_t needed = uint64_t(d.object_count) * (sizeof(k::ObjectInfo) + sizeof(glm::mat4)) +
+    const uint64_t needed = uint64_t(d.item_count) * (sizeof(k::ObjectInfo) + sizeof(glm::mat4)) +
                             uint64_t(d.mesh_count) * 3 * sizeof(uint64_t) + file.cos().size_bytes() +
                             (in_place ? 0
                                       : file.allEcol().size_bytes() + file.allMaps().size_bytes() +

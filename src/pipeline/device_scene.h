@@ -22,7 +22,7 @@ namespace occ {
 // visible set, the LODs, the streaming and the drawing then work on node ids unchanged.
 struct DeviceScene {
     const OssFile* file = nullptr;
-    uint32_t object_count = 0, mesh_count = 0, cos_count = 0;  // object_count: items
+    uint32_t item_count = 0, mesh_count = 0, cos_count = 0;  // items: objects, or with nodes the nodes
     bool nodes = false;  // the items are the hierarchy's nodes
 
     // Host memory.

@@ -9,14 +9,14 @@
 namespace occ {
 
 FrustumStage::FrustumStage(const DeviceScene& scene) : scene_(scene) {
-    const size_t room = std::max<uint32_t>(1, scene.object_count);
+    const size_t room = std::max<uint32_t>(1, scene.item_count);
     in_frustum_.resize(room);
     ids_.resize(room);
 }
 
 void FrustumStage::run(const CameraPose& pose, const k::Camera& camera) {
     const k::Frustum frustum = k::frustumFromViewProj(camera.view_proj);
-    count_ = k::frustumCull(scene_.objects.ptr(), scene_.object_count, frustum, in_frustum_.ptr(), ids_.ptr());
+    count_ = k::frustumCull(scene_.objects.ptr(), scene_.item_count, frustum, in_frustum_.ptr(), ids_.ptr());
     pose_ = pose;
     has_pose_ = true;
 }

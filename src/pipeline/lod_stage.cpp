@@ -43,8 +43,8 @@ LodStage::LodStage(const OssFile& file, const DeviceScene& scene, const Pipeline
             e[nv] = 0.0f;
             for (uint32_t k = nv; k-- > 0;) e[k] = std::max(e[k + 1], mesh.error[k]);
         }
-        std::vector<float> scale(std::max<uint32_t>(1, scene.object_count), 1.0f);
-        for (uint32_t i = 0; i < scene.object_count; ++i) {
+        std::vector<float> scale(std::max<uint32_t>(1, scene.item_count), 1.0f);
+        for (uint32_t i = 0; i < scene.item_count; ++i) {
             const glm::mat4& w = scene.host_world[i];
             scale[i] = std::max({glm::length(glm::vec3(w[0])), glm::length(glm::vec3(w[1])), glm::length(glm::vec3(w[2]))});
         }
@@ -54,8 +54,8 @@ LodStage::LodStage(const OssFile& file, const DeviceScene& scene, const Pipeline
         k::copyToDevice(object_scale_.ptr(), scale.data(), scale.size());
         if (scene.nodes) {
             // An HLOD's level gets what its node's own error leaves of tau.
-            std::vector<float> item_error(std::max<uint32_t>(1, scene.object_count), 0.0f);
-            for (uint32_t i = 0; i < scene.object_count; ++i) item_error[i] = scene.host_nodes[i].error;
+            std::vector<float> item_error(std::max<uint32_t>(1, scene.item_count), 0.0f);
+            for (uint32_t i = 0; i < scene.item_count; ++i) item_error[i] = scene.host_nodes[i].error;
             item_error_.resize(item_error.size());
             k::copyToDevice(item_error_.ptr(), item_error.data(), item_error.size());
             host_lod_error_ = std::move(lod_error);
@@ -63,7 +63,7 @@ LodStage::LodStage(const OssFile& file, const DeviceScene& scene, const Pipeline
         }
     }
     double scene_vertices = 0;
-    for (uint32_t i = 0; i < scene.object_count; ++i) scene_vertices += scene.host_objects[i].vertex_count;
+    for (uint32_t i = 0; i < scene.item_count; ++i) scene_vertices += scene.host_objects[i].vertex_count;
     budget_ = options.budget > 0        ? options.budget
               : options.budget_share > 0 ? options.budget_share * scene_vertices
                                          : std::min(scene_vertices, PipelineOptions::kVerticesPerPixel *

@@ -17,7 +17,7 @@ OcclusionStage::OcclusionStage(const OssFile& file, const DeviceScene& scene, co
     occluder_budget_ = double(options.pvs_occluder_triangles);
     // Every array a frame needs, sized once for the worst case (every item in the frustum and
     // visible): no frame allocates but the ones whose sizes depend on geometry.
-    const size_t room = std::max<uint32_t>(1, scene.object_count);
+    const size_t room = std::max<uint32_t>(1, scene.item_count);
     occluded_.resize(room);
     if ((options.keep_visible > 0 || options.late_pass) && options.mode == CullMode::OcLod && !scene.nodes) {
         // One record per frame parity with a lag of 2: what the 3-rank switch's culling rank,

@@ -89,7 +89,7 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
         file, scene_,
         StreamStage::Options{coherent, options_.stream == StreamMode::None, coherent ? options_.retain_frames : 0u,
                              options_.resident_factor * lod_->budget()});
-    visible_.reserve(scene_.object_count);
+    visible_.reserve(scene_.item_count);
 }
 
 void Pipeline::frustumPass(const CameraPose& pose, FrameStats& stats) {
@@ -174,10 +174,10 @@ void Pipeline::setVisible(const VisibleSet& set) {
 }
 
 void Pipeline::setVisible(std::span<const uint32_t> ids, std::span<const uint32_t> vertex_counts) {
-    if (ids.size() != vertex_counts.size() || ids.size() > scene_.object_count)
+    if (ids.size() != vertex_counts.size() || ids.size() > scene_.item_count)
         throw std::invalid_argument("Pipeline::setVisible: ids and vertex counts differ in size");
     for (size_t j = 0; j < ids.size(); ++j) {
-        if ((j > 0 && ids[j] <= ids[j - 1]) || ids[j] >= scene_.object_count)
+        if ((j > 0 && ids[j] <= ids[j - 1]) || ids[j] >= scene_.item_count)
             throw std::invalid_argument("Pipeline::setVisible: entry " + std::to_string(j) + " is not a valid LOD");
         const k::ObjectInfo& o = scene_.host_objects[ids[j]];
         if (vertex_counts[j] > o.vertex_count || (vertex_counts[j] != 0 && vertex_counts[j] < o.q))

@@ -236,7 +236,7 @@ public:
     // nodes its refinement found hidden, and before it every item in the frustum).
     k::DevicePtr<const uint32_t> frustumIds() const { return frustum_->ids(); }
     // Items the visible set, the deltas and the layout are over: objects, or nodes.
-    uint32_t itemCount() const { return scene_.object_count; }
+    uint32_t itemCount() const { return scene_.item_count; }
     // The last cut's nodes tested (all levels), with the hierarchy; 0 without.
     uint64_t nodesTested() const { return cut_ ? cut_->nodesTested() : 0; }
     // From now on the active vertex array's two buffers and the index buffer live in the

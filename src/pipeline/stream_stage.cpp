@@ -14,7 +14,7 @@ StreamStage::StreamStage(const OssFile& file, const DeviceScene& scene, const Op
     : scene_(scene), options_(options) {
     host_ = {file.allPositions().data(), file.allTriangles().data(), scene.host_vertex_first.data(),
              scene.host_triangle_first.data(), scene.host_objects.data()};
-    const size_t room = std::max<uint32_t>(1, scene.object_count);
+    const size_t room = std::max<uint32_t>(1, scene.item_count);
     for (k::DeviceArray<k::LayoutBlock>& l : layouts_) l.resize(room);
     places_.resize(room);
     k::deviceMemset(places_.ptr(), 0, room * sizeof(k::BlockPlace));

@@ -100,7 +100,7 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
     const k::BusMeasurementScope measuring;
     start = Clock::now();
     const DeviceScene& scene = pipeline.scene();
-    const uint32_t n = scene.object_count;
+    const uint32_t n = scene.item_count;
     candidates_.clear();
     // The full-detail picture draws the objects (with a hierarchy: the leaves, never an HLOD).
     for (uint32_t i = 0; i < n; ++i)
@@ -164,7 +164,7 @@ void FrameDisplay::drawCullingView(const Pipeline& pipeline, const k::Camera& ca
     frame_.begin(false);
     renderer_.drawFrame(pipeline, camera);
     std::vector<SceneRenderer::Box> boxes;
-    in_pvs_.assign(pipeline.scene().object_count, 0);
+    in_pvs_.assign(pipeline.scene().item_count, 0);
     for (uint32_t id : pipeline.visibleObjects()) in_pvs_[id] = 1;
     const auto box = [&](uint32_t id, glm::vec3 colour) {
         const k::Aabb& b = pipeline.scene().host_objects[id].aabb;

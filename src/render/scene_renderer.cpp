@@ -116,7 +116,7 @@ SceneRenderer::SceneRenderer(const DeviceScene& scene, bool uniform_colour) : sc
     shaded_program_ = compileProgram("shaded", shaders::kShadedVert, shaders::kShadedFrag);
     box_program_ = compileProgram("box", shaders::kBoxVert, shaders::kBoxFrag);
 
-    const uint32_t n = scene.object_count;
+    const uint32_t n = scene.item_count;
     world_buffer_ = makeBuffer();
     colour_buffer_ = makeBuffer();
     box_buffer_ = makeBuffer();
