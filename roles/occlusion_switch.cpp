@@ -563,10 +563,14 @@ std::vector<FrameRecord> gatherRecords(Transport& transport, const RankLayout& l
     for (int r = 1; r < layout.size(); ++r) {
         const std::vector<FrameRecord> theirs = decodeReport(transport.receive(r, MessageKind::Report, timeout),
                                                              {r, framesOfRank(layout, r, frames), items});
-        for (const FrameRecord& record : theirs)
+        for (const FrameRecord& record : theirs) {
             if (record.net.partition != layout.partitionOf(r))
                 throw RankError(r, "report: partition " + std::to_string(record.net.partition) + ", expected " +
                                        std::to_string(layout.partitionOf(r)));
+            const uint64_t f = record.stats.frame;
+            if (f >= frames || (layout.partitionOf(r) < 0 && layout.culler(f) != r))
+                throw RankError(r, "report: a record of frame " + std::to_string(f) + ", which this rank did not run");
+        }
         own.insert(own.end(), theirs.begin(), theirs.end());
     }
     std::stable_sort(own.begin(), own.end(),
@@ -669,6 +673,7 @@ private:
 
     // A frame's record is done: its bus bytes and the messages the transport counted for it.
     void record(FrameRecord& r) {
+        if (!run_.keep_records) return;
         r.rank = rank_;
         r.net = rowColumns(window_.take(), r.net);
         bus_.take(r.stats);
@@ -711,7 +716,9 @@ std::vector<FrameRecord> runRanks(Transport& transport, const OssFile& file, con
         const std::chrono::milliseconds finish_limit = me.finishRoles();
         std::vector<FrameRecord> records = std::move(me.records());
         // Every rank's records to rank 0, which writes the CSV and the summary from them.
-        if (rank != 0) {
+        if (!run.keep_records) {
+            summary.frames = frames;
+        } else if (rank != 0) {
             transport.send(0, MessageKind::Report, encodeReport(records, rank));
         } else {
             records = gatherRecords(transport, layout, std::move(records), frames, pipeline.itemCount(), run.timeout);

@@ -96,6 +96,10 @@ struct RunOptions {
     // called while the display waits for a culling rank (a window keeps answering and shows the
     // newest complete frame).
     bool live = false;
+    // false (every rank the same): no frame records are kept or reported, for a long live run
+    // that writes no stats (a window); runRanks then returns none and the summary counts the
+    // frames only.
+    bool keep_records = true;
     std::function<bool(uint64_t frame, CameraPose& pose)> next_camera;
     std::function<void()> idle;
 };

@@ -26,6 +26,23 @@ for column in frame objects_in_frustum objects_occluded objects_visible aos_size
   echo "$header" | tr ',' '\n' | grep -qx "$column" || fail "CSV lacks column $column"
 done
 "$exe" render "$dir/p.oss" --path "$dir/orbit.cam" --no-display >/dev/null || fail "orbit"
+# --summary: the run's figures as JSON, the same frames and backend the printed summary names.
+out=$("$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display --summary "$dir/s.json") || fail "--summary"
+python3 - "$dir/s.json" "$out" <<'PY' || fail "--summary: $(cat "$dir/s.json")"
+import json, re, sys
+j = json.load(open(sys.argv[1]))
+m = re.search(r"^render: .*, (\d+) frames at .*, backend ([^,]+),", sys.argv[2], re.M)
+assert m and j["frames"] == int(m.group(1)) and j["backend"] == m.group(2), (j, sys.argv[2])
+assert j["ranks"] == 1 and j["ms_frame"] > 0 and j["objects_visible"] >= 0 and "pace" not in j
+PY
+"$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display --pace recorded --path-fps 600 \
+  --summary "$dir/paced.json" >/dev/null || fail "--summary, paced"
+python3 -c "import json,sys; p=json.load(open(sys.argv[1]))['pace']; assert p['frames_shown'] + p['poses_skipped'] == p['poses'] > 0" \
+  "$dir/paced.json" || fail "--summary, paced: $(cat "$dir/paced.json")"
+# A window has no summary file: refused before anything opens, and nothing written.
+"$exe" render "$dir/p.oss" --summary "$dir/w.json" >/dev/null 2>"$dir/err"; status=$?
+[ $status -eq 2 ] && grep -q "^error: render: --summary describes recorded runs" "$dir/err" && [ ! -e "$dir/w.json" ] ||
+  fail "--summary in a window: exit $status, $(cat "$dir/err")"
 "$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display --raster masked >/dev/null || fail "walk, masked raster"
 # Each impossible option is named by its flag, also when the library found it out of range.
 for bad in "--size 0x10" "--size big" "--mode none" "--stream fast" "--alpha 1" "--pet -1" "--budget -3" \

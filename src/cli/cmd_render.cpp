@@ -138,6 +138,8 @@ RenderConfig resolveRender(const RenderOptions& o) {
         if (c.paced)
             throw UsageError("render: --pace recorded replays --path headless (--headless or --no-display); a window "
                              "plays the path one pose per frame, then you fly");
+        if (!o.summary.empty())
+            throw UsageError("render: --summary describes recorded runs: add --headless or --no-display and --path P.cam");
     }
     return c;
 }
@@ -310,6 +312,8 @@ int runInWindow(const RenderConfig& c, const OssFile& file, Transport& transport
     if (rank0 && !c.cli.out.empty()) makeOutputFolder(c.cli.out);
     roles::RunOptions run = runOptions(c);
     run.live = true;
+    // A window's records are kept only for --stats (a session may run for hours).
+    run.keep_records = !c.cli.stats.empty();
     try {
         if (!rank0) {
             // A sort-last display rank (2 + P) draws its partition offscreen for rank 0's window.

@@ -462,6 +462,11 @@ std::vector<FrameRecord> decodeReport(std::span<const uint8_t> bytes, const Deco
         if (record.net.partition < -1 || record.net.partition >= 65535)
             fail(ctx, which + ": partition " + std::to_string(record.net.partition));
         if (record.net.latency_frames < -1) fail(ctx, which + ": latency of a negative number of frames");
+        if (record.displayed && record.net.partition < 0) fail(ctx, which + ": displayed without a partition");
+        bool negative = record.ms_frame < 0 || record.stats.ms_total < 0 || record.net.ms_wait < 0 ||
+                        record.net.ms_composite < 0 || record.display.ms_draw < 0 || record.display.ms_exact < 0;
+        for (double ms : record.stats.ms) negative = negative || ms < 0;
+        if (negative) fail(ctx, which + ": a negative time");
         if (i > 0 && record.stats.frame <= records[i - 1].stats.frame)
             fail(ctx, which + ": frame " + std::to_string(record.stats.frame) + " after frame " +
                           std::to_string(records[i - 1].stats.frame));

@@ -121,7 +121,8 @@ CameraPacket decodeCameraPacket(std::span<const uint8_t> bytes, const DecodeCont
 VisibleSetDelta decodeVisibleSetDelta(std::span<const uint8_t> bytes, const DecodeContext& ctx);
 EndOfFrame decodeEndOfFrame(std::span<const uint8_t> bytes, const DecodeContext& ctx);
 // ctx.expected_frame is the number of records the report must hold; each must be ctx.sender's,
-// with finite figures, a partition in [-1, 65535), frames ascending.
+// with finite figures, times >= 0, a partition in [-1, 65535) (>= 0 where it displayed), frames
+// ascending. Which frames a rank ran is the layout's: the receiver checks those.
 std::vector<FrameRecord> decodeReport(std::span<const uint8_t> bytes, const DecodeContext& ctx);
 
 }  // namespace occ

@@ -160,6 +160,9 @@ class Pipeline {
 public:
     // file must outlive the pipeline. Throws UsageError for impossible options.
     Pipeline(const OssFile& file, const PipelineOptions& options);
+    // The stages refer to the pipeline's scene and options: it stays where it was made.
+    Pipeline(const Pipeline&) = delete;
+    Pipeline& operator=(const Pipeline&) = delete;
 
     // The pipeline's three steps of one frame, without messages: occluderPass, cullPass and
     // streamPass, as the frame loop (roles::runRanks) runs them on one rank. For the library's

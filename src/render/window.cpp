@@ -345,15 +345,35 @@ std::vector<FrameRecord> runWindow(Transport& transport, const OssFile& file, co
         presented = Clock::now();
     };
 
-    // The camera source: the user's newest pose when the frame loop asks (a camera buffer of one).
-    run.live = true;
-    run.next_camera = [&](uint64_t f, CameraPose& pose) {
-        if (!session.pump()) return false;
+    // One rank: the last frame's figures, for the title while frozen.
+    uint64_t last_visible = 0, last_triangles = 0;
+    const auto takeModeKey = [&] {
         if (const std::optional<CullMode> m = session.takeMode()) {
             if (ranks == 1) mode = m;
             else
                 std::printf("window: the mode keys need one rank; with %d ranks the mode is --mode (%s)\n", ranks,
                             modeName(options.mode));
+        }
+    };
+    // The camera source: the user's newest pose when the frame loop asks (a camera buffer of one).
+    run.live = true;
+    run.next_camera = [&](uint64_t f, CameraPose& pose) {
+        if (!session.pump()) return false;
+        takeModeKey();
+        // One rank, frozen: no frame runs; the window draws the frozen frame, with its occluders,
+        // from where the user flies, until F again (with more ranks the switch goes on culling
+        // the frozen camera, see the sink).
+        while (ranks == 1 && session.frozen() && shown) {
+            const CameraPose at = session.nextPose();
+            display->drawCullingView(*shown, session.camera(at));
+            session.present(display->target());
+            session.frameShown([&] {
+                return std::to_string(last_visible) + " visible objects  " + std::to_string(last_triangles) +
+                       " triangles  " + modeName(shown->mode());
+            });
+            std::fflush(stdout);
+            if (!session.pump()) return false;
+            takeModeKey();
         }
         // One rank: this pipeline culls the next frame; the mode changes before it.
         if (mode && shown) {
@@ -381,6 +401,8 @@ std::vector<FrameRecord> runWindow(Transport& transport, const OssFile& file, co
         show();
         presented = Clock::now();
         if (ranks == 1) {
+            last_visible = stats.objects_visible;
+            last_triangles = stats.active_triangles;
             session.frameShown([&] {
                 return std::to_string(stats.objects_visible) + " visible objects  " +
                        std::to_string(stats.active_triangles) + " triangles  " + modeName(pipeline.mode());

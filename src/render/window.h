@@ -30,7 +30,8 @@ struct WindowOptions {
 // presented and the title set). Every other rank runs runRanks with `live` set. Keys: mouse drag
 // with the left button = look around; W/A/S/D = move, Q/E = down/up, scroll = speed; 1/2/3 = mode
 // full / lod / oc+lod (one rank only); F = freeze culling (the frozen frame from where the user
-// flies: occlusion-culled objects as red boxes, with one rank its occluders purple; refused with
+// flies: occlusion-culled objects as red boxes, with one rank its occluders purple; one rank runs
+// no frames while frozen, with more the switch goes on culling the frozen camera; refused with
 // 2 + P ranks); R = start / stop recording the camera (stop writes OUT/recorded_N.cam); P =
 // screenshot OUT/screenshot_N.png. While a culling rank works the window keeps answering and
 // shows the newest complete frame. With 2 + P ranks it shows the sort-last composite of every

@@ -338,6 +338,13 @@ TEST(Messages, ReportRoundTripsItsRecords) {
     bad = records;
     bad[1].net.partition = -2;
     EXPECT_THROW(decodeReport(encodeReport(bad, 3), {3, 3, kObjects}), RankError);
+    // A culling rank's record (no partition) drew nothing; times are never negative.
+    bad = records;
+    bad[1].net.partition = -1;
+    EXPECT_THROW(decodeReport(encodeReport(bad, 3), {3, 3, kObjects}), RankError);
+    bad = records;
+    bad[2].stats.ms[0] = -0.5;
+    EXPECT_THROW(decodeReport(encodeReport(bad, 3), {3, 3, kObjects}), RankError);
     // A record of another rank is not encoded.
     bad = records;
     bad[0].rank = 1;
