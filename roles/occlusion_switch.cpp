@@ -89,6 +89,7 @@ public:
         pose_ = packet.pose;
         pose_frame_ = f;
         or_stats_ = FrameStats{};
+        pipeline_.frustumPass(pose_, or_stats_);
         pipeline_.occluderPass(pose_, f, or_stats_);
         return true;
     }
@@ -296,6 +297,8 @@ public:
             }
         }
         const VisibleSetDelta d = decodeVisibleSetDelta(t_.receive(from, MessageKind::Delta, limit), {from, f, objects_});
+        // One rank: this pipeline culled frame f (its frustum is this frame's).
+        const bool culled_here = pipeline_.culledSet(f) != nullptr;
         // V_f from V_{f-1} in the pipeline's history: the sets this display received (its
         // partition's with 2 + P ranks), or on one rank the ones its own culling chose.
         const VisibleSet* base = f > 0 ? pipeline_.culledSet(f - 1) : nullptr;
@@ -306,14 +309,14 @@ public:
         net.added = d.added.size();
         net.removed = d.removed.size();
         net.changed = d.changed.size();
-        if (!pipeline_.culledSet(f)) pipeline_.recordCulledElsewhere(f, shown);
+        if (!culled_here) pipeline_.recordCulledElsewhere(f, shown);
         try {
             pipeline_.setVisible(shown);
         } catch (const std::invalid_argument& e) {
             throw RankError(from, "delta of frame " + std::to_string(f) + ": " + e.what());
         }
         const CameraPose pose = poses_.at(f);
-        if (!pipeline_.frustumIsFor(pose)) pipeline_.frustumPass(pose, stats);
+        if (!culled_here) pipeline_.frustumPass(pose, stats);
         stats.objects_in_frustum = pipeline_.frustumCount();
         stats.objects_occluded = stats.objects_in_frustum - std::min<uint64_t>(stats.objects_in_frustum, shown.size());
         pipeline_.streamPass(f, stats);

@@ -103,17 +103,20 @@ void Pipeline::frustumPass(const CameraPose& pose, FrameStats& stats) {
     clock.lap(Stage::FrustumCull);
 }
 
-bool Pipeline::frustumIsFor(const CameraPose& pose) const { return frustum_->isFor(pose); }
+void Pipeline::requireFrustum(const CameraPose& pose, const char* pass) const {
+    if (!frustum_->isFor(pose))
+        throw std::logic_error(std::string("Pipeline::") + pass + ": frustumPass for this camera first");
+}
 
 void Pipeline::occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& stats) {
+    requireFrustum(pose, "occluderPass");
     if (options_.mode != CullMode::OcLod) return;
     const OccluderSources sources = history_.occluderSources(frame, options_.pvs_occluder_lag, !scene_.nodes);
-    if (!frustum_->isFor(pose)) frustumPass(pose, stats);
     occlusion_->buildHzm(toKernelCamera(pose, options_.width, options_.height), *frustum_, sources, stats);
 }
 
 void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stats) {
-    if (!frustum_->isFor(pose)) frustumPass(pose, stats);
+    requireFrustum(pose, "cullPass");
     StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
     uint32_t count = frustum_->count();
@@ -206,6 +209,7 @@ FrameStats Pipeline::runFrame(const CameraPose& pose, uint64_t frame) {
     FrameStats stats;
     stats.frame = frame;
     BusWindow bus;
+    frustumPass(pose, stats);
     // The PVS `pvs_occluder_lag` frames back supplies this frame's extra occluders.
     occluderPass(pose, frame, stats);
     cullPass(pose, frame, stats);

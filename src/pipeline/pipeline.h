@@ -164,8 +164,8 @@ public:
     Pipeline(const Pipeline&) = delete;
     Pipeline& operator=(const Pipeline&) = delete;
 
-    // The pipeline's three steps of one frame, without messages: occluderPass, cullPass and
-    // streamPass, as the frame loop (roles::runRanks) runs them on one rank. For the library's
+    // The pipeline's steps of one frame, without messages: frustumPass, occluderPass, cullPass
+    // and streamPass, as the frame loop (roles::runRanks) runs them on one rank. For the library's
     // tests and `bench pipeline`. Returns the frame's counts, stage times and bus bytes.
     // Drawing is the display's job.
     FrameStats runFrame(const CameraPose& pose, uint64_t frame);
@@ -174,12 +174,17 @@ public:
     // and stage times to `stats`. The pipeline keeps one history of the visible sets of the
     // last frames (VisibleHistory): the ones its cullPass chose and those recorded as culled
     // elsewhere; every layout uses it for the occluders, the hysteresis and the deltas.
-    // OR of `frame`: frustum culling for `pose`, the occluders (Eq. 3's AOS and the largest
-    // objects of the PVS this pipeline chose for frame - options().pvs_occluder_lag, if it
-    // culled that frame), their depth raster and the HZM. Nothing in modes full and lod.
+    // Frustum culling for `pose` (with the hierarchy in modes full and lod, also the cut): the
+    // first step of a frame on the rank that culls it, and a display's for its measurements
+    // when its pipeline did not cull the frame (frustumObjects()).
+    void frustumPass(const CameraPose& pose, FrameStats& stats);
+    // OR of `frame`, after frustumPass(pose) (std::logic_error otherwise): the occluders (Eq. 3's
+    // AOS and the largest objects of the PVS this pipeline chose for frame -
+    // options().pvs_occluder_lag, if it culled that frame), their depth raster and the HZM.
+    // Nothing in modes full and lod.
     void occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& stats);
-    // HC of `frame`: frustum culling (reused when the last occluderPass had this pose), the HZM
-    // test against the HZM of the last occluderPass (oc+lod) and LOD selection: visibleObjects()
+    // HC of `frame`, after frustumPass(pose) (std::logic_error otherwise): the HZM test against
+    // the HZM of the last occluderPass (oc+lod) and LOD selection: visibleObjects()
     // and visibleLodVertices(), recorded in the history. The LOD hysteresis starts from the
     // history's set of frame - 1 (this pipeline's, or in the switch the other rank's).
     void cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stats);
@@ -193,10 +198,6 @@ public:
     // LOD (ids unsorted or >= object count, count above the object's vertices or below its q).
     void setVisible(std::span<const uint32_t> ids, std::span<const uint32_t> vertex_counts);
     void setVisible(const VisibleSet& set);
-    // RVG: frustum culling only, for the display's measurements (frustumObjects()).
-    void frustumPass(const CameraPose& pose, FrameStats& stats);
-    // Whether frustumObjects() are the last frustumPass's for exactly this pose.
-    bool frustumIsFor(const CameraPose& pose) const;
     // RVG: layout, streaming, defragmentation and reformation of the visible set.
     void streamPass(uint64_t frame, FrameStats& stats);
 
@@ -254,6 +255,8 @@ public:
     std::vector<uint32_t> downloadOccluders() const { return occlusion_->downloadOccluders(); }  // AOS first
 
 private:
+    void requireFrustum(const CameraPose& pose, const char* pass) const;
+
     // The frame's stages, each owning its device memory (src/pipeline/*_stage.h), and what
     // passes between them: the visible set and the history of the visible sets culled here.
     const OssFile& file_;
