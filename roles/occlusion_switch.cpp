@@ -304,12 +304,13 @@ public:
         const VisibleSet* base = f > 0 ? pipeline_.culledSet(f - 1) : nullptr;
         if (f > 0 && !base && !d.full)
             throw std::logic_error("Display::display: frame " + std::to_string(f - 1) + " left the history");
-        VisibleSet shown = base ? *base : VisibleSet();
-        shown.apply(d, from);
+        VisibleSet next = base ? *base : VisibleSet();
+        next.apply(d, from);  // checks that V_f hashes to d.hash
         net.added = d.added.size();
         net.removed = d.removed.size();
         net.changed = d.changed.size();
-        if (!culled_here) pipeline_.recordCulledElsewhere(f, shown);
+        if (!culled_here) pipeline_.recordCulledElsewhere(f, std::move(next));
+        const VisibleSet& shown = culled_here ? next : *pipeline_.culledSet(f);
         try {
             pipeline_.setVisible(shown);
         } catch (const std::invalid_argument& e) {
@@ -326,7 +327,7 @@ public:
         }
         net.latency_ms = double(nowNs() - sent_ns_[f]) / 1e6;
         net.latency_frames = int64_t(step - sent_step_[f]);
-        net.visible_hash = shown.hash();
+        net.visible_hash = d.hash;
         EndOfFrame e;
         e.frame = f;
         e.visible_count = uint32_t(shown.size());
@@ -590,7 +591,7 @@ class RankRun {
 public:
     RankRun(Transport& transport, const RankLayout& layout, const RunOptions& run, Pipeline& pipeline,
             const PipelineOptions& options, const std::vector<uint16_t>& partition)
-        : transport_(transport), layout_(layout), run_(run), rank_(transport.rank()),
+        : layout_(layout), run_(run), rank_(transport.rank()),
           frames_(run.live ? UINT64_MAX : run.cameras.size()), window_(transport) {
         if (culls()) culler_ = std::make_unique<Culler>(transport, pipeline, layout, run, partition);
         if (displays()) display_ = std::make_unique<Display>(transport, pipeline, options, layout, run);
@@ -683,7 +684,6 @@ private:
         records_.push_back(r);
     }
 
-    Transport& transport_;
     const RankLayout& layout_;
     const RunOptions& run_;
     const int rank_;
