@@ -2,8 +2,10 @@
 #include "frustum_cull.h"
 
 #include "device_access.h"
+#include "for_each_index.h"
 #include "scan.h"
 
+#include <thrust/copy.h>
 #include <thrust/count.h>
 #include <thrust/execution_policy.h>
 #include <thrust/iterator/counting_iterator.h>
@@ -58,7 +60,34 @@ struct PVertexTest {
     }
 };
 
+struct PVertexTestIds {
+    PVertexTest test;
+    const uint32_t* ids;
+    uint8_t* in_frustum;
+
+    OCC_HD void operator()(uint32_t j) const {
+        const uint32_t id = ids[j];
+        in_frustum[id] = test(id);
+    }
+};
+
+struct FlagOfId {
+    const uint8_t* in_frustum;
+    OCC_HD bool operator()(uint32_t id) const { return in_frustum[id] != 0; }
+};
+
 }  // namespace
+
+uint32_t frustumCullIds(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
+                        const Frustum& frustum, DevicePtr<uint8_t> in_frustum, DevicePtr<uint32_t> out) {
+    if (count == 0) return 0;
+    forEachIndex(count, PVertexTestIds{PVertexTest{frustum, raw(objects)}, raw(ids), raw(in_frustum)});
+    uint32_t* const end = withPolicy(count, [&](auto policy) {
+        return thrust::copy_if(policy, raw(ids), raw(ids) + count, raw(out), FlagOfId{raw(in_frustum)});
+    });
+    countReadback(sizeof(uint32_t));
+    return uint32_t(end - raw(out));
+}
 
 uint32_t frustumCull(DevicePtr<const ObjectInfo> objects, uint32_t count, const Frustum& frustum,
                      DevicePtr<uint8_t> in_frustum, DevicePtr<uint32_t> ids) {

@@ -32,4 +32,11 @@ Frustum frustumFromViewProj(const glm::mat4& view_proj);
 uint32_t frustumCull(DevicePtr<const ObjectInfo> objects, uint32_t count, const Frustum& frustum,
                      DevicePtr<uint8_t> in_frustum, DevicePtr<uint32_t> ids = nullptr);
 
+// The same test for the listed items only (with the hierarchy no frame tests every item): for
+// j < count, in_frustum[ids[j]] = whether objects[ids[j]] may intersect the frustum (the flags of
+// unlisted items are left as they were); the listed ids in the frustum, in list order, go to out
+// (room for count, not overlapping ids), and their number is returned (4 bytes back to the host).
+uint32_t frustumCullIds(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
+                        const Frustum& frustum, DevicePtr<uint8_t> in_frustum, DevicePtr<uint32_t> out);
+
 }  // namespace occ::k

@@ -317,7 +317,7 @@ public:
             throw RankError(from, "delta of frame " + std::to_string(f) + ": " + e.what());
         }
         const CameraPose pose = poses_.at(f);
-        if (!culled_here) pipeline_.frustumPass(pose, stats);
+        if (!culled_here) pipeline_.frustumPass(pose, stats, Pipeline::FrustumUse::Measure);
         stats.objects_in_frustum = pipeline_.frustumCount();
         stats.objects_occluded = stats.objects_in_frustum - std::min<uint64_t>(stats.objects_in_frustum, shown.size());
         pipeline_.streamPass(f, stats);

@@ -15,8 +15,8 @@ FrustumStage::FrustumStage(const DeviceScene& scene) : scene_(scene) {
 }
 
 void FrustumStage::run(const CameraPose& pose, const k::Camera& camera) {
-    const k::Frustum frustum = k::frustumFromViewProj(camera.view_proj);
-    count_ = k::frustumCull(scene_.objects.ptr(), scene_.item_count, frustum, in_frustum_.ptr(), ids_.ptr());
+    frustum_ = k::frustumFromViewProj(camera.view_proj);
+    count_ = scene_.nodes ? 0 : k::frustumCull(scene_.objects.ptr(), scene_.item_count, frustum_, in_frustum_.ptr(), ids_.ptr());
     pose_ = pose;
     has_pose_ = true;
 }
@@ -25,9 +25,13 @@ bool FrustumStage::isFor(const CameraPose& pose) const {
     return has_pose_ && std::memcmp(&pose_, &pose, sizeof pose) == 0;
 }
 
-void FrustumStage::replace(const std::vector<uint32_t>& ids) {
-    count_ = uint32_t(ids.size());
-    k::copyToDevice(ids_.ptr(), ids.data(), count_);
+void FrustumStage::cullIds(k::DevicePtr<const uint32_t> ids, uint32_t count) {
+    count_ = k::frustumCullIds(scene_.objects.ptr(), ids, count, frustum_, in_frustum_.ptr(), ids_.ptr());
+}
+
+void FrustumStage::replace(k::DevicePtr<const uint32_t> ids, uint32_t count) {
+    count_ = count;
+    k::copyOnDevice(ids_.ptr(), ids, count);
 }
 
 std::vector<uint32_t> FrustumStage::download() const {

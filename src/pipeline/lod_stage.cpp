@@ -58,8 +58,6 @@ LodStage::LodStage(const OssFile& file, const DeviceScene& scene, const Pipeline
             for (uint32_t i = 0; i < scene.item_count; ++i) item_error[i] = scene.host_nodes[i].error;
             item_error_.resize(item_error.size());
             k::copyToDevice(item_error_.ptr(), item_error.data(), item_error.size());
-            host_lod_error_ = std::move(lod_error);
-            host_scale_ = std::move(scale);
         }
     }
     double scene_vertices = 0;

@@ -46,12 +46,10 @@ public:
                 std::span<const std::pair<uint32_t, uint32_t>> previous, const k::HzmLevels* hzm);
 
     double budget() const { return budget_; }
-    // The error rule with nodes: per mesh the largest collapse error of each level, per item its
-    // world scale (the cut's costs need them on the host); empty otherwise.
-    std::vector<float> takeHostErrorTables(std::vector<float>& scale) {
-        scale = std::move(host_scale_);
-        return std::move(host_lod_error_);
-    }
+    // The error rule: per mesh the largest collapse error of each level (laid out as the maps),
+    // per item its world scale, on the device (the cut's costs read them too); null otherwise.
+    k::DevicePtr<const float> lodErrors() const { return lod_error_.ptr(); }
+    k::DevicePtr<const float> itemScales() const { return object_scale_.ptr(); }
 
 private:
     const DeviceScene& scene_;
@@ -62,7 +60,6 @@ private:
     // largest collapse error of the level with k vertices; per object, its world scale. With
     // nodes: per item, the world error its input already has (an HLOD's node error, 0 for leaves).
     k::DeviceArray<float> lod_error_, object_scale_, item_error_;
-    std::vector<float> host_lod_error_, host_scale_;
     k::DeviceArray<float> visible_share_;  // visibility_weighted: per visible entry
     k::PinnedArray<k::LodEntry> previous_lod_;  // the hysteresis' last visible set, on its way up
     k::DeviceArray<k::LodEntry> previous_lod_device_;

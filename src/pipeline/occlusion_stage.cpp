@@ -5,6 +5,7 @@
 #include "hzm_test.h"
 #include "keep_visible.h"
 #include "occluder_order.h"
+#include "pipeline/cut_stage.h"
 #include "pipeline/pipeline.h"
 #include "scan.h"
 
@@ -12,7 +13,7 @@
 
 namespace occ {
 
-OcclusionStage::OcclusionStage(const OssFile& file, const DeviceScene& scene, const PipelineOptions& options)
+OcclusionStage::OcclusionStage(const DeviceScene& scene, const PipelineOptions& options)
     : scene_(scene), options_(options) {
     occluder_budget_ = double(options.pvs_occluder_triangles);
     // Every array a frame needs, sized once for the worst case (every item in the frustum and
@@ -37,11 +38,14 @@ OcclusionStage::OcclusionStage(const OssFile& file, const DeviceScene& scene, co
         }
     }
     weights_.resize(std::max<uint32_t>(1, scene.cos_count));
-    if (!scene.nodes && scene.cos_count > 0) {
+    if (scene.cos_count > 0) {
         // Eq. 3 then weighs the frustum's COS members, not the whole COS (on the 10^6-object
-        // plant 695 K candidates, of which about 10^5 are in the frustum on a walk).
+        // plant 695 K candidates, of which about 10^5 are in the frustum on a walk); with the
+        // hierarchy, the COS members among the candidates in the frustum.
+        std::vector<uint32_t> cos(scene.cos_count);  // item ids (the file's are object ids)
+        k::copyToHost(cos.data(), scene.cos.ptr(), cos.size());
         std::vector<uint8_t> in_cos(room, 0);
-        for (const uint32_t id : file.cos()) in_cos[id] = 1;
+        for (const uint32_t id : cos) in_cos[id] = 1;
         in_cos_.resize(room);
         k::copyToDevice(in_cos_.ptr(), in_cos.data(), room);
         weights_.resize(room);
@@ -138,31 +142,32 @@ k::DevicePtr<uint32_t> OcclusionStage::lastVisible(uint64_t frame, k::DeviceArra
     return record.ptr() + (frame % options_.pvs_occluder_lag) * room;
 }
 
-void OcclusionStage::buildHzm(const k::Camera& camera, const FrustumStage& frustum, const OccluderSources& sources,
-                              FrameStats& stats) {
+void OcclusionStage::buildHzm(const k::Camera& camera, FrustumStage& frustum, const OccluderSources& sources,
+                              FrameStats& stats, CutStage* cut) {
     // The earlier PVS stays on the device for this: nothing crosses the bus.
     k::DevicePtr<const uint32_t> source = sources.newer;
     uint32_t source_count = sources.newer_count;
     if (sources.has_older && source_count > 0) {
         candidates_.growTo(source_count + sources.older_count);
-        if (sources.ascending) {
-            // Both sets, each id once: the ranking then sorts about half as many keys (both
-            // are ascending without the hierarchy: compactions of the frustum's ids).
-            source_count = k::unionAscending(source, source_count, sources.older, sources.older_count, candidates_.ptr());
-        } else {
-            // Both sets, one after the other; the choice takes an id listed twice once.
-            k::copyOnDevice(candidates_.ptr(), source, source_count);
-            k::copyOnDevice(candidates_.ptr() + source_count, sources.older, sources.older_count);
-            source_count += sources.older_count;
-        }
+        // Both sets, each id once: the ranking then sorts about half as many keys (both are
+        // ascending: compactions of the frustum's ids, or with the hierarchy its fine cuts).
+        source_count = k::unionAscending(source, source_count, sources.older, sources.older_count, candidates_.ptr());
         source = candidates_.ptr();
     }
     StageClock clock(stats);
+    // With the hierarchy only the candidates are tested against the frustum (their flags, and
+    // the list: those in it).
+    if (cut) frustum.cullIds(source, source_count);
     // No earlier PVS (the first frame, or the first two of the switch), or one the camera has
     // left (a jump: less than half of it is still in the frustum): a first pass with the AOS and
-    // what is left of that PVS gives this frame's own PVS as the candidates.
+    // what is left of that PVS gives this frame's own PVS as the candidates. With the hierarchy
+    // that pass starts from the cut refined without occlusion.
     const bool jumped =
         source_count > 0 && 2 * k::countInFrustum(source, source_count, frustum.inFrustum()) < source_count;
+    if ((source_count == 0 || jumped) && cut) {
+        cut->refine(camera, frustum.frustum(), frustum.flags(), nullptr);
+        frustum.replace(cut->cut(), cut->cutCount());
+    }
     if ((source_count == 0 || jumped) && options_.pvs_occluder_triangles > 0 && frustum.count() > 0) {
         chooseOccluders(camera, frustum, source, source_count);
         rasterOccluders(camera, stats);

@@ -17,6 +17,7 @@
 namespace occ {
 
 struct PipelineOptions;
+class CutStage;
 
 // Where a frame's PVS occluders come from: the PVS `pvs_occluder_lag` frames back (newer) and
 // the one twice as far (older), item ids on the device (either may be empty).
@@ -26,7 +27,6 @@ struct OccluderSources {
     k::DevicePtr<const uint32_t> older;
     uint32_t older_count = 0;
     bool has_older = false;  // older is a culled frame's (possibly with no occluders)
-    bool ascending = true;   // both are ascending (without the hierarchy): merged as a union
 };
 
 // Occlusion culling against a Hierarchical Z-Map (Peng & Cao 2013; Zhang et al. 1997): the
@@ -38,12 +38,15 @@ struct OccluderSources {
 class OcclusionStage {
 public:
     // options must outlive the stage; its pvs_occluder_triangles resolved (not auto).
-    OcclusionStage(const OssFile& file, const DeviceScene& scene, const PipelineOptions& options);
+    OcclusionStage(const DeviceScene& scene, const PipelineOptions& options);
 
     // OR: Eq. 3's AOS among the frustum's COS and the best of `sources` per triangle (or, with
     // no earlier PVS or one the camera left, of a first pass's own PVS), rastered, and the HZM.
-    void buildHzm(const k::Camera& camera, const FrustumStage& frustum, const OccluderSources& sources,
-                  FrameStats& stats);
+    // With the hierarchy (cut: its stage; null without), no frame tests every item: the AOS is
+    // chosen among the sources in the frustum, and a first pass among the cut refined without
+    // occlusion; the frustum's list is left as one of those.
+    void buildHzm(const k::Camera& camera, FrustumStage& frustum, const OccluderSources& sources, FrameStats& stats,
+                  CutStage* cut);
     // HC of `frame` against the last buildHzm's HZM: the frustum items it does not prove hidden
     // (and, with the records, those kept visible), ascending into out; returns how many. Laps
     // `clock` for the late pass's stages.

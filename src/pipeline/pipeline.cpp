@@ -78,12 +78,8 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     if (!(options_.occluder_ms >= 0) || !std::isfinite(options_.occluder_ms))
         throw OptionError("occluder_ms", std::to_string(options_.occluder_ms) + ": must be a finite number >= 0");
     frustum_ = std::make_unique<FrustumStage>(scene_);
-    occlusion_ = std::make_unique<OcclusionStage>(file, scene_, options_);
-    if (scene_.nodes) {
-        std::vector<float> scale;
-        std::vector<float> lod_error = lod_->takeHostErrorTables(scale);
-        cut_ = std::make_unique<CutStage>(scene_, options_, std::move(lod_error), std::move(scale));
-    }
+    occlusion_ = std::make_unique<OcclusionStage>(scene_, options_);
+    if (scene_.nodes) cut_ = std::make_unique<CutStage>(scene_, options_, lod_->lodErrors(), lod_->itemScales());
     const bool coherent = options_.stream == StreamMode::Coherent;
     stream_ = std::make_unique<StreamStage>(
         file, scene_,
@@ -92,14 +88,16 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
     visible_.reserve(scene_.item_count);
 }
 
-void Pipeline::frustumPass(const CameraPose& pose, FrameStats& stats) {
+void Pipeline::frustumPass(const CameraPose& pose, FrameStats& stats, FrustumUse use) {
     StageClock clock(stats);
     const k::Camera camera = toKernelCamera(pose, options_.width, options_.height);
     frustum_->run(pose, camera);
-    // With nodes the frustum's cut is the visible set of modes full and lod; oc+lod refines
-    // against the HZM only (its in-frustum items are then the cut and the nodes found hidden),
-    // and its first frame's occluders come from every item the frustum holds.
-    if (cut_ && options_.mode != CullMode::OcLod) frustum_->replace(cut_->refine(camera, frustum_->inFrustum(), nullptr));
+    // With nodes the frustum's cut is the visible set of modes full and lod; oc+lod refines once,
+    // against the HZM, in cullPass (its frustum list is then the cut and the nodes found hidden).
+    if (cut_ && (options_.mode != CullMode::OcLod || use == FrustumUse::Measure)) {
+        cut_->refine(camera, frustum_->frustum(), frustum_->flags(), nullptr);
+        frustum_->replace(cut_->cut(), cut_->cutCount());
+    }
     clock.lap(Stage::FrustumCull);
 }
 
@@ -111,8 +109,8 @@ void Pipeline::requireFrustum(const CameraPose& pose, const char* pass) const {
 void Pipeline::occluderPass(const CameraPose& pose, uint64_t frame, FrameStats& stats) {
     requireFrustum(pose, "occluderPass");
     if (options_.mode != CullMode::OcLod) return;
-    const OccluderSources sources = history_.occluderSources(frame, options_.pvs_occluder_lag, !scene_.nodes);
-    occlusion_->buildHzm(toKernelCamera(pose, options_.width, options_.height), *frustum_, sources, stats);
+    const OccluderSources sources = history_.occluderSources(frame, options_.pvs_occluder_lag);
+    occlusion_->buildHzm(toKernelCamera(pose, options_.width, options_.height), *frustum_, sources, stats, cut_.get());
 }
 
 void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stats) {
@@ -124,10 +122,10 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     if (options_.mode == CullMode::OcLod) {
         if (cut_) {
             const k::HzmLevels hzm = occlusion_->hzmLevels();
-            const std::vector<uint32_t>& cut = cut_->refine(camera, frustum_->inFrustum(), &hzm);
-            frustum_->replace(cut_->frustumShare());
-            count = uint32_t(cut.size());
-            k::copyToDevice(pvs, cut.data(), count);
+            cut_->refine(camera, frustum_->frustum(), frustum_->flags(), &hzm);
+            frustum_->replace(cut_->frustumShare(), cut_->frustumShareCount());
+            count = cut_->cutCount();
+            k::copyOnDevice(pvs, cut_->cut(), count);
         } else {
             count = occlusion_->cull(camera, frame, *frustum_, pvs, stats, clock);
         }
@@ -151,13 +149,12 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     std::vector<VisibleSet::Entry> entries(count);
     for (size_t j = 0; j < count; ++j) entries[j] = {visible_.ids[j], visible_.vertices[j]};
     VisibleHistory::Frame& h = history_.push(frame, VisibleSet(std::move(entries)));
-    if (cut_ && !cut_->fineCut().empty()) {
+    if (cut_ && cut_->fineCutCount() > 0) {
         // The coarsened cut's HLODs are no occluders: the fine cut's visible items before the
         // coarsening (the leaves among them) are the candidates.
-        const std::vector<uint32_t>& fine = cut_->fineCut();
-        h.occluder_count = uint32_t(fine.size());
+        h.occluder_count = cut_->fineCutCount();
         h.occluders.growTo(std::max<uint32_t>(1, h.occluder_count));
-        k::copyToDevice(h.occluders.ptr(), fine.data(), h.occluder_count);
+        k::copyOnDevice(h.occluders.ptr(), cut_->fineCut(), h.occluder_count);
     } else {
         const bool kept = options_.mode == CullMode::OcLod && occlusion_->keepsRecords();
         h.occluder_count = kept ? occlusion_->seenCount() : count;

@@ -177,7 +177,10 @@ public:
     // Frustum culling for `pose` (with the hierarchy in modes full and lod, also the cut): the
     // first step of a frame on the rank that culls it, and a display's for its measurements
     // when its pipeline did not cull the frame (frustumObjects()).
-    void frustumPass(const CameraPose& pose, FrameStats& stats);
+    // use Measure: a display's pass (it did not cull the frame); with the hierarchy in oc+lod it
+    // refines the cut without occlusion, which Cull leaves to cullPass.
+    enum class FrustumUse { Cull, Measure };
+    void frustumPass(const CameraPose& pose, FrameStats& stats, FrustumUse use = FrustumUse::Cull);
     // OR of `frame`, after frustumPass(pose) (std::logic_error otherwise): the occluders (Eq. 3's
     // AOS and the largest objects of the PVS this pipeline chose for frame -
     // options().pvs_occluder_lag, if it culled that frame), their depth raster and the HZM.

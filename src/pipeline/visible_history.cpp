@@ -20,9 +20,8 @@ const VisibleSet* VisibleHistory::find(uint64_t frame) const {
     return nullptr;
 }
 
-OccluderSources VisibleHistory::occluderSources(uint64_t frame, uint32_t lag, bool ascending) const {
+OccluderSources VisibleHistory::occluderSources(uint64_t frame, uint32_t lag) const {
     OccluderSources s;
-    s.ascending = ascending;
     if (frame < lag) return s;
     for (const Frame& h : frames_) {
         if (h.frame == frame - lag) s.newer = h.occluders.ptr(), s.newer_count = h.occluder_count;

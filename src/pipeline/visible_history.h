@@ -37,7 +37,7 @@ public:
     // no occluders).
     Frame& push(uint64_t frame, VisibleSet set);
     // The occluder candidates of `frame`: the culled frames frame - lag and frame - 2 lag.
-    OccluderSources occluderSources(uint64_t frame, uint32_t lag, bool ascending) const;
+    OccluderSources occluderSources(uint64_t frame, uint32_t lag) const;
     // The visible set of frame - 1 when it is the newest (empty otherwise): the hysteresis' base.
     std::span<const VisibleSet::Entry> lastFrameLods(uint64_t frame) const;
     // The set of `frame`, or null when the history no longer (or never) had it.

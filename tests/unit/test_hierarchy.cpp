@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The object hierarchy and its HLODs (issue 16), in memory and in the .oss.
+#include "frustum_cull.h"
 #include "import/plant.h"
+#include "pipeline/pipeline.h"
 #include "prep/cluster_collapse.h"
 #include "prep/fast_collapser.h"
 #include "prep/rearrange.h"
@@ -8,9 +10,12 @@
 #include "scene/lod_prefix.h"
 #include "prep/prepare.h"
 #include "test_support.h"
+#include "view/camera.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <memory>
 #include <set>
@@ -223,6 +228,129 @@ TEST(Hierarchy, LevelWithTrianglesFindsTheSmallestLevelThatHasThem) {
     EXPECT_EQ(levelWithTriangles(map, 2, 5), 4u);
     EXPECT_EQ(levelWithTriangles(map, 2, 6), 6u);
     EXPECT_EQ(levelWithTriangles(map, 2, 100), 6u);
+}
+
+}  // namespace
+}  // namespace occ
+
+namespace occ {
+namespace {
+
+// The reference cut: every item against the frustum in one pass (the flat pipeline's), then a
+// host recursion from the root that stops at leaves or, with the budget rule, where a node's own
+// error projects to at most tau pixels.
+std::vector<uint32_t> hostCut(const Pipeline& p, const CameraPose& pose, bool to_leaves, uint64_t& reached) {
+    const DeviceScene& scene = p.scene();
+    const k::Camera camera = toKernelCamera(pose, p.options().width, p.options().height);
+    k::DeviceArray<uint8_t> flags;
+    flags.resize(scene.item_count);
+    k::frustumCull(scene.objects.ptr(), scene.item_count, k::frustumFromViewProj(camera.view_proj), flags.ptr());
+    std::vector<uint8_t> in(scene.item_count);
+    k::copyToHost(in.data(), flags.ptr(), in.size());
+    const float pixels_at_1 = float(p.options().height) / (2.0f * std::tan(0.5f * camera.fovy));
+    std::vector<uint32_t> cut;
+    reached = 0;
+    std::vector<uint32_t> stack{0};
+    while (!stack.empty()) {
+        const uint32_t id = stack.back();
+        stack.pop_back();
+        if (!in[id]) continue;
+        ++reached;
+        const DeviceScene::NodeLinks& node = scene.host_nodes[id];
+        const k::Aabb& box = scene.host_objects[id].aabb;
+        const float distance =
+            std::max(glm::length(glm::clamp(camera.eye, box.min, box.max) - camera.eye), camera.near_plane);
+        if (node.child_count == 0 || (!to_leaves && node.error * pixels_at_1 / distance <= p.options().tau)) {
+            cut.push_back(id);
+            continue;
+        }
+        for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) stack.push_back(c);
+    }
+    std::sort(cut.begin(), cut.end());
+    return cut;
+}
+
+// Whether no node of the ascending list lies under another of it, every one in the frustum.
+bool isCutOfFrustumNodes(const Pipeline& p, const std::vector<uint32_t>& cut) {
+    const DeviceScene& scene = p.scene();
+    std::vector<uint32_t> parent(scene.item_count, UINT32_MAX);
+    for (uint32_t i = 0; i < scene.item_count; ++i)
+        for (uint32_t c = scene.host_nodes[i].first_child; c < scene.host_nodes[i].first_child + scene.host_nodes[i].child_count; ++c)
+            parent[c] = i;
+    std::vector<uint8_t> on(scene.item_count, 0);
+    for (const uint32_t id : cut) on[id] = 1;
+    for (const uint32_t id : cut)
+        for (uint32_t a = parent[id]; a != UINT32_MAX; a = parent[a])
+            if (on[a]) return false;
+    return std::is_sorted(cut.begin(), cut.end()) && std::adjacent_find(cut.begin(), cut.end()) == cut.end();
+}
+
+// Issue 34: the cut is refined on the device, level by level, testing only the nodes it
+// reaches: no frame tests every item against the frustum. Its cut equals a host refinement's
+// over a whole-scene frustum pass, and a view of one corner reaches a small share of the nodes.
+TEST(Hierarchy, TheDeviceCutEqualsAHostRefinementAndReachesOnlyWhatItRefines) {
+    const HierarchyFixture& f = fixture();
+    HlodOptions hlod;
+    hlod.node_triangles = 300;
+    const std::string path = (test::scratchDir() / "hierarchy_cut.oss").string();
+    writeWithHierarchy(*f.file, path, 4, hlod);
+    const OssFile file = OssFile::open(path);
+    k::Aabb bounds{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+    for (const k::Aabb& b : f.boxes) bounds.min = glm::min(bounds.min, b.min), bounds.max = glm::max(bounds.max, b.max);
+    const glm::vec3 centre = 0.5f * (bounds.min + bounds.max), size = bounds.max - bounds.min;
+    CameraPose overview, corner;
+    overview.eye = centre + glm::vec3(1.2f * size.x, 1.5f * size.y + 0.5f * size.x, 0.9f * size.z);
+    overview.target = centre;
+    overview.far_plane = 10.0f * glm::length(size);
+    // Straight down onto a corner of the plant, a few units across.
+    corner.eye = bounds.min + glm::vec3(2.0f, size.y + 4.0f, 2.0f);
+    corner.target = bounds.min + glm::vec3(2.0f, 0.0f, 2.0f);
+    corner.up = glm::vec3(0.0f, 0.0f, 1.0f);
+    corner.fovy_degrees = 30.0f;
+    corner.far_plane = overview.far_plane;
+    for (const CullMode mode : {CullMode::Full, CullMode::Lod}) {
+        for (const float tau : {0.5f, 4.0f}) {
+            PipelineOptions o;
+            o.width = 256, o.height = 192;
+            o.mode = mode;
+            o.hierarchy = true;
+            o.tau = tau;
+            Pipeline p(file, o);
+            for (const bool at_corner : {false, true}) {
+                const CameraPose& pose = at_corner ? corner : overview;
+                FrameStats stats;
+                p.frustumPass(pose, stats);
+                uint64_t reached = 0;
+                const std::vector<uint32_t> expected = hostCut(p, pose, mode == CullMode::Full, reached);
+                const std::vector<uint32_t> cut = p.downloadFrustumObjects();
+                EXPECT_EQ(cut, expected) << "mode " << int(mode) << ", tau " << tau;
+                EXPECT_EQ(p.nodesTested(), reached);
+                EXPECT_FALSE(cut.empty());
+                if (at_corner) {
+                    EXPECT_LT(p.nodesTested(), p.itemCount() / 4) << "a corner reaches a small share";
+                }
+            }
+        }
+    }
+    // The error rule with occlusion: frames through the pipeline give cuts of nodes in the
+    // frustum, none under another; the fine cut's leaves supply the next frames' occluders.
+    PipelineOptions o;
+    o.width = 256, o.height = 192;
+    o.hierarchy = true;
+    o.lod = LodRule::Error;
+    o.tau = 2.0f;
+    Pipeline p(file, o);
+    for (uint64_t frame = 0; frame < 4; ++frame) {
+        CameraPose pose = overview;
+        pose.eye += glm::vec3(0.1f * float(frame) * size.x, 0.0f, 0.0f);
+        const FrameStats stats = p.runFrame(pose, frame);
+        EXPECT_TRUE(isCutOfFrustumNodes(p, p.visibleObjects())) << "frame " << frame;
+        EXPECT_GT(p.visibleObjects().size(), 0u);
+        EXPECT_LT(p.visibleObjects().size(), p.itemCount());
+        if (frame > 0) {
+            EXPECT_GT(stats.occluder_triangles, 0u) << "frame " << frame;
+        }
+    }
 }
 
 }  // namespace
