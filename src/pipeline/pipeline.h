@@ -240,7 +240,8 @@ public:
     k::HzmLevels hzmLevels() const { return occlusion_->hzmLevels(); }
     // Objects in the frustum, ascending ids, frustumCount() of them (with the hierarchy: the
     // nodes of the cut refined without occlusion; in oc+lod, after the cull, the cut and the
-    // nodes its refinement found hidden, and before it every item in the frustum).
+    // nodes its refinement found hidden, and before it the occluder candidates in the frustum,
+    // in no particular order: no frame tests every item).
     k::DevicePtr<const uint32_t> frustumIds() const { return frustum_->ids(); }
     // Items the visible set, the deltas and the layout are over: objects, or nodes.
     uint32_t itemCount() const { return scene_.item_count; }
