@@ -2,8 +2,10 @@
 # SPDX-License-Identifier: MIT
 # occswitch bench massive at a tiny size end to end: makes the plant (gen and prep, their cost
 # kept beside the files), walks and orbits it, runs the exact prefix, and writes massive.md and
-# massive.csv with four runs whose invariants hold (0 false culls, exact churn known, peak
-# memory measured); a second run reuses the scene; impossible options exit 2.
+# massive.csv with six runs whose invariants hold (0 false culls, exact churn known, peak
+# memory measured), and, the plant having a hierarchy, six more (issue 34): the walk and the
+# orbit with it, the orbit's prefix against the full-detail picture flat and with it, and a
+# small plant's walk and orbit; a second run reuses the scenes; impossible options exit 2.
 set -u
 exe=$1
 dir=$(mktemp -d)
@@ -15,18 +17,20 @@ field() {  # field ROW COLUMN of massive.csv (rows from 1)
     NR == row + 1 { if (!c) exit 3; print $c }' "$out/massive.csv"
 }
 
-"$exe" bench massive --out "$out" --objects 1000 --frames 14 --exact-frames 4 >"$dir/stdout" 2>"$dir/stderr" ||
+massive=(bench massive --out "$out" --objects 1000 --frames 14 --exact-frames 4 --reference-frames 3 --growth-objects 300)
+"$exe" "${massive[@]}" >"$dir/stdout" 2>"$dir/stderr" ||
   { cat "$dir/stderr"; fail "bench massive"; }
 [ "$(cat "$dir/stdout")" = "$out/massive.md" ] || fail "stdout is not the summary's path: $(cat "$dir/stdout")"
 grep -q "^bench massive: gen plant: " "$dir/stderr" || fail "no gen step"
 grep -q "^bench massive: prep: " "$dir/stderr" || fail "no prep step"
 [ -s "$out/scenes/plant_1000.oss" ] && [ -s "$out/scenes/plant_1000.bin" ] || fail "the scene is not in scenes/"
-[ "$(wc -l <"$out/massive.csv")" -eq 7 ] || fail "massive.csv does not have 6 runs"
+[ "$(wc -l <"$out/massive.csv")" -eq 13 ] || fail "massive.csv does not have 12 runs"
+[ -s "$out/scenes/plant_300.oss" ] || fail "the small plant is not in scenes/"
 [ "$(field 1 frames)" = 14 ] || fail "the walk ran $(field 1 frames) frames"
 [ "$(field 4 frames)" = 5 ] || fail "the exact prefix ran $(field 4 frames) frames, expected 4 + the first"
 [ "$(field 4 false_culls)" = 0 ] || fail "false culls: $(field 4 false_culls)"
 [ "$(field 4 exact_churn)" != n/a ] || fail "no exact churn"
-for r in 1 2 3 4 5 6; do
+for r in 1 2 3 4 5 6 7 8 9 10 11 12; do
   awk -v v="$(field $r peak_mb)" 'BEGIN { exit !(v > 1) }' || fail "run $r: no peak memory"
   awk -v v="$(field $r median_ms)" 'BEGIN { exit !(v > 0) }' || fail "run $r: no median frame time"
 done
@@ -43,9 +47,24 @@ grep -q "with drawing: [0-9.]* ms against [0-9.]* ms" "$out/massive.md" || fail 
 grep -q "raster [0-9.]* M occluder triangles/s per core" "$out/massive.md" || fail "no raster rate in the summary"
 grep -q "gen: [0-9.]* s, [0-9]* MB peak; prep: [0-9.]* s, [0-9]* MB peak" "$out/massive.md" || fail "gen/prep cost missing"
 grep -q "made by this run" "$out/massive.md" || fail "the first run did not say it made the scene"
+# The hierarchy's rows: items drawn and triangles, PSNR where the full-detail picture was drawn
+# (above 15 dB: the same view, simplified), none where it was not; the targets stated.
+for r in 7 8 11 12; do
+  awk -v v="$(field $r drawn)" -v t="$(field $r triangles)" 'BEGIN { exit !(v > 0 && t > 0) }' || fail "run $r: nothing drawn"
+done
+[ "$(field 9 frames)" = 4 ] || fail "the reference prefix ran $(field 9 frames) frames, expected 3 + the first"
+for r in 9 10; do
+  awk -v v="$(field $r psnr_db)" 'BEGIN { exit !(v > 15 && v <= 100) }' || fail "run $r: PSNR $(field $r psnr_db)"
+done
+[ "$(field 7 psnr_db)" = n/a ] || fail "a run without --reference has a PSNR: $(field 7 psnr_db)"
+for t in "orbit with the hierarchy: median" "items drawn on the orbit with the hierarchy: [0-9]*" \
+         "cut churn on the orbit: [0-9.]* %" "PSNR against the full-detail picture over the orbit's first 3 frames" \
+         "growth from the 300-object plant" "prep with the hierarchy (prep's default): [0-9]* MB peak"; do
+  grep -q "$t" "$out/massive.md" || fail "no '$t' in massive.md"
+done
 
 # Reused: no gen or prep, their cost still reported.
-"$exe" bench massive --out "$out" --objects 1000 --frames 14 --exact-frames 4 >/dev/null 2>"$dir/stderr2" ||
+"$exe" "${massive[@]}" >/dev/null 2>"$dir/stderr2" ||
   { cat "$dir/stderr2"; fail "second bench massive"; }
 grep -q "gen plant" "$dir/stderr2" && fail "the second run made the scene again"
 grep -q "reused; its cost from when it was made" "$out/massive.md" || fail "reuse not said"
@@ -55,4 +74,6 @@ grep -q "gen: [0-9.]* s, [0-9]* MB peak" "$out/massive.md" || fail "gen cost los
 "$exe" bench massive --out "$out" --objects 10 2>/dev/null; [ $? -eq 2 ] || fail "--objects 10 did not exit 2"
 "$exe" bench massive --out "$out" --frames 20 --exact-frames 30 2>/dev/null; [ $? -eq 2 ] || fail "--exact-frames > --frames did not exit 2"
 "$exe" bench massive 2>/dev/null; [ $? -eq 2 ] || fail "no --out did not exit 2"
+"$exe" bench massive --out "$out" --frames 20 --exact-frames 4 --reference-frames 21 2>/dev/null
+[ $? -eq 2 ] || fail "--reference-frames > --frames did not exit 2"
 echo ok

@@ -44,6 +44,10 @@ struct WalkFigures {
     double occlusion_ms = NAN, raster_rate = NAN;  // medians over frames 1 on; rate per core
     double exact_churn = NAN, false_culls = NAN, accuracy = NAN;
     double peak_mb = NAN, seconds = NAN;
+    // Means: items drawn (a vertex count above 0) and active triangles over frames `from` on;
+    // the visible set's churn as a share of it, over frames 1 on; PSNR against the full-detail
+    // picture (--reference runs) over frames `from` on.
+    double drawn = NAN, triangles = NAN, churn_pct = NAN, psnr_db = NAN;
 };
 
 // Means over the frames from `from` on (the first ones stream the first view and warm the caches).
@@ -70,12 +74,14 @@ WalkFigures figures(const fs::path& stats_csv, const RunResult& run, size_t from
         for (double m : ms) f.over_2x_median += m > 2 * f.median_ms;
     }
     double streamed = 0, active = 0, churn = 0, visible = 0, occ = 0, raster = 0, exact = 0, false_culls = 0, acc = 0;
+    double drawn = 0, churn_share = 0, psnr = 0;
     size_t later = 0, n = 0;
-    const bool has_exact = t.has("exact_added");
+    const bool has_exact = t.has("exact_added"), has_psnr = t.has("psnr_db");
     for (size_t i = 0; i < s.display.size(); ++i) {
         const size_t r = s.display[i];
         if (i >= 1) {  // churn is what changed since the frame before
             churn += t.num(r, "pvs_added") + t.num(r, "pvs_removed");
+            churn_share += (t.num(r, "pvs_added") + t.num(r, "pvs_removed")) / std::max(1.0, t.num(r, "objects_visible"));
             if (has_exact) exact += t.num(r, "exact_added") + t.num(r, "exact_removed");
             ++later;
         }
@@ -85,6 +91,8 @@ WalkFigures figures(const fs::path& stats_csv, const RunResult& run, size_t from
         active += t.num(r, "active_triangles");
         f.frames_streaming += t.num(r, "streamed_triangles") > 0;
         visible += t.num(r, "objects_visible");
+        drawn += t.num(r, "objects_drawn");
+        if (has_psnr) psnr += t.num(r, "psnr_db");
         occ += t.num(r, "occluder_triangles");
         raster += t.num(r, "ms_depth_raster");
         if (has_exact) false_culls += t.num(r, "false_culls"), acc += t.num(r, "culling_accuracy");
@@ -93,11 +101,15 @@ WalkFigures figures(const fs::path& stats_csv, const RunResult& run, size_t from
     f.raster_rate = s.medianRasterRatePerCore();
     if (later) {
         f.churn = churn / double(later);
+        f.churn_pct = 100.0 * churn_share / double(later);
         if (has_exact) f.exact_churn = exact / double(later);
     }
     if (n) {
         f.streamed_share = active > 0 ? 100.0 * streamed / active : 0.0;
         f.visible = visible / double(n);
+        f.drawn = drawn / double(n);
+        f.triangles = active / double(n);
+        if (has_psnr) f.psnr_db = psnr / double(n);
         f.occluder_triangles = occ / double(n);
         f.raster_ms = raster / double(n);
         if (has_exact) f.false_culls = false_culls, f.accuracy = acc / double(n);
@@ -116,54 +128,30 @@ public:
     int run() {
         const auto start = Clock::now();
         for (const fs::path& dir : {out_, scenes_, out_ / "logs", out_ / "raw"}) makeOutputFolder(dir.string());
-        const std::string stem = "plant_" + std::to_string(o_.objects);
-        const fs::path gltf = scenes_ / (stem + ".gltf"), oss = scenes_ / (stem + ".oss");
         std::fprintf(stderr, "bench massive: a %u-object plant in %s, %u-frame walk and orbit, logs in %s\n",
                      o_.objects, scenes_.c_str(), o_.frames, (out_ / "logs").c_str());
 
         // 1. The scene, made once and reused (its cost kept beside it).
-        if (!fs::exists(oss)) {
-            if (!fs::exists(gltf) || !fs::exists(scenes_ / (stem + ".bin"))) {
-                step("gen plant");
-                const RunResult r = runner_.run("gen", command({"gen", "plant", "--objects", std::to_string(o_.objects),
-                                                                "--seed", "1", "-o", gltf.string()}));
-                writeCost(scenes_ / (stem + ".gen.cost"), r);
-                made_ = true;
-                done(r);
-            }
-            step("prep");
-            const RunResult r = runner_.run("prep", command({"prep", gltf.string(), "-o", oss.string()}));
-            writeCost(scenes_ / (stem + ".prep.cost"), r);
-            made_ = true;
-            done(r);
-        }
-        gen_ = readCost(scenes_ / (stem + ".gen.cost"));
-        prep_ = readCost(scenes_ / (stem + ".prep.cost"));
+        const Scene scene = makeScene(o_.objects, "");
+        gen_ = scene.gen;
+        prep_ = scene.prep;
         {
-            const OssFile file = OssFile::open(oss.string());
+            const OssFile file = OssFile::open(scene.oss.string());
             objects_ = file.objectCount();
             triangles_ = 0;
             for (const oss::ObjectDisk& d : file.objects()) triangles_ += file.meshRecords()[d.mesh].triangle_count;
             oss_bytes_ = file.fileSize();
+            hierarchy_ = file.nodeCount() > 0;
         }
-        std::error_code ec;
-        input_bytes_ = fs::file_size(gltf, ec) + fs::file_size(scenes_ / (stem + ".bin"), ec);
+        input_bytes_ = scene.input_bytes;
+        const fs::path& oss = scene.oss;
 
         // 2. Camera paths.
-        const fs::path walk = out_ / "walk.cam", orbit = out_ / "orbit.cam", exact = out_ / "walk_exact.cam";
-        runner_.run("path_walk", command({"path", "walk", oss.string(), "--frames", std::to_string(o_.frames), "-o", walk.string()}));
-        runner_.run("path_orbit", command({"path", "orbit", oss.string(), "--frames", std::to_string(o_.frames), "-o", orbit.string()}));
-        {
-            // The exact visible set draws every frustum object at full detail: a prefix of the walk.
-            std::ifstream in(walk);
-            std::ostringstream head;
-            std::string line;
-            for (uint32_t n = 0; std::getline(in, line) && n < o_.exact_frames + 1;) {
-                head << line << "\n";
-                if (!line.empty() && line[0] != '#') ++n;
-            }
-            writeFileAtomic(exact.string(), head.str());
-        }
+        const fs::path walk = out_ / "walk.cam", orbit = out_ / "orbit.cam", exact = out_ / "walk_exact.cam",
+                       orbit_prefix = out_ / "orbit_reference.cam";
+        paths(oss, walk, orbit, "");
+        writePrefix(walk, exact, o_.exact_frames);
+        writePrefix(orbit, orbit_prefix, o_.reference_frames);
 
         // 3. The runs.
         walk_ = render("walk_oclod", oss, walk, {"--mode", "oc+lod", "--no-display"});
@@ -173,12 +161,83 @@ public:
         // With drawing (OpenGL through EGL, llvmpipe here): what a slow renderer makes of the same walk.
         walk_drawn_ = render("walk_oclod_drawn", oss, walk, {"--mode", "oc+lod", "--headless"});
         walk_lod_drawn_ = render("walk_lod_drawn", oss, walk, {"--mode", "lod", "--headless"});
+        if (hierarchy_) {
+            // Issue 34: the same walk and orbit with the hierarchy, the orbit's prefix against the
+            // full-detail picture flat and with it, and a small plant's walk and orbit with it.
+            const std::vector<std::string> h = {"--mode", "oc+lod", "--hierarchy", "on"};
+            walk_h_ = render("walk_hierarchy", oss, walk, join(h, {"--no-display"}));
+            orbit_h_ = render("orbit_hierarchy", oss, orbit, join(h, {"--no-display"}));
+            if (o_.reference_frames > 0) {
+                orbit_ref_ = render("orbit_reference", oss, orbit_prefix, {"--mode", "oc+lod", "--headless", "--reference"}, 1);
+                orbit_h_ref_ = render("orbit_hierarchy_reference", oss, orbit_prefix, join(h, {"--headless", "--reference"}), 1);
+            }
+            if (o_.growth_objects < o_.objects) {
+                const Scene small = makeScene(o_.growth_objects, "small_");
+                const fs::path small_walk = out_ / "small_walk.cam", small_orbit = out_ / "small_orbit.cam";
+                paths(small.oss, small_walk, small_orbit, "small_");
+                small_walk_h_ = render("small_walk_hierarchy", small.oss, small_walk, join(h, {"--no-display"}));
+                small_orbit_h_ = render("small_orbit_hierarchy", small.oss, small_orbit, join(h, {"--no-display"}));
+            }
+        }
 
         write(std::chrono::duration<double>(Clock::now() - start).count());
         return 0;
     }
 
 private:
+    struct Scene {
+        fs::path oss;
+        StepCost gen, prep;
+        uint64_t input_bytes = 0;
+    };
+    // The plant of `objects` objects in the scenes folder, generated and prepared unless it is
+    // there (each step's cost kept beside the files).
+    Scene makeScene(uint32_t objects, const std::string& log_prefix) {
+        const std::string stem = "plant_" + std::to_string(objects);
+        const fs::path gltf = scenes_ / (stem + ".gltf");
+        Scene s{scenes_ / (stem + ".oss"), {}, {}, 0};
+        if (!fs::exists(s.oss)) {
+            if (!fs::exists(gltf) || !fs::exists(scenes_ / (stem + ".bin"))) {
+                step(log_prefix.empty() ? "gen plant" : "gen plant of " + std::to_string(objects) + " objects (growth)");
+                const RunResult r = runner_.run(log_prefix + "gen", command({"gen", "plant", "--objects", std::to_string(objects),
+                                                                             "--seed", "1", "-o", gltf.string()}));
+                writeCost(scenes_ / (stem + ".gen.cost"), r);
+                made_ = made_ || log_prefix.empty();
+                done(r);
+            }
+            step(log_prefix.empty() ? "prep" : "prep of the " + std::to_string(objects) + "-object plant (growth)");
+            const RunResult r = runner_.run(log_prefix + "prep", command({"prep", gltf.string(), "-o", s.oss.string()}));
+            writeCost(scenes_ / (stem + ".prep.cost"), r);
+            made_ = made_ || log_prefix.empty();
+            done(r);
+        }
+        s.gen = readCost(scenes_ / (stem + ".gen.cost"));
+        s.prep = readCost(scenes_ / (stem + ".prep.cost"));
+        std::error_code ec;
+        s.input_bytes = fs::file_size(gltf, ec) + fs::file_size(scenes_ / (stem + ".bin"), ec);
+        return s;
+    }
+    void paths(const fs::path& oss, const fs::path& walk, const fs::path& orbit, const std::string& log_prefix) {
+        runner_.run(log_prefix + "path_walk",
+                    command({"path", "walk", oss.string(), "--frames", std::to_string(o_.frames), "-o", walk.string()}));
+        runner_.run(log_prefix + "path_orbit",
+                    command({"path", "orbit", oss.string(), "--frames", std::to_string(o_.frames), "-o", orbit.string()}));
+    }
+    // The first `frames` + 1 cameras of a path (the runs' first frame is measured apart).
+    static void writePrefix(const fs::path& path, const fs::path& prefix, uint32_t frames) {
+        std::ifstream in(path);
+        std::ostringstream head;
+        std::string line;
+        for (uint32_t n = 0; std::getline(in, line) && n < frames + 1;) {
+            head << line << "\n";
+            if (!line.empty() && line[0] != '#') ++n;
+        }
+        writeFileAtomic(prefix.string(), head.str());
+    }
+    static std::vector<std::string> join(std::vector<std::string> a, std::initializer_list<std::string> b) {
+        a.insert(a.end(), b);
+        return a;
+    }
     std::vector<std::string> command(std::initializer_list<std::string> args) const {
         std::vector<std::string> argv{exe_};
         argv.insert(argv.end(), args);
@@ -229,22 +288,36 @@ private:
               "visible, occluder triangles and raster ms over frames 10 on (the exact run: 1 on); churn over frames 1 on\n\n";
         md << "| run | frames | frame 0 ms | frame 1 ms | median ms | p99 ms | max ms | frames > 2x median | "
               "streamed share % | frames streaming | visible | PVS churn | exact churn | occluder tri | raster ms | "
-              "occlusion ms | raster M tri/s per core | false culls | accuracy % | peak MB | s |\n";
-        md << "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+              "occlusion ms | raster M tri/s per core | false culls | accuracy % | peak MB | s | drawn | triangles | "
+              "churn % of visible | PSNR dB |\n";
+        md << "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+              "---:|---:|---:|---:|\n";
         std::ostringstream csv;
         csv << "run,frames,frame0_ms,frame1_ms,median_ms,p99_ms,max_ms,over_2x_median,streamed_share_pct,frames_streaming,"
                "visible,pvs_churn,exact_churn,occluder_triangles,raster_ms,occlusion_ms,raster_mtri_per_s_per_core,false_culls,"
-               "accuracy_pct,peak_mb,seconds\n";
+               "accuracy_pct,peak_mb,seconds,drawn,triangles,churn_pct,psnr_db\n";
         struct Row {
             const char *key, *name;
             const WalkFigures* f;
         };
-        const Row rows[] = {{"walk_oclod", "walk, oc+lod", &walk_},
-                            {"walk_lod", "walk, lod", &walk_lod_},
-                            {"orbit_oclod", "orbit, oc+lod", &orbit_},
-                            {"walk_exact", "walk prefix, oc+lod, exact", &exact_},
-                            {"walk_oclod_drawn", "walk, oc+lod, drawn", &walk_drawn_},
-                            {"walk_lod_drawn", "walk, lod, drawn", &walk_lod_drawn_}};
+        std::vector<Row> rows = {{"walk_oclod", "walk, oc+lod", &walk_},
+                                 {"walk_lod", "walk, lod", &walk_lod_},
+                                 {"orbit_oclod", "orbit, oc+lod", &orbit_},
+                                 {"walk_exact", "walk prefix, oc+lod, exact", &exact_},
+                                 {"walk_oclod_drawn", "walk, oc+lod, drawn", &walk_drawn_},
+                                 {"walk_lod_drawn", "walk, lod, drawn", &walk_lod_drawn_}};
+        if (hierarchy_) {
+            rows.push_back({"walk_hierarchy", "walk, oc+lod, hierarchy", &walk_h_});
+            rows.push_back({"orbit_hierarchy", "orbit, oc+lod, hierarchy", &orbit_h_});
+            if (o_.reference_frames > 0) {
+                rows.push_back({"orbit_reference", "orbit prefix, oc+lod, reference", &orbit_ref_});
+                rows.push_back({"orbit_hierarchy_reference", "orbit prefix, oc+lod, hierarchy, reference", &orbit_h_ref_});
+            }
+            if (o_.growth_objects < o_.objects) {
+                rows.push_back({"small_walk_hierarchy", "small plant: walk, oc+lod, hierarchy", &small_walk_h_});
+                rows.push_back({"small_orbit_hierarchy", "small plant: orbit, oc+lod, hierarchy", &small_orbit_h_});
+            }
+        }
         for (const auto& [key, name, f] : rows) {
             const std::vector<std::string> cells = {
                 std::to_string(f->frames), fixed(f->first_ms, 1), fixed(f->second_ms, 1), fixed(f->median_ms, 1),
@@ -252,7 +325,8 @@ private:
                 std::to_string(f->frames_streaming), fixed(f->visible, 0), fixed(f->churn, 1), fixed(f->exact_churn, 1),
                 fixed(f->occluder_triangles, 0), fixed(f->raster_ms, 2), fixed(f->occlusion_ms, 2), fixed(f->raster_rate / 1e6, 2),
                 fixed(f->false_culls, 0), fixed(f->accuracy, 1),
-                fixed(f->peak_mb, 0), fixed(f->seconds, 1)};
+                fixed(f->peak_mb, 0), fixed(f->seconds, 1), fixed(f->drawn, 0), fixed(f->triangles, 0),
+                fixed(f->churn_pct, 2), fixed(f->psnr_db, 2)};
             md << "| " << name;
             csv << key;
             for (const std::string& c : cells) md << " | " << c, csv << "," << c;
@@ -274,6 +348,7 @@ private:
            << fixed(orbit_.p99_ms / orbit_.median_ms, 2) << "; frame 0 / median: walk "
            << fixed(walk_.first_ms / walk_.median_ms, 1) << ", orbit " << fixed(orbit_.first_ms / orbit_.median_ms, 1) << "\n"
            << "- PVS churn / exact churn over the walk's prefix: " << fixed(exact_.churn / exact_.exact_churn, 2) << "\n";
+        if (hierarchy_) writeHierarchyTargets(md);
         writeFileAtomic((out_ / "massive.md").string(), md.str());
         writeFileAtomic((out_ / "massive.csv").string(), csv.str());
         std::fprintf(stderr, "bench massive: done in %.0f s\n", total);
@@ -287,7 +362,39 @@ private:
     StepCost gen_, prep_;
     bool made_ = false;
     uint64_t objects_ = 0, triangles_ = 0, oss_bytes_ = 0, input_bytes_ = 0;
+    bool hierarchy_ = false;
     WalkFigures walk_, walk_lod_, orbit_, exact_, walk_drawn_, walk_lod_drawn_;
+    WalkFigures walk_h_, orbit_h_, orbit_ref_, orbit_h_ref_, small_walk_h_, small_orbit_h_;
+
+    // Issue 34's targets, each with its figure and whether it is met.
+    void writeHierarchyTargets(std::ostringstream& md) const {
+        const auto verdict = [](bool met) { return met ? "met" : "missed"; };
+        md << "\nTargets (issue 34, the hierarchy; pipeline without drawing):\n\n"
+           << "- orbit with the hierarchy: median " << fixed(orbit_h_.median_ms, 1) << " ms, p99 " << fixed(orbit_h_.p99_ms, 1)
+           << " ms (target at most 16 / 32: " << verdict(orbit_h_.median_ms <= 16 && orbit_h_.p99_ms <= 32) << "); flat "
+           << fixed(orbit_.median_ms, 1) << " / " << fixed(orbit_.p99_ms, 1) << " ms\n"
+           << "- walk with the hierarchy: median " << fixed(walk_h_.median_ms, 1) << " ms, p99 " << fixed(walk_h_.p99_ms, 1)
+           << " ms (target at most 16 / 32: " << verdict(walk_h_.median_ms <= 16 && walk_h_.p99_ms <= 32) << "); flat "
+           << fixed(walk_.median_ms, 1) << " / " << fixed(walk_.p99_ms, 1) << " ms\n"
+           << "- items drawn on the orbit with the hierarchy: " << fixed(orbit_h_.drawn, 0) << " (target at most 20000: "
+           << verdict(orbit_h_.drawn <= 20000) << "); flat " << fixed(orbit_.drawn, 0) << "\n"
+           << "- cut churn on the orbit: " << fixed(orbit_h_.churn_pct, 2) << " % of the cut per frame (target at most 2 %: "
+           << verdict(orbit_h_.churn_pct <= 2) << ")\n";
+        if (o_.reference_frames > 0)
+            md << "- PSNR against the full-detail picture over the orbit's first " << o_.reference_frames << " frames: "
+               << fixed(orbit_h_ref_.psnr_db, 2) << " dB with the hierarchy, " << fixed(orbit_ref_.psnr_db, 2)
+               << " dB flat (target: equal or better: " << verdict(orbit_h_ref_.psnr_db >= orbit_ref_.psnr_db) << ")\n";
+        if (o_.growth_objects < o_.objects)
+            md << "- growth from the " << o_.growth_objects << "-object plant, medians with the hierarchy: orbit "
+               << fixed(orbit_h_.median_ms / small_orbit_h_.median_ms, 2) << "x, walk "
+               << fixed(walk_h_.median_ms / small_walk_h_.median_ms, 2) << "x (target at most 2x: "
+               << verdict(orbit_h_.median_ms <= 2 * small_orbit_h_.median_ms && walk_h_.median_ms <= 2 * small_walk_h_.median_ms)
+               << ")\n";
+        const double bound_mb = double(input_bytes_) / 4e6 + 1536.0;
+        md << "- prep with the hierarchy (prep's default): " << (std::isfinite(prep_.peak_mb) ? fixed(prep_.peak_mb, 0) + " MB peak" : std::string("n/a"))
+           << " (target at most a quarter of the input plus 1.5 GB, " << fixed(bound_mb, 0) << " MB: "
+           << (std::isfinite(prep_.peak_mb) ? verdict(prep_.peak_mb <= bound_mb) : "not known") << ")\n";
+    }
 };
 
 }  // namespace
@@ -298,6 +405,9 @@ int runBenchMassive(const BenchMassiveOptions& options) {
     if (options.frames < 12) throw UsageError("bench massive: --frames " + std::to_string(options.frames) + ": at least 12");
     if (options.exact_frames < 2 || options.exact_frames > options.frames)
         throw UsageError("bench massive: --exact-frames " + std::to_string(options.exact_frames) + ": 2 to --frames");
+    if (options.reference_frames == 1 || options.reference_frames > options.frames)
+        throw UsageError("bench massive: --reference-frames " + std::to_string(options.reference_frames) +
+                         ": 0 (none) or 2 to --frames");
     const InterruptHandlers interrupts;  // Ctrl-C and SIGTERM stop the running child, then the benchmark
     return Massive(options).run();
 }

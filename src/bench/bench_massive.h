@@ -12,6 +12,11 @@ struct BenchMassiveOptions {
     uint32_t objects = 1000000;       // the plant's objects (10^6: 193 M triangles; 1.72 x 10^6: the Boeing's 332 M)
     uint32_t frames = 300;            // cameras of the walk and of the orbit
     uint32_t exact_frames = 30;       // the walk's prefix run with the exact visible set
+    // With a hierarchy in the scene (prep's default): the orbit's prefix drawn against the
+    // full-detail picture (--reference), flat and with the hierarchy, and a plant of this many
+    // objects walked and orbited with the hierarchy for the growth (none when not below objects).
+    uint32_t reference_frames = 30;
+    uint32_t growth_objects = 10000;
     double run_timeout_s = 7200;      // a run that takes longer is stopped and reported
     std::string budget = "auto";      // render --budget: what a frame draws (auto: one vertex per pixel)
 };
@@ -23,7 +28,9 @@ struct BenchMassiveOptions {
 // Writes DIR/massive.md and DIR/massive.csv (frame time median / p99 / max and the first
 // frames, streamed share, PVS churn against exact churn, occluder triangles and raster ms,
 // false culls, peak memory of gen, prep and every render), DIR/raw (per-frame stats) and
-// DIR/logs; prints the summary's path on stdout.
+// DIR/logs; prints the summary's path on stdout. With a hierarchy in the scene, also the walk
+// and the orbit with it (items drawn, triangles, cut churn), the orbit's prefix against the
+// full-detail picture flat and with it (PSNR), and the growth from a small plant (issue 34).
 int runBenchMassive(const BenchMassiveOptions& options);
 
 }  // namespace occ::bench

@@ -93,6 +93,9 @@ Command addBenchCommand(CLI::App& app) {
                    "massive.md and massive.csv into --out: frame time median, p99 and max, the first frames,\n"
                    "streamed share, PVS churn against exact churn, occluder triangles, raster ms, occlusion ms and\n"
                    "the raster's occluder triangles/s per core, false culls, peak memory of gen, prep and render.\n"
+                   "With a hierarchy in the scene (prep's default) also the walk and the orbit with it, the\n"
+                   "orbit's prefix against the full-detail picture flat and with it, and a small plant's\n"
+                   "walk and orbit with it (growth).\n"
                    "On 2 cores: about 5 minutes to make the 10^6-object scene, then about 12 minutes of runs\n"
                    "(docs/results.md).");
     massive->add_option("--out", mo->out, "results folder (created if missing)")->required();
@@ -100,6 +103,15 @@ Command addBenchCommand(CLI::App& app) {
     massive->add_option("--objects", mo->objects, "objects of the plant")->check(CLI::Range(1000u, 10000000u))->capture_default_str();
     massive->add_option("--frames", mo->frames, "cameras of the walk and of the orbit")->check(CLI::Range(12u, 100000u))->capture_default_str();
     massive->add_option("--exact-frames", mo->exact_frames, "frames of the walk's prefix run against the exact visible set")
+        ->capture_default_str();
+    massive->add_option("--reference-frames", mo->reference_frames,
+                        "with a hierarchy: frames of the orbit's prefix drawn against the full-detail picture, flat "
+                        "and with the hierarchy (PSNR)")
+        ->capture_default_str();
+    massive->add_option("--growth-objects", mo->growth_objects,
+                        "with a hierarchy: a plant of this many objects also walked and orbited with it, for the "
+                        "growth of the frame with the scene (none when not below --objects)")
+        ->check(CLI::Range(100u, 10000000u))
         ->capture_default_str();
     massive->add_option("--budget", mo->budget, "the renders' vertex budget, as render --budget takes it")
         ->capture_default_str();
