@@ -212,7 +212,10 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                 });
             });
             for (size_t j = b; j < e; ++j) h.nodes[inner[j]].mesh = add_mesh(std::move(built[j - b]));
+            // What the batch read of the objects' meshes is not kept mapped (OssFile::releasePages).
+            if ((b / batch) % 256 == 255) file.releasePages();
         }
+        file.releasePages();
     }
 }
 
@@ -232,7 +235,16 @@ ObjectHierarchy writeWithHierarchy(const OssFile& file, const std::string& path,
                                    const HlodOptions& options, HlodProgress* progress) {
     ObjectHierarchy h = buildObjectHierarchy(file, fanout);
     OssStreamWriter writer(path);
-    for (uint32_t m = 0; m < file.meshCount(); ++m) writer.addMesh(file.progressiveMesh(m));
+    // The flat scene's meshes are read once, front to back; its pages are dropped as they go
+    // (OssFile::releasePages), so that prep holds a batch of HLODs, not the flat scene.
+    uint64_t read = 0;
+    for (uint32_t m = 0; m < file.meshCount(); ++m) {
+        const ProgressiveMesh mesh = file.progressiveMesh(m);
+        writer.addMesh(mesh);
+        read += mesh.positions.size() * 24 + mesh.triangles.size() * 4;
+        if (read >= OssFile::kReleaseBytes) file.releasePages(), read = 0;
+    }
+    file.releasePages();
     buildHlods(file, h, options, [&writer](ProgressiveMesh&& p) { return writer.addMesh(p); }, progress);
     std::vector<ObjectRecord> objects;
     objects.reserve(file.objectCount());

@@ -151,11 +151,12 @@ struct Failure {
 
 // Runs check(i) for i in [0, count) in parallel and returns the failure of the lowest i that
 // fails, so that the reported error does not depend on scheduling.
-std::optional<Failure> lowestFailure(uint32_t count, const std::function<std::optional<Failure>(uint32_t)>& check) {
+std::optional<Failure> lowestFailure(uint32_t first, uint32_t count,
+                                     const std::function<std::optional<Failure>(uint32_t)>& check) {
     std::mutex mutex;
-    std::atomic<uint32_t> lowest{count};
+    std::atomic<uint32_t> lowest{first + count};
     std::optional<Failure> result;
-    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, count), [&](const tbb::blocked_range<uint32_t>& r) {
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(first, first + count), [&](const tbb::blocked_range<uint32_t>& r) {
         for (uint32_t i = r.begin(); i != r.end(); ++i) {
             if (i >= lowest.load(std::memory_order_relaxed)) return;
             if (std::optional<Failure> f = check(i)) {
@@ -169,6 +170,10 @@ std::optional<Failure> lowestFailure(uint32_t count, const std::function<std::op
         }
     });
     return result;
+}
+
+std::optional<Failure> lowestFailure(uint32_t count, const std::function<std::optional<Failure>(uint32_t)>& check) {
+    return lowestFailure(0, count, check);
 }
 
 // The temporary file writeOss fills, with a running XXH3 of the current section. Where the
@@ -557,6 +562,10 @@ OssFile& OssFile::operator=(OssFile&& other) noexcept {
 
 OssFile::~OssFile() { unmap(); }
 
+void OssFile::releasePages() const {
+    if (base_) ::madvise(const_cast<std::byte*>(base_), size_t(size_), MADV_DONTNEED);
+}
+
 void OssFile::unmap() noexcept {
     if (base_) ::munmap(const_cast<std::byte*>(base_), size_t(size_));
     base_ = nullptr;
@@ -656,10 +665,19 @@ void OssFile::validate() const {
                  " (the last section padded to a multiple of 64)");
     requireZeros(kKinds[kSectionCount - 1].name, previous_end, size_, "after");
 
+    // Checksums a chunk at a time (the same digest as in one go), the pages read dropped as it
+    // goes (releasePages): a file larger than memory is read, not held.
+    XXH3_state_t* const state = XXH3_createState();
+    if (!state) throw std::bad_alloc();
+    const std::unique_ptr<XXH3_state_t, XXH_errorcode (*)(XXH3_state_t*)> state_owner(state, XXH3_freeState);
     for (uint32_t i = 0; i < kSectionCount; ++i) {
         const SectionEntry& e = h.sections[i];
-        if (XXH3_64bits(base_ + e.offset, size_t(e.size)) != e.checksum)
-            fail(kKinds[i].name, e.offset, "checksum mismatch (corrupt data)");
+        XXH3_64bits_reset(state);
+        for (uint64_t at = 0; at < e.size; at += kReleaseBytes) {
+            XXH3_64bits_update(state, base_ + e.offset + at, size_t(std::min(kReleaseBytes, e.size - at)));
+            releasePages();
+        }
+        if (XXH3_64bits_digest(state) != e.checksum) fail(kKinds[i].name, e.offset, "checksum mismatch (corrupt data)");
     }
 
     // Every index and value. From here on the bytes are what a writer wrote; these checks catch
@@ -711,7 +729,7 @@ void OssFile::validate() const {
     const uint64_t positions_at = section_offset(SectionId::positions), ecol_at = section_offset(SectionId::ecol),
                    error_at = section_offset(SectionId::error), triangles_at = section_offset(SectionId::triangles),
                    map_at = section_offset(SectionId::map);
-    const std::optional<Failure> mesh_failure = lowestFailure(h.mesh_count, [&](uint32_t i) -> std::optional<Failure> {
+    const auto check_mesh = [&](uint32_t i) -> std::optional<Failure> {
         const MeshRecord& r = records[i];
         const MeshView m = mesh(i);
         const uint32_t n = r.vertex_count;
@@ -758,8 +776,18 @@ void OssFile::validate() const {
             return Failure{"MAP", map_entry(n), name() + "map[" + str(n) + "] = " + str(m.map[n]) +
                                                     ", expected the triangle count " + str(r.triangle_count)};
         return std::nullopt;
-    });
-    if (mesh_failure) raise(path_, *mesh_failure);
+    };
+    // In runs of meshes of about kReleaseBytes, the pages read dropped after each; the runs
+    // ascend, so the first failing run's lowest failure is the file's.
+    for (uint32_t first = 0; first < h.mesh_count;) {
+        uint32_t last = first;
+        for (uint64_t bytes = 0; last < h.mesh_count && (last == first || bytes < kReleaseBytes); ++last)
+            bytes += uint64_t(records[last].vertex_count) * 28 + uint64_t(records[last].triangle_count) * 12;
+        const std::optional<Failure> mesh_failure = lowestFailure(first, last - first, check_mesh);
+        releasePages();
+        if (mesh_failure) raise(path_, *mesh_failure);
+        first = last;
+    }
 
     // Object records: every float finite, so that culling and LOD never see a NaN.
     struct FloatField {
@@ -815,6 +843,7 @@ void OssFile::validate() const {
                                 " of cos[" + str(j - 1) + "] (must be sorted highest first)");
     }
     validateNodes();
+    releasePages();
 }
 
 void OssFile::validateNodes() const {

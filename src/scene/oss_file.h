@@ -188,6 +188,12 @@ public:
 
     const std::string& path() const { return path_; }
     uint64_t fileSize() const { return size_; }
+    // Drops the mapping's pages from this process's resident set (they stay in the page cache,
+    // and a later read maps them again). Passes over a whole file call it as they go, so that
+    // reading a file larger than memory does not hold it: validation does (open never holds more
+    // than kReleaseBytes of it), and so does prep's HLOD pass over the flat scene.
+    void releasePages() const;
+    static constexpr uint64_t kReleaseBytes = uint64_t(256) << 20;
     uint32_t meshCount() const { return header().mesh_count; }
     uint32_t objectCount() const { return header().object_count; }
     uint64_t vertexCount() const { return header().vertex_count; }      // over meshes, not instances
