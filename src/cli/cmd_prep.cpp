@@ -63,10 +63,10 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
             ProgressBar bar("prep: HLODs", "nodes", "nodes", [&built] {
                 return ProgressBar::Sample{double(built.done), double(built.total), double(built.done)};
             });
-            h = writeWithHierarchy(OssFile::open(flat), output, prep.fanout, hlod, &built);
+            h = writeWithHierarchy(OssFile::open(flat, OssFile::Pages::Release), output, prep.fanout, hlod, &built);
         }
         uint64_t hlod_triangles = 0;
-        const OssFile written = OssFile::open(output);
+        const OssFile written = OssFile::open(output, OssFile::Pages::Release);  // read once: its pages are not kept
         for (const SceneNode& n : h.nodes)
             if (n.child_count > 0) hlod_triangles += written.meshRecords()[n.mesh].triangle_count;
         const double hlod_seconds =
@@ -135,7 +135,7 @@ int runPrep(PrepCommandOptions o) {
 
 int runVerify(const std::string& path) {
     const auto start = std::chrono::steady_clock::now();
-    const OssFile file = OssFile::open(path);
+    const OssFile file = OssFile::open(path, OssFile::Pages::Release);
     file.verifyLodPrefix();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const std::string nodes = file.nodeCount() ? ", " + std::to_string(file.nodeCount()) + " hierarchy nodes" : ", no hierarchy";

@@ -74,7 +74,7 @@ std::string preparedScene(const std::string& input) {
     const std::string stamp = "occswitch prepared-scene cache v1: " + id + "\n";
     if (fs::exists(cache, ec) && readSmall(source) == stamp) {
         try {
-            (void)OssFile::open(cache.string());
+            (void)OssFile::open(cache.string(), OssFile::Pages::Release);  // only checked here
             std::fprintf(stderr, "%s: using the prepared scene %s (the model is unchanged)\n", input.c_str(),
                          cache.c_str());
             return cache.string();

@@ -507,7 +507,7 @@ void writeOss(const std::string& path, const PreparedScene& scene) {
 }
 
 
-OssFile OssFile::open(const std::string& path) {
+OssFile OssFile::open(const std::string& path, Pages pages) {
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
     struct stat st {};
@@ -540,6 +540,7 @@ OssFile OssFile::open(const std::string& path) {
     f.path_ = path;
     f.base_ = static_cast<const std::byte*>(p);
     f.size_ = size;
+    f.release_pages_ = pages == Pages::Release;
     // Validation touches every byte once, front to back.
     ::madvise(p, size_t(size), MADV_SEQUENTIAL);
     f.validate();
@@ -548,7 +549,8 @@ OssFile OssFile::open(const std::string& path) {
 }
 
 OssFile::OssFile(OssFile&& other) noexcept
-    : path_(std::move(other.path_)), base_(std::exchange(other.base_, nullptr)), size_(std::exchange(other.size_, 0)) {}
+    : path_(std::move(other.path_)), base_(std::exchange(other.base_, nullptr)), size_(std::exchange(other.size_, 0)),
+      release_pages_(other.release_pages_) {}
 
 OssFile& OssFile::operator=(OssFile&& other) noexcept {
     if (this != &other) {
@@ -556,6 +558,7 @@ OssFile& OssFile::operator=(OssFile&& other) noexcept {
         path_ = std::move(other.path_);
         base_ = std::exchange(other.base_, nullptr);
         size_ = std::exchange(other.size_, 0);
+        release_pages_ = other.release_pages_;
     }
     return *this;
 }
@@ -665,8 +668,8 @@ void OssFile::validate() const {
                  " (the last section padded to a multiple of 64)");
     requireZeros(kKinds[kSectionCount - 1].name, previous_end, size_, "after");
 
-    // Checksums a chunk at a time (the same digest as in one go), the pages read dropped as it
-    // goes (releasePages): a file larger than memory is read, not held.
+    // Checksums a chunk at a time (the same digest as in one go), with Pages::Release the pages
+    // read dropped as it goes: a file larger than memory is then read, not held.
     XXH3_state_t* const state = XXH3_createState();
     if (!state) throw std::bad_alloc();
     const std::unique_ptr<XXH3_state_t, XXH_errorcode (*)(XXH3_state_t*)> state_owner(state, XXH3_freeState);
@@ -675,7 +678,7 @@ void OssFile::validate() const {
         XXH3_64bits_reset(state);
         for (uint64_t at = 0; at < e.size; at += kReleaseBytes) {
             XXH3_64bits_update(state, base_ + e.offset + at, size_t(std::min(kReleaseBytes, e.size - at)));
-            releasePages();
+            releaseIfAsked();
         }
         if (XXH3_64bits_digest(state) != e.checksum) fail(kKinds[i].name, e.offset, "checksum mismatch (corrupt data)");
     }
@@ -777,14 +780,14 @@ void OssFile::validate() const {
                                                     ", expected the triangle count " + str(r.triangle_count)};
         return std::nullopt;
     };
-    // In runs of meshes of about kReleaseBytes, the pages read dropped after each; the runs
-    // ascend, so the first failing run's lowest failure is the file's.
+    // In runs of meshes of about kReleaseBytes (with Pages::Release the pages read dropped after
+    // each); the runs ascend, so the first failing run's lowest failure is the file's.
     for (uint32_t first = 0; first < h.mesh_count;) {
         uint32_t last = first;
         for (uint64_t bytes = 0; last < h.mesh_count && (last == first || bytes < kReleaseBytes); ++last)
             bytes += uint64_t(records[last].vertex_count) * 28 + uint64_t(records[last].triangle_count) * 12;
         const std::optional<Failure> mesh_failure = lowestFailure(first, last - first, check_mesh);
-        releasePages();
+        releaseIfAsked();
         if (mesh_failure) raise(path_, *mesh_failure);
         first = last;
     }
@@ -843,7 +846,7 @@ void OssFile::validate() const {
                                 " of cos[" + str(j - 1) + "] (must be sorted highest first)");
     }
     validateNodes();
-    releasePages();
+    releaseIfAsked();
 }
 
 void OssFile::validateNodes() const {

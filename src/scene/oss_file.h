@@ -178,7 +178,12 @@ public:
     // order and do not overlap), zero padding between and after sections, every section's
     // checksum, then every index and value (see docs/oss_format.md, "Validation"). Throws
     // InputError(path, "section S at offset O: what"), O the byte offset of the bad field or element.
-    static OssFile open(const std::string& path);
+    // pages Release: validation drops what it has read from the resident set as it goes
+    // (releasePages), so that open holds at most about kReleaseBytes of the file: for a pass
+    // that reads the file once (prep's hierarchy). Keep (the default): the pages validation
+    // read stay mapped for the frames that read them again.
+    enum class Pages { Keep, Release };
+    static OssFile open(const std::string& path, Pages pages = Pages::Keep);
 
     OssFile(OssFile&& other) noexcept;
     OssFile& operator=(OssFile&& other) noexcept;
@@ -190,10 +195,14 @@ public:
     uint64_t fileSize() const { return size_; }
     // Drops the mapping's pages from this process's resident set (they stay in the page cache,
     // and a later read maps them again). Passes over a whole file call it as they go, so that
-    // reading a file larger than memory does not hold it: validation does (open never holds more
-    // than kReleaseBytes of it), and so does prep's HLOD pass over the flat scene.
+    // reading a file larger than memory does not hold it: validation of a file opened with
+    // Pages::Release, and prep's HLOD pass over the flat scene.
     void releasePages() const;
     static constexpr uint64_t kReleaseBytes = uint64_t(256) << 20;
+    // releasePages when the file was opened with Pages::Release.
+    void releaseIfAsked() const {
+        if (release_pages_) releasePages();
+    }
     uint32_t meshCount() const { return header().mesh_count; }
     uint32_t objectCount() const { return header().object_count; }
     uint64_t vertexCount() const { return header().vertex_count; }      // over meshes, not instances
@@ -260,6 +269,7 @@ private:
     std::string path_;
     const std::byte* base_ = nullptr;
     uint64_t size_ = 0;
+    bool release_pages_ = false;  // opened with Pages::Release
 };
 
 }  // namespace occ
