@@ -96,8 +96,9 @@ Command addBenchCommand(CLI::App& app) {
                    "With a hierarchy in the scene (prep's default) also the walk and the orbit with it, the\n"
                    "orbit's prefix against the full-detail picture flat and with it, and a small plant's\n"
                    "walk and orbit with it (growth).\n"
-                   "On 2 cores: about 5 minutes to make the 10^6-object scene, then about 12 minutes of runs\n"
-                   "(docs/results.md).");
+                   "On 2 cores: about 5 minutes to make the 10^6-object scene, then about 12 minutes of runs,\n"
+                   "and with a hierarchy about 40 more, mostly the two reference runs, which draw the full-detail\n"
+                   "plant every frame (docs/results.md).");
     massive->add_option("--out", mo->out, "results folder (created if missing)")->required();
     massive->add_option("--scenes", mo->scenes, "where the plant is made once and reused (default: OUT/scenes)");
     massive->add_option("--objects", mo->objects, "objects of the plant")->check(CLI::Range(1000u, 10000000u))->capture_default_str();
