@@ -57,6 +57,7 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
         HlodOptions hlod;
         hlod.node_triangles = prep.node_triangles;
         hlod.cluster = prep.hlod_cluster;
+        hlod.share_repeats = prep.hlod_share;
         hlod.threads = prep.threads;
         ObjectHierarchy h;
         {
@@ -65,17 +66,26 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
             });
             h = writeWithHierarchy(OssFile::open(flat, OssFile::Pages::Release), output, prep.fanout, hlod, &built);
         }
-        uint64_t hlod_triangles = 0;
+        uint64_t hlod_triangles = 0, sharing = 0;
         const OssFile written = OssFile::open(output, OssFile::Pages::Release);  // read once: its pages are not kept
-        for (const SceneNode& n : h.nodes)
-            if (n.child_count > 0) hlod_triangles += written.meshRecords()[n.mesh].triangle_count;
+        std::vector<uint8_t> counted(written.meshCount(), 0);
+        for (const SceneNode& n : h.nodes) {
+            if (n.child_count == 0) continue;
+            if (counted[n.mesh]) {
+                ++sharing;  // a repeated subtree: its representative's HLOD, counted once
+                continue;
+            }
+            counted[n.mesh] = 1;
+            hlod_triangles += written.meshRecords()[n.mesh].triangle_count;
+        }
         const double hlod_seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() - flat_seconds;
         char b[256];
-        std::snprintf(b, sizeof b, "; hierarchy: %zu nodes in %u levels (fanout %u), %llu inner with %llu HLOD triangles, "
-                      "%.2f s, +%llu bytes",
+        std::snprintf(b, sizeof b,
+                      "; hierarchy: %zu nodes in %u levels (fanout %u), %llu inner (%llu sharing a repeated subtree's "
+                      "HLOD) with %llu HLOD triangles, %.2f s, +%llu bytes",
                       h.nodes.size(), h.levels, prep.fanout, (unsigned long long)built.total,
-                      (unsigned long long)hlod_triangles, hlod_seconds,
+                      (unsigned long long)sharing, (unsigned long long)hlod_triangles, hlod_seconds,
                       (unsigned long long)(std::filesystem::file_size(output) - flat_bytes));
         hierarchy = b;
     }
@@ -109,6 +119,7 @@ struct PrepCommandOptions {
     std::string stream = "auto";
     std::string hierarchy = "on";
     std::string hlod_cluster = "on";
+    std::string hlod_share = "on";
     ImportOptions import;
 };
 
@@ -123,6 +134,7 @@ int runPrep(PrepCommandOptions o) {
     o.prep.collapser = o.collapser == "openmesh" ? Collapser::OpenMesh : Collapser::Fast;
     o.prep.hierarchy = o.hierarchy == "on";
     o.prep.hlod_cluster = o.hlod_cluster == "on";
+    o.prep.hlod_share = o.hlod_share == "on";
     if (o.prep.fanout < 2 || o.prep.fanout > 64)
         throw UsageError("--fanout " + std::to_string(o.prep.fanout) + ": must be in [2, 64]");
     if (o.prep.node_triangles < 16)
@@ -182,6 +194,12 @@ Command addPrepCommand(CLI::App& app) {
                     "hierarchy: on: an HLOD's edge collapses go on as vertex clustering (a grid whose cell\n"
                     "doubles), so small objects vanish and neighbours join; off: edge collapses only, which\n"
                     "keep every object's floor")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
+    sub->add_option("--hlod-share", o->hlod_share,
+                    "hierarchy: on: a subtree that repeats an earlier one (the same meshes under the same\n"
+                    "relative transforms, moved rigidly: a tiled or instanced assembly) shares its HLOD, placed\n"
+                    "by the motion, instead of getting one of its own; off: one HLOD per inner node")
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
     return {sub, [o] { return runPrep(*o); }};

@@ -93,7 +93,7 @@ DeviceScene DeviceScene::upload(const OssFile& file, bool hierarchy) {
             info.vertex_count = m.vertex_count;
             info.q = m.q;
             info.triangle_count = m.triangle_count;
-            d.host_world[i] = glm::mat4(1.0f);
+            std::memcpy(&d.host_world[i], n.world, sizeof(glm::mat4));  // a shared HLOD's placement
         }
     }
     for (uint32_t object = 0; object < file.objectCount(); ++object) {

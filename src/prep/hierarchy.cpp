@@ -12,6 +12,8 @@
 #include <numeric>
 #include <stdexcept>
 #include <thread>
+#include <tuple>
+#include <unordered_map>
 
 namespace occ {
 
@@ -25,7 +27,7 @@ ObjectHierarchy buildObjectHierarchy(std::span<const k::Aabb> boxes, std::span<c
     std::iota(order.begin(), order.end(), 0u);
     const auto centre = [&](uint32_t i) { return 0.5f * (boxes[i].min + boxes[i].max); };
 
-    // Cuts order[b, e) into `parts` groups of about equal size; appends the groups' bounds.
+    // Cuts order[b, e) into `parts` groups (sizes within a third of equal); appends the groups' bounds.
     std::vector<std::pair<size_t, size_t>> groups;
     const auto cut = [&](auto&& self, size_t b, size_t e, uint32_t parts) -> void {
         if (parts <= 1 || e - b <= 1) {
@@ -35,14 +37,50 @@ ObjectHierarchy buildObjectHierarchy(std::span<const k::Aabb> boxes, std::span<c
         glm::vec3 lo(INFINITY), hi(-INFINITY);
         for (size_t j = b; j < e; ++j) lo = glm::min(lo, centre(order[j])), hi = glm::max(hi, centre(order[j]));
         const glm::vec3 extent = hi - lo;
-        const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : extent.y >= extent.z ? 1 : 2;
+        // The widest axis; extents within 1e-4 of each other count as equal (x, then y, then z),
+        // so that rounding does not turn copies of one arrangement differently.
+        const float widest_extent = std::max({extent.x, extent.y, extent.z}) * (1.0f - 1e-4f);
+        const int axis = extent.x >= widest_extent ? 0 : extent.y >= widest_extent ? 1 : 2;
         const uint32_t left = parts / 2;
-        const size_t mid = b + (e - b) * left / parts;
-        std::nth_element(order.begin() + std::ptrdiff_t(b), order.begin() + std::ptrdiff_t(mid),
-                         order.begin() + std::ptrdiff_t(e), [&](uint32_t x, uint32_t y) {
-                             const float cx = centre(x)[axis], cy = centre(y)[axis];
-                             return cx < cy || (cx == cy && x < y);
-                         });
+        const auto less = [&](uint32_t x, uint32_t y) {
+            const float cx = centre(x)[axis], cy = centre(y)[axis];
+            return cx < cy || (cx == cy && x < y);
+        };
+        // The split goes into the widest gap between consecutive centres among the middle third
+        // of the objects around the balanced position: it falls between clusters (a tiled
+        // model's copies, a plant's rooms) rather than through them, and never between equal
+        // coordinates, so that a subtree's shape depends on its geometry, not on object ids,
+        // and repeated geometry gets repeated subtrees (findRepeatedSubtrees). Gaps within 1e-4
+        // of the widest count as equal: the one nearest the balanced position wins.
+        const size_t n = e - b, balanced = b + n * left / parts;
+        const size_t reach = std::min(balanced - b, e - balanced) / 3;
+        size_t mid = balanced;
+        const auto at = [&](size_t j) { return centre(order[j])[axis]; };
+        if (reach > 0) {
+            const size_t from = balanced - reach, to = balanced + reach;  // splits in [from, to]
+            const auto first = order.begin() + std::ptrdiff_t(b);
+            std::nth_element(first, order.begin() + std::ptrdiff_t(from - 1), order.begin() + std::ptrdiff_t(e), less);
+            std::nth_element(order.begin() + std::ptrdiff_t(from), order.begin() + std::ptrdiff_t(to),
+                             order.begin() + std::ptrdiff_t(e), less);
+            std::sort(order.begin() + std::ptrdiff_t(from), order.begin() + std::ptrdiff_t(to), less);
+            float widest = 0.0f;
+            for (size_t j = from; j <= to; ++j) widest = std::max(widest, at(j) - at(j - 1));
+            if (widest > 0.0f) {
+                size_t best = SIZE_MAX;
+                for (size_t j = from; j <= to; ++j) {
+                    if (!(at(j) - at(j - 1) >= widest * (1.0f - 1e-4f))) continue;
+                    const size_t d = j > balanced ? j - balanced : balanced - j;
+                    const size_t bd = best == SIZE_MAX ? SIZE_MAX : best > balanced ? best - balanced : balanced - best;
+                    if (d < bd) best = j;
+                }
+                mid = best;
+            } else {
+                std::nth_element(first, order.begin() + std::ptrdiff_t(mid), order.begin() + std::ptrdiff_t(e), less);
+            }
+        } else {
+            std::nth_element(order.begin() + std::ptrdiff_t(b), order.begin() + std::ptrdiff_t(mid),
+                             order.begin() + std::ptrdiff_t(e), less);
+        }
         self(self, b, mid, left);
         self(self, mid, e, parts - left);
     };
@@ -71,6 +109,12 @@ ObjectHierarchy buildObjectHierarchy(std::span<const k::Aabb> boxes, std::span<c
         }
         groups.clear();
         if (r.e - r.b <= fanout) {
+            // Leaves in an order of their own (triangles, then centre), not the order the splits
+            // left them in, so that copies of one arrangement get their leaves in the same order.
+            std::sort(order.begin() + std::ptrdiff_t(r.b), order.begin() + std::ptrdiff_t(r.e), [&](uint32_t x, uint32_t y) {
+                const glm::vec3 cx = centre(x), cy = centre(y);
+                return std::tie(triangles[x], cx.x, cx.y, cx.z, x) < std::tie(triangles[y], cy.x, cy.y, cy.z, y);
+            });
             for (size_t j = r.b; j < r.e; ++j) groups.emplace_back(j, j + 1);
         } else {
             cut(cut, r.b, r.e, fanout);
@@ -102,6 +146,93 @@ void appendLevel(std::span<const glm::vec3> positions, std::span<const int32_t> 
         if (a == b || b == c || a == c) continue;
         out_triangles.insert(out_triangles.end(), {base + a, base + b, base + c});
     }
+}
+
+SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<const uint32_t> object_mesh,
+                                    std::span<const glm::mat4> object_world) {
+    const uint32_t count = uint32_t(nodes.size());
+    SubtreeRepeats r;
+    r.of.resize(count);
+    r.motion.assign(count, glm::mat4(1.0f));
+    r.scale.assign(count, 1.0f);
+    r.slack.assign(count, 0.0f);
+    std::iota(r.of.begin(), r.of.end(), 0u);
+    // Per node: its first leaf's world (double: the relative placements are compared at 1e-5)
+    // and a class; leaves' classes are their meshes, inner nodes' come after.
+    std::vector<glm::dmat4> first(count);
+    std::vector<uint64_t> cls(count);
+    uint64_t classes = UINT32_MAX + uint64_t(1);
+    std::unordered_map<uint64_t, std::vector<uint32_t>> buckets;  // children's classes -> nodes
+    const auto placement = [&](uint32_t n, uint32_t i) {  // child i of n relative to n's first leaf
+        return glm::inverse(first[n]) * first[nodes[n].first_child + i];
+    };
+    double matched_slack = 0.0;  // same()'s translation slack, for the repeat's error
+    const auto same = [&](uint32_t n, uint32_t m) {
+        const SceneNode& a = nodes[n];
+        const SceneNode& b = nodes[m];
+        if (a.child_count != b.child_count) return false;
+        // Positions are floats: two placements cannot be told apart below a few units in the last
+        // place of the coordinates they come from (about 1e-6 of the largest), nor, here, below
+        // 1e-5 of the subtree's diagonal.
+        const glm::dvec3 extent = glm::dvec3(b.box.max) - glm::dvec3(b.box.min);
+        const auto magnitude = [](const SceneNode& x) {
+            return std::max({std::abs(x.box.min.x), std::abs(x.box.min.y), std::abs(x.box.min.z), std::abs(x.box.max.x),
+                             std::abs(x.box.max.y), std::abs(x.box.max.z)});
+        };
+        const double slack = 1e-5 * glm::length(extent) + 1e-6 * double(std::max(magnitude(a), magnitude(b)));
+        matched_slack = slack;
+        for (uint32_t i = 0; i < a.child_count; ++i) {
+            if (cls[a.first_child + i] != cls[b.first_child + i]) return false;
+            const glm::dmat4 pa = placement(n, i), pb = placement(m, i);
+            for (int c = 0; c < 3; ++c)
+                for (int e = 0; e < 3; ++e)
+                    if (std::abs(pa[c][e] - pb[c][e]) > 1e-5) return false;
+            if (glm::length(glm::dvec3(pa[3]) - glm::dvec3(pb[3])) > slack) return false;
+        }
+        return true;
+    };
+    for (uint32_t n = count; n-- > 0;) {
+        const SceneNode& node = nodes[n];
+        if (node.child_count == 0) {
+            first[n] = glm::dmat4(object_world[node.object]);
+            cls[n] = object_mesh[node.object];
+            continue;
+        }
+        first[n] = first[node.first_child];
+        uint64_t key = 0x9e3779b97f4a7c15ull ^ node.child_count;
+        for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c)
+            key = (key ^ cls[c]) * 0x100000001b3ull + (key >> 29);
+        std::vector<uint32_t>& bucket = buckets[key];
+        uint32_t found = UINT32_MAX;
+        // A few candidates per bucket: the same children placed differently are other classes.
+        for (size_t j = 0; j < bucket.size() && j < 16 && found == UINT32_MAX; ++j)
+            if (same(n, bucket[j])) found = bucket[j];
+        if (found == UINT32_MAX) {
+            cls[n] = classes++;
+            bucket.push_back(n);
+            continue;
+        }
+        const glm::dmat4 motion = first[n] * glm::inverse(first[found]);
+        // Only similarities move an HLOD's error by one factor: equal, orthogonal columns; and no
+        // mirror, which would turn the HLOD's triangles inside out.
+        const glm::dvec3 c0(motion[0]), c1(motion[1]), c2(motion[2]);
+        const double scale = glm::length(c0);
+        const double tolerance = 1e-5 * scale;
+        if (!(scale > 0.0) || glm::determinant(glm::dmat3(motion)) <= 0.0 || std::abs(glm::length(c1) - scale) > tolerance || std::abs(glm::length(c2) - scale) > tolerance ||
+            std::abs(glm::dot(c0, c1)) > tolerance * scale || std::abs(glm::dot(c0, c2)) > tolerance * scale ||
+            std::abs(glm::dot(c1, c2)) > tolerance * scale) {
+            cls[n] = classes++;
+            bucket.push_back(n);
+            continue;
+        }
+        cls[n] = cls[found];
+        r.of[n] = found;
+        r.motion[n] = glm::mat4(motion);
+        r.scale[n] = float(scale);
+        r.slack[n] = float(matched_slack);
+        ++r.repeated;
+    }
+    return r;
 }
 
 uint32_t levelWithTriangles(std::span<const uint32_t> map, uint32_t q, uint64_t want) {
@@ -157,16 +288,39 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
         progress->total = 0;
         for (const SceneNode& node : h.nodes) progress->total += node.child_count > 0;
     }
+    // Subtrees that repeat take their representative's HLOD; the representatives whose
+    // progressive mesh a repeat's parent merges from keep it until the last such parent is built.
+    SubtreeRepeats repeats;
+    if (options.share_repeats) {
+        std::vector<uint32_t> object_mesh(objects.size());
+        std::vector<glm::mat4> object_world(objects.size());
+        for (size_t o = 0; o < objects.size(); ++o) {
+            object_mesh[o] = objects[o].mesh;
+            std::memcpy(&object_world[o], objects[o].world, sizeof(glm::mat4));
+        }
+        repeats = findRepeatedSubtrees(h.nodes, object_mesh, object_world);
+    } else {
+        repeats.of.resize(count);
+        std::iota(repeats.of.begin(), repeats.of.end(), 0u);
+    }
+    const auto repeat = [&](uint32_t n) { return repeats.of[n] != n; };
+    std::vector<uint32_t> pm_uses(count, 0);
+    for (uint32_t n = 0; n < count; ++n)
+        if (repeat(n) && h.nodes[n].child_count > 0 && parent[n] != UINT32_MAX && !repeat(parent[n]))
+            ++pm_uses[repeats.of[n]];
+    std::unordered_map<uint32_t, ProgressiveMesh> retained;
+
     std::vector<KeptLevel> kept(count);
     const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
     tbb::task_arena arena{int(threads)};
     const size_t batch = 8 * size_t(threads);
-    std::vector<uint32_t> inner;
+    std::vector<uint32_t> inner, repeated;
     std::vector<ProgressiveMesh> built;
     for (uint32_t depth = h.levels; depth-- > 0;) {
         inner.clear();
+        repeated.clear();
         for (uint32_t n = level_first[depth]; n < level_first[depth + 1]; ++n)
-            if (h.nodes[n].child_count > 0) inner.push_back(n);
+            if (h.nodes[n].child_count > 0) (repeat(n) ? repeated : inner).push_back(n);
         for (size_t b = 0; b < inner.size(); b += batch) {
             const size_t e = std::min(inner.size(), b + batch);
             built.assign(e - b, ProgressiveMesh{});
@@ -211,9 +365,31 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                     if (progress) ++progress->done;
                 });
             });
-            for (size_t j = b; j < e; ++j) h.nodes[inner[j]].mesh = add_mesh(std::move(built[j - b]));
+            for (size_t j = b; j < e; ++j) {
+                if (pm_uses[inner[j]] > 0) retained.emplace(inner[j], built[j - b]);
+                h.nodes[inner[j]].mesh = add_mesh(std::move(built[j - b]));
+            }
             // What the batch read of the objects' meshes is not kept mapped (OssFile::releasePages).
             if ((b / batch) % 256 == 255) file.releasePages();
+        }
+        // The repeats of this level: their representatives are built (as deep or deeper).
+        for (const uint32_t n : repeated) {
+            const uint32_t r = repeats.of[n];
+            SceneNode& node = h.nodes[n];
+            const float scale = repeats.scale[n];
+            node.mesh = h.nodes[r].mesh;
+            node.world = repeats.motion[n];
+            // The placements matched within a slack: counted as error.
+            node.error = scale * h.nodes[r].error + repeats.slack[n];
+            if (parent[n] != UINT32_MAX && !repeat(parent[n])) {
+                const ProgressiveMesh& p = retained.at(r);
+                KeptLevel& k = kept[n];
+                const uint32_t level = levelWithTriangles(p.map, p.q, wanted(parent[n], n));
+                appendLevel(p.positions, p.ecol, p.triangles, p.map, level, node.world, k.positions, k.triangles);
+                k.error = node.error + scale * levelError(p.error, level);
+                if (--pm_uses[r] == 0) retained.erase(r);
+            }
+            if (progress) ++progress->done;
         }
         file.releasePages();
     }

@@ -27,13 +27,36 @@ struct ObjectHierarchy {
     uint32_t levels = 0;  // depth of the deepest leaf + 1
 };
 
-// Top-down: a node of more than `fanout` objects is cut into `fanout` groups of about equal
-// object count by k-d splits across the widest axis of the box centres (ties by object id);
-// a node of at most `fanout` objects gets one leaf child each. Deterministic. boxes and
-// triangles have one entry per object. Throws std::invalid_argument for fanout < 2, no
-// objects, or sizes that differ.
+// Top-down: a node of more than `fanout` objects is cut into `fanout` groups by k-d splits across
+// the widest axis of the box centres, each split in the widest gap between centres among the
+// middle third of the objects around the balanced position (so groups hold between a third and
+// two thirds of the objects a balanced split would give each side); a node of at most `fanout`
+// objects gets one leaf child each, ordered by triangles, then centre. Splits and leaf order
+// depend on the boxes, not on object ids (but for exact ties), so that copies of an arrangement
+// get copies of a subtree (findRepeatedSubtrees). Deterministic. boxes and triangles have one
+// entry per object. Throws std::invalid_argument for fanout < 2, no objects, or sizes that
+// differ.
 ObjectHierarchy buildObjectHierarchy(std::span<const k::Aabb> boxes, std::span<const uint64_t> triangles,
                                      uint32_t fanout);
+
+// Subtrees that repeat (issue 34, item 3): node n repeats node r when their subtrees are the same
+// tree of the same meshes and each of n's children sits where r's does relative to the first
+// leaf (the linear parts' entries within 1e-5; translations within 1e-5 of the diagonal plus
+// 1e-6 of the largest coordinate, about what float coordinates can tell apart), so that n's
+// geometry is r's moved by `motion[n]` = (n's first leaf's world) x (r's)^-1, a similarity
+// without mirror (rotation, translation, uniform scale `scale[n]`). Nodes are matched from the
+// last to the first, so a representative has a larger id than its repeats: it is as deep or
+// deeper, and buildHlods builds it first. An engine tiled a thousand times gets one HLOD per
+// distinct subtree instead of one per node.
+struct SubtreeRepeats {
+    std::vector<uint32_t> of;        // per node: the representative (itself if none; leaves: itself)
+    std::vector<glm::mat4> motion;   // per node: identity where of[n] == n
+    std::vector<float> scale;        // per node: the motion's scale (1 where of[n] == n)
+    std::vector<float> slack;        // per node: the translation slack the match allowed (0: none)
+    uint32_t repeated = 0;           // inner nodes with of[n] != n
+};
+SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<const uint32_t> object_mesh,
+                                    std::span<const glm::mat4> object_world);
 
 // The level of detail with k vertices of a progressive mesh (the first k positions, the first
 // map[k] triangles with each corner walked through ecol until it is below k, degenerate ones
@@ -58,16 +81,22 @@ struct HlodOptions {
     // Continue each HLOD's edge collapses with vertex clustering (cluster_collapse.h), so that
     // the objects' floors vanish and neighbours join; off: edge collapses only.
     bool cluster = true;
+    // Subtrees that repeat share one HLOD (findRepeatedSubtrees); off: every inner node its own.
+    bool share_repeats = true;
     unsigned threads = 0;  // 0: all hardware threads
 };
 
 // One progressive mesh per inner node (leaves get none: their objects' meshes are theirs),
 // world space, built bottom-up, level by level from the deepest, in parallel within a level
 // (options.threads) and handed to add_mesh in node order within a level, as each batch is done;
-// add_mesh returns the mesh index, which goes to the node's `mesh`. Only the levels a parent
-// draws from its children are kept, so memory stays a batch of HLODs plus small meshes per
-// node of the level below. The objects' meshes come from `file`, whose objects the hierarchy
-// was built for. `done` (if given) counts inner nodes built.
+// add_mesh returns the mesh index, which goes to the node's `mesh`. A subtree that repeats an
+// earlier one (findRepeatedSubtrees, options.share_repeats) is not built again: it takes its
+// representative's mesh, placed by the motion (SceneNode::world), with the error scaled and the
+// match's slack added. Only the levels a parent draws from its children are kept (and the
+// progressive meshes of representatives whose repeats a parent still has to merge), so memory
+// stays a batch of HLODs plus small meshes per node of the level below. The objects' meshes
+// come from `file`, whose objects the hierarchy was built for. `done` (if given) counts inner
+// nodes built or shared.
 struct HlodProgress {
     std::atomic<uint64_t> done{0};
     uint64_t total = 0;

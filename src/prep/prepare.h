@@ -27,6 +27,7 @@ struct PrepOptions {
     uint32_t fanout = 8;              // children per node at most
     uint32_t node_triangles = 2048;   // HlodOptions::node_triangles
     bool hlod_cluster = true;         // HlodOptions::cluster
+    bool hlod_share = true;           // HlodOptions::share_repeats
 };
 
 // Counters that prepareScene advances while it works, readable from another thread.

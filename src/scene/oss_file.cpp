@@ -97,6 +97,7 @@ NodeDisk toDisk(const SceneNode& n) {
     d.depth = n.depth;
     d.error = n.error;
     d.triangles = n.triangles;
+    std::memcpy(d.world, glm::value_ptr(n.world), sizeof d.world);
     return d;
 }
 
@@ -111,6 +112,7 @@ SceneNode fromDisk(const NodeDisk& d) {
     n.depth = d.depth;
     n.error = d.error;
     n.triangles = d.triangles;
+    std::memcpy(glm::value_ptr(n.world), d.world, sizeof d.world);
     return n;
 }
 
@@ -883,6 +885,12 @@ void OssFile::validateNodes() const {
         if (!(n.error >= 0.0f && n.error < INFINITY))  // also NaN
             fail(i, offsetof(NodeDisk, error), "error " + str(n.error) + " is not a finite number >= 0");
         if (n.child_count == 0 && n.error != 0.0f) fail(i, offsetof(NodeDisk, error), "a leaf with error " + str(n.error));
+        for (int e = 0; e < 16; ++e) {
+            if (!std::isfinite(n.world[e]))
+                fail(i, offsetof(NodeDisk, world) + 4 * size_t(e), "world[" + str(uint32_t(e)) + "] is not finite");
+            if (n.child_count == 0 && n.world[e] != (e % 5 == 0 ? 1.0f : 0.0f))
+                fail(i, offsetof(NodeDisk, world) + 4 * size_t(e), "a leaf whose world is not the identity");
+        }
         if (n.child_count == 0) {
             if (n.first_child != 0) fail(i, offsetof(NodeDisk, first_child), "a leaf with first_child " + str(n.first_child));
             if (n.object >= h.object_count)

@@ -24,7 +24,7 @@ static_assert(std::endian::native == std::endian::little,
 namespace oss {
 
 inline constexpr char kMagic[8] = {'O', 'C', 'C', 'S', 'W', 'O', 'S', 'S'};
-inline constexpr uint32_t kVersion = 2;  // 2: the NODES section (the hierarchy)
+inline constexpr uint32_t kVersion = 3;  // 2: the NODES section (the hierarchy); 3: HLOD placement
 inline constexpr uint64_t kAlignment = 64;  // of every section, so any element type can be mapped
 
 // Section ids, also their order in the header's table and in the file.
@@ -124,8 +124,10 @@ struct NodeDisk {
     uint32_t depth;              // the parent's + 1; 0 at the root
     float error;                 // SceneNode::error: finite, >= 0; 0 for leaves
     uint64_t triangles;          // the subtree's full-detail triangles
+    float world[16];             // inner nodes: where the HLOD mesh is placed, column-major; leaves: identity
 };
-static_assert(sizeof(NodeDisk) == 56 && offsetof(NodeDisk, first_child) == 24 && offsetof(NodeDisk, triangles) == 48);
+static_assert(sizeof(NodeDisk) == 120 && offsetof(NodeDisk, first_child) == 24 && offsetof(NodeDisk, triangles) == 48 &&
+              offsetof(NodeDisk, world) == 56);
 
 NodeDisk toDisk(const SceneNode& n);
 SceneNode fromDisk(const NodeDisk& d);

@@ -44,6 +44,11 @@ struct SceneNode {
     // collapse error it undid, scaled by the object's world matrix) plus the child's own. The
     // collapse errors are the collapser's distance estimates, not bounds. Leaves: 0.
     float error = 0.0f;
+    // Inner nodes: where the HLOD mesh is placed. The identity for an HLOD built for the node
+    // (its positions are world space); a subtree that repeats an earlier one (the same meshes
+    // under the same relative transforms, moved rigidly) shares that one's HLOD, placed here by
+    // the motion. Leaves: the identity.
+    glm::mat4 world{1.0f};
 };
 
 // The content of a .oss file.

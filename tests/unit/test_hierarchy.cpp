@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 // The object hierarchy and its HLODs (issue 16), in memory and in the .oss.
 #include "frustum_cull.h"
+#include "import/grid.h"
+#include "import/import.h"
 #include "import/plant.h"
 #include "pipeline/pipeline.h"
 #include "prep/cluster_collapse.h"
@@ -12,11 +14,14 @@
 #include "test_support.h"
 #include "view/camera.h"
 
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/type_ptr.hpp>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <memory>
 #include <set>
 
@@ -79,9 +84,14 @@ TEST(Hierarchy, EveryObjectIsOneLeafAndNodesBoundTheirChildrenBreadthFirst) {
             }
         }
         EXPECT_EQ(leaves.size(), f.boxes.size());
-        // About log_fanout(objects) levels below the root: balanced by count.
+        // Splits within a third of balanced: a child holds at most (4/3)^splits / fanout of its
+        // parent's objects, which bounds the levels below the root.
+        const double splits = std::ceil(std::log2(double(fanout)));
+        const double shrink = double(fanout) / std::pow(4.0 / 3.0, splits);
+        const double bound = std::ceil(std::log(double(f.boxes.size())) / std::log(shrink));
+        EXPECT_LE(double(h.levels - 1), bound + 1) << "fanout " << fanout;
         const double ideal = std::ceil(std::log(double(f.boxes.size())) / std::log(double(fanout)));
-        EXPECT_LE(double(h.levels - 1), ideal + 1) << "fanout " << fanout;
+        EXPECT_GE(double(h.levels - 1), ideal) << "fanout " << fanout;
     }
     EXPECT_THROW(buildObjectHierarchy(f.boxes, f.triangles, 1), std::invalid_argument);
 }
@@ -219,6 +229,119 @@ TEST(Hierarchy, TheFileCarriesTheHierarchyAndItsHlods) {
     const PreparedScene scene = file.toPreparedScene();
     ASSERT_EQ(scene.nodes.size(), h.nodes.size());
     EXPECT_EQ(scene.nodes.back().object, h.nodes.back().object);
+}
+
+// Two leaves under one inner node, per group, under a root: group g's objects at worlds[g] and
+// worlds[g] x step (meshes 0 and 1).
+ObjectHierarchy twoLeafGroups(uint32_t groups) {
+    ObjectHierarchy h;
+    h.levels = 3;
+    h.nodes.resize(1 + groups + 2 * groups);
+    h.nodes[0].first_child = 1;
+    h.nodes[0].child_count = groups;
+    for (uint32_t g = 0; g < groups; ++g) {
+        SceneNode& inner = h.nodes[1 + g];
+        inner.depth = 1;
+        inner.first_child = 1 + groups + 2 * g;
+        inner.child_count = 2;
+        inner.box = {glm::vec3(-100.0f), glm::vec3(100.0f)};
+        for (uint32_t l = 0; l < 2; ++l) {
+            SceneNode& leaf = h.nodes[inner.first_child + l];
+            leaf.depth = 2;
+            leaf.object = 2 * g + l;
+            leaf.box = inner.box;
+        }
+    }
+    h.nodes[0].box = {glm::vec3(-100.0f), glm::vec3(100.0f)};
+    return h;
+}
+
+TEST(Hierarchy, RepeatedSubtreesAreFoundUpToASimilarityButNotAMirror) {
+    const glm::mat4 step = glm::translate(glm::mat4(1.0f), glm::vec3(2, 0, 0));
+    const glm::mat4 base = glm::translate(glm::mat4(1.0f), glm::vec3(1, 2, 3));
+    const glm::mat4 turned = glm::scale(glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(-5, 0, 7)), 1.0f,
+                                                    glm::vec3(0, 1, 0)),
+                                        glm::vec3(2.0f));
+    const glm::mat4 mirrored = glm::scale(glm::mat4(1.0f), glm::vec3(-1, 1, 1));
+    const glm::mat4 moved_apart = glm::translate(glm::mat4(1.0f), glm::vec3(9, 9, 9));
+    // Groups: the representative (last, matched first), a rotated and scaled copy, a mirror, the
+    // same meshes placed differently, and a copy with the meshes swapped.
+    const std::vector<glm::mat4> worlds{turned * base, turned * base * step, mirrored * base, mirrored * base * step,
+                                        base, base * glm::translate(glm::mat4(1.0f), glm::vec3(0, 3, 0)),
+                                        moved_apart * base, moved_apart * base * step, base, base * step};
+    const std::vector<uint32_t> meshes{0, 1, 0, 1, 0, 1, 1, 0, 0, 1};
+    const ObjectHierarchy h = twoLeafGroups(5);
+    const SubtreeRepeats r = findRepeatedSubtrees(h.nodes, meshes, worlds);
+    EXPECT_EQ(r.repeated, 1u);
+    EXPECT_EQ(r.of[1], 5u) << "the rotated, scaled copy repeats the last group";
+    EXPECT_EQ(r.of[2], 2u) << "a mirror image would turn the HLOD inside out";
+    EXPECT_EQ(r.of[3], 3u) << "the second object placed elsewhere";
+    EXPECT_EQ(r.of[4], 4u) << "the meshes swapped";
+    EXPECT_EQ(r.of[5], 5u);
+    EXPECT_NEAR(r.scale[1], 2.0f, 1e-5f);
+    // The motion takes the representative's objects onto the repeat's.
+    for (uint32_t l = 0; l < 2; ++l) {
+        const glm::mat4 moved = r.motion[1] * worlds[8 + l];
+        for (int c = 0; c < 4; ++c)
+            for (int e = 0; e < 4; ++e) EXPECT_NEAR(moved[c][e], worlds[l][c][e], 1e-4f) << l << " " << c << " " << e;
+    }
+    EXPECT_GT(r.slack[1], 0.0f);
+    EXPECT_EQ(r.slack[5], 0.0f);
+}
+
+TEST(Hierarchy, ATiledModelBuildsEachDistinctSubtreeOnceAndPlacesItsHlodOnTheCopies) {
+    const std::string glb = (test::scratchDir() / "hierarchy_grid.glb").string();
+    GridOptions g;
+    g.nx = 3;
+    g.ny = 2;
+    g.nz = 2;
+    writeGrid(glb, importModel(test::kEngine), g);
+    const std::string flat = (test::scratchDir() / "hierarchy_grid_flat.oss").string();
+    writeOss(flat, prepareScene(importModel(glb), PrepOptions{}));
+    const OssFile file = OssFile::open(flat);
+    HlodOptions options;
+    options.node_triangles = 512;
+    const std::string shared_path = (test::scratchDir() / "hierarchy_grid_shared.oss").string();
+    const std::string own_path = (test::scratchDir() / "hierarchy_grid_own.oss").string();
+    const ObjectHierarchy shared = writeWithHierarchy(file, shared_path, 8, options);
+    options.share_repeats = false;
+    const ObjectHierarchy own = writeWithHierarchy(file, own_path, 8, options);
+    ASSERT_EQ(shared.nodes.size(), own.nodes.size());
+
+    const OssFile with = OssFile::open(shared_path), without = OssFile::open(own_path);
+    with.verifyLodPrefix();
+    uint32_t inner = 0, repeats = 0;
+    std::set<uint32_t> hlods;
+    for (size_t n = 0; n < shared.nodes.size(); ++n) {
+        const SceneNode& a = shared.nodes[n];
+        const SceneNode& b = own.nodes[n];
+        EXPECT_EQ(a.child_count, b.child_count);
+        EXPECT_EQ(std::memcmp(&with.nodes()[n].world, glm::value_ptr(a.world), sizeof(glm::mat4)), 0);
+        if (a.child_count == 0) continue;
+        ++inner;
+        hlods.insert(a.mesh);
+        EXPECT_EQ(b.world, glm::mat4(1.0f)) << "without sharing every HLOD is in world space";
+        // Shared or not, a node's HLOD covers its box alike and has about the same error and
+        // triangles (a copy's HLOD built for itself differs from its representative's only by
+        // rounding in the world positions, which can turn a collapse or two).
+        const float diagonal = glm::length(a.box.max - a.box.min);
+        EXPECT_NEAR(a.error, b.error, 0.1f * b.error + 1e-3f * diagonal) << "node " << n;
+        const OssFile::MeshView m = with.mesh(a.mesh);
+        Bounds placed;
+        for (const glm::vec3& p : m.positions) placed.extend(glm::vec3(a.world * glm::vec4(p, 1.0f)));
+        Bounds built;
+        for (const glm::vec3& p : without.mesh(b.mesh).positions) built.extend(p);
+        const float slack = std::max(a.error, b.error) + 1e-3f * diagonal;
+        EXPECT_LE(glm::length(placed.min - built.min), slack) << "node " << n;
+        EXPECT_LE(glm::length(placed.max - built.max), slack) << "node " << n;
+        EXPECT_NEAR(double(m.triangleCount()), double(without.mesh(b.mesh).triangleCount()),
+                    0.1 * without.mesh(b.mesh).triangleCount()) << "node " << n;
+        if (a.world != glm::mat4(1.0f)) ++repeats;
+    }
+    EXPECT_GT(repeats, inner / 2) << "twelve engines: most subtrees are copies";
+    EXPECT_EQ(with.meshCount(), file.meshCount() + inner - repeats) << "one HLOD per distinct subtree";
+    EXPECT_EQ(hlods.size(), inner - repeats);
+    EXPECT_LT(with.fileSize(), without.fileSize());
 }
 
 TEST(Hierarchy, LevelWithTrianglesFindsTheSmallestLevelThatHasThem) {

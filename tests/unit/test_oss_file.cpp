@@ -384,12 +384,12 @@ TEST(OssFile, FutureVersionIsNamed) {
     const std::string good = scratch("version_source.oss"), path = scratch("version.oss");
     writeOss(good, smallScene());
     std::vector<char> bytes = readBytes(good);
-    bytes[8] = 3;
+    bytes[8] = 4;
     writeBytes(path, bytes, bytes.size());
-    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 3, this build reads version 2");
-    bytes[8] = 1;  // a file of an older build: prepared again
+    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 4, this build reads version 3");
+    bytes[8] = 2;  // a file of an older build: prepared again
     writeBytes(path, bytes, bytes.size());
-    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 1, this build reads version 2 "
+    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 2, this build reads version 3 "
                                       "(prepare the model again: occswitch prep)");
     bytes[0] = 'X';
     writeBytes(path, bytes, bytes.size());
@@ -514,7 +514,7 @@ TEST(OssFile, CosEntriesMustBeQualifiedDistinctObjects) {
 // one leaf, boxes and triangle counts that hold their children's, HLOD meshes that exist.
 TEST(OssFile, ABrokenHierarchyIsRejected) {
     const uint64_t nodes = sectionOffsetOf(smallScene(), "NODES");
-    const auto at = [&](uint32_t n, size_t field) { return "section NODES at offset " + std::to_string(nodes + n * 56 + field) + ": node " + std::to_string(n) + ": "; };
+    const auto at = [&](uint32_t n, size_t field) { return "section NODES at offset " + std::to_string(nodes + n * sizeof(oss::NodeDisk) + field) + ": node " + std::to_string(n) + ": "; };
     const auto broken = [](const std::function<void(PreparedScene&)>& change) {
         PreparedScene scene = smallScene();
         change(scene);
@@ -539,6 +539,10 @@ TEST(OssFile, ABrokenHierarchyIsRejected) {
     EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[2].box.min.z = std::numeric_limits<float>::infinity(); }),
               at(2, 0) + "box is not finite");
     EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[3].error = 1.0f; }), at(3, 44) + "a leaf with error 1");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].world[3][1] = std::numeric_limits<float>::infinity(); }),
+              at(1, 56 + 4 * 13) + "world[13] is not finite");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[4].world[0][0] = 2.0f; }),
+              at(4, 56) + "a leaf whose world is not the identity");
     EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].error = std::numeric_limits<float>::quiet_NaN(); }),
               at(1, 44) + "error nan is not a finite number >= 0");
     EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[0].child_count = 0, s.nodes[0].first_child = 0; }),
