@@ -5,7 +5,8 @@
 # massive.csv with six runs whose invariants hold (0 false culls, exact churn known, peak
 # memory measured), and, the plant having a hierarchy, six more (issue 34): the walk and the
 # orbit with it, the orbit's prefix against the full-detail picture flat and with it, and a
-# small plant's walk and orbit; a second run reuses the scenes; impossible options exit 2.
+# small plant's walk and orbit, and the engine grid prepared without and with it; a second run
+# reuses the scenes; impossible options exit 2.
 set -u
 exe=$1
 dir=$(mktemp -d)
@@ -17,7 +18,7 @@ field() {  # field ROW COLUMN of massive.csv (rows from 1)
     NR == row + 1 { if (!c) exit 3; print $c }' "$out/massive.csv"
 }
 
-massive=(bench massive --out "$out" --objects 1000 --frames 14 --exact-frames 4 --reference-frames 3 --growth-objects 300)
+massive=(bench massive --out "$out" --objects 1000 --frames 14 --exact-frames 4 --reference-frames 3 --growth-objects 300 --grid 2)
 "$exe" "${massive[@]}" >"$dir/stdout" 2>"$dir/stderr" ||
   { cat "$dir/stderr"; fail "bench massive"; }
 [ "$(cat "$dir/stdout")" = "$out/massive.md" ] || fail "stdout is not the summary's path: $(cat "$dir/stdout")"
@@ -59,14 +60,19 @@ done
 [ "$(field 7 psnr_db)" = n/a ] || fail "a run without --reference has a PSNR: $(field 7 psnr_db)"
 for t in "orbit with the hierarchy: median" "items drawn on the orbit with the hierarchy: [0-9]*" \
          "cut churn on the orbit: [0-9.]* %" "PSNR against the full-detail picture over the orbit's first 3 frames" \
-         "growth from the 300-object plant" "prep with the hierarchy (prep's default): [0-9]* MB peak"; do
+         "growth from the 300-object plant" "prep with the hierarchy (prep's default): [0-9]* MB peak" \
+         "the engine grid (\`gen grid --nx 2 --ny 2 --nz 2\`) prepared with the hierarchy: [0-9.]* s"; do
   grep -q "$t" "$out/massive.md" || fail "no '$t' in massive.md"
 done
+# Eight engines: most of the grid's inner nodes share a copy's HLOD.
+hlods=$(sed -n 's/.* \([0-9]*\) HLODs for \([0-9]*\) inner nodes.*/\1 \2/p' "$out/massive.md")
+set -- $hlods
+[ $# -eq 2 ] && [ $(($1 * 2)) -lt "$2" ] || fail "the grid's HLODs: '$hlods' (HLODs, inner nodes)"
 
 # Reused: no gen or prep, their cost still reported.
 "$exe" "${massive[@]}" >/dev/null 2>"$dir/stderr2" ||
   { cat "$dir/stderr2"; fail "second bench massive"; }
-grep -q "gen plant" "$dir/stderr2" && fail "the second run made the scene again"
+grep -q "gen plant\|gen grid" "$dir/stderr2" && fail "the second run made the scene again"
 grep -q "reused; its cost from when it was made" "$out/massive.md" || fail "reuse not said"
 grep -q "gen: [0-9.]* s, [0-9]* MB peak" "$out/massive.md" || fail "gen cost lost on reuse"
 

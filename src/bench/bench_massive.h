@@ -17,6 +17,9 @@ struct BenchMassiveOptions {
     // objects walked and orbited with the hierarchy for the growth (none when not below objects).
     uint32_t reference_frames = 30;
     uint32_t growth_objects = 10000;
+    // With a hierarchy: the engine tiled grid x grid x grid times (gen grid) prepared without and
+    // with it, for the time and size of sharing HLODs among repeated subtrees (0: none).
+    uint32_t grid = 10;
     double run_timeout_s = 7200;      // a run that takes longer is stopped and reported
     std::string budget = "auto";      // render --budget: what a frame draws (auto: one vertex per pixel)
 };
@@ -30,7 +33,8 @@ struct BenchMassiveOptions {
 // false culls, peak memory of gen, prep and every render), DIR/raw (per-frame stats) and
 // DIR/logs; prints the summary's path on stdout. With a hierarchy in the scene, also the walk
 // and the orbit with it (items drawn, triangles, cut churn), the orbit's prefix against the
-// full-detail picture flat and with it (PSNR), and the growth from a small plant (issue 34).
+// full-detail picture flat and with it (PSNR), the growth from a small plant, and the engine grid
+// prepared without and with the hierarchy (time, peak, size; issue 34).
 int runBenchMassive(const BenchMassiveOptions& options);
 
 }  // namespace occ::bench

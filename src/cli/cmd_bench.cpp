@@ -94,8 +94,8 @@ Command addBenchCommand(CLI::App& app) {
                    "streamed share, PVS churn against exact churn, occluder triangles, raster ms, occlusion ms and\n"
                    "the raster's occluder triangles/s per core, false culls, peak memory of gen, prep and render.\n"
                    "With a hierarchy in the scene (prep's default) also the walk and the orbit with it, the\n"
-                   "orbit's prefix against the full-detail picture flat and with it, and a small plant's\n"
-                   "walk and orbit with it (growth).\n"
+                   "orbit's prefix against the full-detail picture flat and with it, a small plant's walk\n"
+                   "and orbit with it (growth), and the engine grid prepared without and with it.\n"
                    "On 2 cores: about 5 minutes to make the 10^6-object scene, then about 12 minutes of runs,\n"
                    "and with a hierarchy about 40 more, mostly the two reference runs, which draw the full-detail\n"
                    "plant every frame (docs/results.md).");
@@ -113,6 +113,11 @@ Command addBenchCommand(CLI::App& app) {
                         "with a hierarchy: a plant of this many objects also walked and orbited with it, for the "
                         "growth of the frame with the scene (none when not below --objects)")
         ->check(CLI::Range(100u, 10000000u))
+        ->capture_default_str();
+    massive->add_option("--grid", mo->grid,
+                        "with a hierarchy: the engine tiled N x N x N times (gen grid) prepared without and with it, "
+                        "for the time and size of HLODs shared among repeated subtrees (0: none)")
+        ->check(CLI::Range(0u, 40u))
         ->capture_default_str();
     massive->add_option("--budget", mo->budget, "the renders' vertex budget, as render --budget takes it")
         ->capture_default_str();
