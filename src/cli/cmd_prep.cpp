@@ -56,6 +56,7 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
         HlodProgress built;
         HlodOptions hlod;
         hlod.node_triangles = prep.node_triangles;
+        hlod.reduction = prep.hlod_reduction;
         hlod.cluster = prep.hlod_cluster;
         hlod.share_repeats = prep.hlod_share;
         hlod.threads = prep.threads;
@@ -186,6 +187,12 @@ Command addPrepCommand(CLI::App& app) {
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
     sub->add_option("--fanout", o->prep.fanout, "hierarchy: children per node at most, in [2, 64]")->capture_default_str();
+    sub->add_option("--hlod-reduction", o->prep.hlod_reduction,
+                    "hierarchy: a child gives its parent's HLOD at most 1/N of its subtree's triangles, so an HLOD\n"
+                    "is at finest 1/N of what it stands for (lower: finer HLODs that can stand in nearer the eye,\n"
+                    "more triangles stored: all HLODs about 1/(N-1) of the scene)")
+        ->check(CLI::Range(2u, 64u))
+        ->capture_default_str();
     sub->add_option("--node-triangles", o->prep.node_triangles,
                     "hierarchy: about how many triangles an HLOD starts from, halved (its merged input is\n"
                     "twice this; the progressive mesh then reaches every size below)")

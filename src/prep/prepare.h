@@ -26,6 +26,7 @@ struct PrepOptions {
     bool hierarchy = true;
     uint32_t fanout = 8;              // children per node at most
     uint32_t node_triangles = 2048;   // HlodOptions::node_triangles
+    uint32_t hlod_reduction = 4;      // HlodOptions::reduction
     bool hlod_cluster = true;         // HlodOptions::cluster
     bool hlod_share = true;           // HlodOptions::share_repeats
 };
