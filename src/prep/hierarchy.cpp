@@ -186,8 +186,8 @@ SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<
             const glm::dmat4 pa = placement(n, i), pb = placement(m, i);
             for (int c = 0; c < 3; ++c)
                 for (int e = 0; e < 3; ++e)
-                    if (std::abs(pa[c][e] - pb[c][e]) > 1e-5) return false;
-            if (glm::length(glm::dvec3(pa[3]) - glm::dvec3(pb[3])) > slack) return false;
+                    if (!(std::abs(pa[c][e] - pb[c][e]) <= 1e-5)) return false;  // NaN (a singular world) too
+            if (!(glm::length(glm::dvec3(pa[3]) - glm::dvec3(pb[3])) <= slack)) return false;
         }
         return true;
     };
@@ -218,9 +218,11 @@ SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<
         const glm::dvec3 c0(motion[0]), c1(motion[1]), c2(motion[2]);
         const double scale = glm::length(c0);
         const double tolerance = 1e-5 * scale;
-        if (!(scale > 0.0) || glm::determinant(glm::dmat3(motion)) <= 0.0 || std::abs(glm::length(c1) - scale) > tolerance || std::abs(glm::length(c2) - scale) > tolerance ||
-            std::abs(glm::dot(c0, c1)) > tolerance * scale || std::abs(glm::dot(c0, c2)) > tolerance * scale ||
-            std::abs(glm::dot(c1, c2)) > tolerance * scale) {
+        const auto within = [](double x, double limit) { return std::abs(x) <= limit; };  // false for NaN
+        if (!(scale > 0.0) || !(glm::determinant(glm::dmat3(motion)) > 0.0) || !within(glm::length(c1) - scale, tolerance) ||
+            !within(glm::length(c2) - scale, tolerance) || !within(glm::dot(c0, c1), tolerance * scale) ||
+            !within(glm::dot(c0, c2), tolerance * scale) || !within(glm::dot(c1, c2), tolerance * scale) ||
+            !std::isfinite(motion[3][0] + motion[3][1] + motion[3][2])) {
             cls[n] = classes++;
             bucket.push_back(n);
             continue;

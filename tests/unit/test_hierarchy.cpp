@@ -287,6 +287,14 @@ TEST(Hierarchy, RepeatedSubtreesAreFoundUpToASimilarityButNotAMirror) {
     }
     EXPECT_GT(r.slack[1], 0.0f);
     EXPECT_EQ(r.slack[5], 0.0f);
+
+    // A flattened copy (a singular world, whose inverse is not finite) repeats nothing.
+    const glm::mat4 flat = glm::scale(glm::mat4(1.0f), glm::vec3(0.0f));
+    const std::vector<glm::mat4> singular{flat * base, flat * base * step, base, base * step};
+    const SubtreeRepeats none = findRepeatedSubtrees(twoLeafGroups(2).nodes, std::vector<uint32_t>{0, 1, 0, 1}, singular);
+    EXPECT_EQ(none.repeated, 0u);
+    EXPECT_EQ(none.of[1], 1u);
+    EXPECT_EQ(none.motion[1], glm::mat4(1.0f));
 }
 
 TEST(Hierarchy, ATiledModelBuildsEachDistinctSubtreeOnceAndPlacesItsHlodOnTheCopies) {
