@@ -152,25 +152,22 @@ SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<
                                     std::span<const glm::mat4> object_world) {
     const uint32_t count = uint32_t(nodes.size());
     SubtreeRepeats r;
-    r.of.resize(count);
-    r.motion.assign(count, glm::mat4(1.0f));
-    r.scale.assign(count, 1.0f);
-    r.slack.assign(count, 0.0f);
-    std::iota(r.of.begin(), r.of.end(), 0u);
-    // Per node: its first leaf's world (double: the relative placements are compared at 1e-5)
-    // and a class; leaves' classes are their meshes, inner nodes' come after.
-    std::vector<glm::dmat4> first(count);
+    r.index.assign(count, UINT32_MAX);
+    // Per node: its first leaf's object and a class; leaves' classes are their meshes, inner
+    // nodes' come after. (16 bytes a node and a bucket entry per inner node: prep's memory bound.)
+    std::vector<uint32_t> first(count);
     std::vector<uint64_t> cls(count);
     uint64_t classes = UINT32_MAX + uint64_t(1);
     std::unordered_map<uint64_t, std::vector<uint32_t>> buckets;  // children's classes -> nodes
-    const auto placement = [&](uint32_t n, uint32_t i) {  // child i of n relative to n's first leaf
-        return glm::inverse(first[n]) * first[nodes[n].first_child + i];
-    };
+    // Relative placements are compared in double at 1e-5.
+    const auto world = [&](uint32_t n) { return glm::dmat4(object_world[first[n]]); };
     double matched_slack = 0.0;  // same()'s translation slack, for the repeat's error
     const auto same = [&](uint32_t n, uint32_t m) {
         const SceneNode& a = nodes[n];
         const SceneNode& b = nodes[m];
         if (a.child_count != b.child_count) return false;
+        for (uint32_t i = 0; i < a.child_count; ++i)
+            if (cls[a.first_child + i] != cls[b.first_child + i]) return false;
         // Positions are floats: two placements cannot be told apart below a few units in the last
         // place of the coordinates they come from (about 1e-6 of the largest), nor, here, below
         // 1e-5 of the subtree's diagonal.
@@ -181,9 +178,9 @@ SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<
         };
         const double slack = 1e-5 * glm::length(extent) + 1e-6 * double(std::max(magnitude(a), magnitude(b)));
         matched_slack = slack;
-        for (uint32_t i = 0; i < a.child_count; ++i) {
-            if (cls[a.first_child + i] != cls[b.first_child + i]) return false;
-            const glm::dmat4 pa = placement(n, i), pb = placement(m, i);
+        const glm::dmat4 to_a = glm::inverse(world(n)), to_b = glm::inverse(world(m));
+        for (uint32_t i = 0; i < a.child_count; ++i) {  // child i relative to the node's first leaf
+            const glm::dmat4 pa = to_a * world(a.first_child + i), pb = to_b * world(b.first_child + i);
             for (int c = 0; c < 3; ++c)
                 for (int e = 0; e < 3; ++e)
                     if (!(std::abs(pa[c][e] - pb[c][e]) <= 1e-5)) return false;  // NaN (a singular world) too
@@ -194,7 +191,7 @@ SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<
     for (uint32_t n = count; n-- > 0;) {
         const SceneNode& node = nodes[n];
         if (node.child_count == 0) {
-            first[n] = glm::dmat4(object_world[node.object]);
+            first[n] = node.object;
             cls[n] = object_mesh[node.object];
             continue;
         }
@@ -212,7 +209,7 @@ SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<
             bucket.push_back(n);
             continue;
         }
-        const glm::dmat4 motion = first[n] * glm::inverse(first[found]);
+        const glm::dmat4 motion = world(n) * glm::inverse(world(found));
         // Only similarities move an HLOD's error by one factor: equal, orthogonal columns; and no
         // mirror, which would turn the HLOD's triangles inside out.
         const glm::dvec3 c0(motion[0]), c1(motion[1]), c2(motion[2]);
@@ -228,11 +225,8 @@ SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<
             continue;
         }
         cls[n] = cls[found];
-        r.of[n] = found;
-        r.motion[n] = glm::mat4(motion);
-        r.scale[n] = float(scale);
-        r.slack[n] = float(matched_slack);
-        ++r.repeated;
+        r.index[n] = uint32_t(r.list.size());
+        r.list.push_back({found, float(scale), float(matched_slack), glm::mat4(motion)});
     }
     return r;
 }
@@ -302,14 +296,13 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
         }
         repeats = findRepeatedSubtrees(h.nodes, object_mesh, object_world);
     } else {
-        repeats.of.resize(count);
-        std::iota(repeats.of.begin(), repeats.of.end(), 0u);
+        repeats.index.assign(count, UINT32_MAX);
     }
-    const auto repeat = [&](uint32_t n) { return repeats.of[n] != n; };
+    const auto repeat = [&](uint32_t n) { return repeats.index[n] != UINT32_MAX; };
     std::vector<uint32_t> pm_uses(count, 0);
     for (uint32_t n = 0; n < count; ++n)
         if (repeat(n) && h.nodes[n].child_count > 0 && parent[n] != UINT32_MAX && !repeat(parent[n]))
-            ++pm_uses[repeats.of[n]];
+            ++pm_uses[repeats.of(n)];
     std::unordered_map<uint32_t, ProgressiveMesh> retained;
 
     std::vector<KeptLevel> kept(count);
@@ -376,13 +369,14 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
         }
         // The repeats of this level: their representatives are built (as deep or deeper).
         for (const uint32_t n : repeated) {
-            const uint32_t r = repeats.of[n];
+            const SubtreeRepeats::Repeat& rep = *repeats.find(n);
+            const uint32_t r = rep.of;
             SceneNode& node = h.nodes[n];
-            const float scale = repeats.scale[n];
+            const float scale = rep.scale;
             node.mesh = h.nodes[r].mesh;
-            node.world = repeats.motion[n];
+            node.world = rep.motion;
             // The placements matched within a slack: counted as error.
-            node.error = scale * h.nodes[r].error + repeats.slack[n];
+            node.error = scale * h.nodes[r].error + rep.slack;
             if (parent[n] != UINT32_MAX && !repeat(parent[n])) {
                 const ProgressiveMesh& p = retained.at(r);
                 KeptLevel& k = kept[n];

@@ -43,17 +43,22 @@ ObjectHierarchy buildObjectHierarchy(std::span<const k::Aabb> boxes, std::span<c
 // tree of the same meshes and each of n's children sits where r's does relative to the first
 // leaf (the linear parts' entries within 1e-5; translations within 1e-5 of the diagonal plus
 // 1e-6 of the largest coordinate, about what float coordinates can tell apart), so that n's
-// geometry is r's moved by `motion[n]` = (n's first leaf's world) x (r's)^-1, a similarity
-// without mirror (rotation, translation, uniform scale `scale[n]`). Nodes are matched from the
-// last to the first, so a representative has a larger id than its repeats: it is as deep or
-// deeper, and buildHlods builds it first. An engine tiled a thousand times gets one HLOD per
-// distinct subtree instead of one per node.
+// geometry is r's moved by the motion (n's first leaf's world) x (r's)^-1, a similarity without
+// mirror (rotation, translation, uniform scale). Nodes are matched from the last to the first,
+// so a representative has a larger id than its repeats: it is as deep or deeper, and buildHlods
+// builds it first. An engine tiled a thousand times gets one HLOD per distinct subtree instead
+// of one per node.
 struct SubtreeRepeats {
-    std::vector<uint32_t> of;        // per node: the representative (itself if none; leaves: itself)
-    std::vector<glm::mat4> motion;   // per node: identity where of[n] == n
-    std::vector<float> scale;        // per node: the motion's scale (1 where of[n] == n)
-    std::vector<float> slack;        // per node: the translation slack the match allowed (0: none)
-    uint32_t repeated = 0;           // inner nodes with of[n] != n
+    struct Repeat {
+        uint32_t of = 0;        // the representative
+        float scale = 1.0f;     // the motion's scale
+        float slack = 0.0f;     // the translation slack the match allowed
+        glm::mat4 motion{1.0f};
+    };
+    std::vector<uint32_t> index;  // per node: its entry in `list`, UINT32_MAX where it repeats nothing
+    std::vector<Repeat> list;     // one per repeated inner node (4 bytes per node plus this: prep's memory)
+    const Repeat* find(uint32_t n) const { return index[n] == UINT32_MAX ? nullptr : &list[index[n]]; }
+    uint32_t of(uint32_t n) const { return index[n] == UINT32_MAX ? n : list[index[n]].of; }
 };
 SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<const uint32_t> object_mesh,
                                     std::span<const glm::mat4> object_world);

@@ -272,29 +272,28 @@ TEST(Hierarchy, RepeatedSubtreesAreFoundUpToASimilarityButNotAMirror) {
     const std::vector<uint32_t> meshes{0, 1, 0, 1, 0, 1, 1, 0, 0, 1};
     const ObjectHierarchy h = twoLeafGroups(5);
     const SubtreeRepeats r = findRepeatedSubtrees(h.nodes, meshes, worlds);
-    EXPECT_EQ(r.repeated, 1u);
-    EXPECT_EQ(r.of[1], 5u) << "the rotated, scaled copy repeats the last group";
-    EXPECT_EQ(r.of[2], 2u) << "a mirror image would turn the HLOD inside out";
-    EXPECT_EQ(r.of[3], 3u) << "the second object placed elsewhere";
-    EXPECT_EQ(r.of[4], 4u) << "the meshes swapped";
-    EXPECT_EQ(r.of[5], 5u);
-    EXPECT_NEAR(r.scale[1], 2.0f, 1e-5f);
+    ASSERT_EQ(r.list.size(), 1u);
+    EXPECT_EQ(r.of(1), 5u) << "the rotated, scaled copy repeats the last group";
+    EXPECT_EQ(r.of(2), 2u) << "a mirror image would turn the HLOD inside out";
+    EXPECT_EQ(r.of(3), 3u) << "the second object placed elsewhere";
+    EXPECT_EQ(r.of(4), 4u) << "the meshes swapped";
+    EXPECT_EQ(r.of(5), 5u);
+    EXPECT_NEAR(r.find(1)->scale, 2.0f, 1e-5f);
     // The motion takes the representative's objects onto the repeat's.
     for (uint32_t l = 0; l < 2; ++l) {
-        const glm::mat4 moved = r.motion[1] * worlds[8 + l];
+        const glm::mat4 moved = r.find(1)->motion * worlds[8 + l];
         for (int c = 0; c < 4; ++c)
             for (int e = 0; e < 4; ++e) EXPECT_NEAR(moved[c][e], worlds[l][c][e], 1e-4f) << l << " " << c << " " << e;
     }
-    EXPECT_GT(r.slack[1], 0.0f);
-    EXPECT_EQ(r.slack[5], 0.0f);
+    EXPECT_GT(r.find(1)->slack, 0.0f);
+    EXPECT_EQ(r.find(5), nullptr);
 
     // A flattened copy (a singular world, whose inverse is not finite) repeats nothing.
     const glm::mat4 flat = glm::scale(glm::mat4(1.0f), glm::vec3(0.0f));
     const std::vector<glm::mat4> singular{flat * base, flat * base * step, base, base * step};
     const SubtreeRepeats none = findRepeatedSubtrees(twoLeafGroups(2).nodes, std::vector<uint32_t>{0, 1, 0, 1}, singular);
-    EXPECT_EQ(none.repeated, 0u);
-    EXPECT_EQ(none.of[1], 1u);
-    EXPECT_EQ(none.motion[1], glm::mat4(1.0f));
+    EXPECT_TRUE(none.list.empty());
+    EXPECT_EQ(none.of(1), 1u);
 }
 
 TEST(Hierarchy, ATiledModelBuildsEachDistinctSubtreeOnceAndPlacesItsHlodOnTheCopies) {
