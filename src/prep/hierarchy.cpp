@@ -178,13 +178,15 @@ SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<
         };
         const double slack = 1e-5 * glm::length(extent) + 1e-6 * double(std::max(magnitude(a), magnitude(b)));
         matched_slack = slack;
-        const glm::dmat4 to_a = glm::inverse(world(n)), to_b = glm::inverse(world(m));
+        const glm::dmat4 from_a = world(n), to_a = glm::inverse(from_a), to_b = glm::inverse(world(m));
         for (uint32_t i = 0; i < a.child_count; ++i) {  // child i relative to the node's first leaf
             const glm::dmat4 pa = to_a * world(a.first_child + i), pb = to_b * world(b.first_child + i);
             for (int c = 0; c < 3; ++c)
                 for (int e = 0; e < 3; ++e)
                     if (!(std::abs(pa[c][e] - pb[c][e]) <= 1e-5)) return false;  // NaN (a singular world) too
-            if (!(glm::length(glm::dvec3(pa[3]) - glm::dvec3(pb[3])) <= slack)) return false;
+            // The translations differ in the first leaf's frame; how far that is in the world:
+            const glm::dvec3 apart = glm::dmat3(from_a) * (glm::dvec3(pa[3]) - glm::dvec3(pb[3]));
+            if (!(glm::length(apart) <= slack)) return false;
         }
         return true;
     };
