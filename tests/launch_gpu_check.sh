@@ -30,4 +30,10 @@ done
 "$dir/results/occswitch" render "$dir/results/scenes/grid.oss" --path "$dir/results/scenes/grid.cam" --no-display \
   >"$dir/cpu.log" 2>&1 || { cat "$dir/cpu.log"; fail "the bundled occswitch"; }
 grep -q "^device: " "$dir/cpu.log" || fail "no device line: $(cat "$dir/cpu.log")"
+# A benchmark from the bundle starts its child runs through the bundle's wrapper (through
+# /proc/self/exe, the bundled loader, every child run would fail).
+"$dir/results/occswitch" bench massive --out "$dir/massive" --objects 1000 --frames 12 --exact-frames 2 \
+  --reference-frames 0 --growth-objects 100000 --grid 0 >"$dir/massive.log" 2>&1 ||
+  { cat "$dir/massive.log"; fail "bench massive from the bundle"; }
+[ "$(wc -l <"$dir/massive/massive.csv")" -eq 9 ] || fail "bench massive from the bundle: $(cat "$dir/massive/massive.csv")"
 echo "PASS"

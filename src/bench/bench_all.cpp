@@ -129,7 +129,7 @@ public:
     Bench(const BenchAllOptions& o, const SizeConfig& size)
         : o_(o), size_(size), out_(o.out), scenes_(o.scenes.empty() ? out_ / "scenes" : fs::path(o.scenes)),
           raw_(out_ / "raw"), plots_(out_ / "plots"), runner_(out_ / "logs", size.run_timeout_s) {
-        exe_ = fs::read_symlink("/proc/self/exe").string();
+        exe_ = selfExecutable();
         mpirun_ = findInPath("mpirun");
         gnuplot_ = findInPath("gnuplot");
     }

@@ -122,7 +122,7 @@ public:
     explicit Massive(const BenchMassiveOptions& o)
         : o_(o), out_(o.out), scenes_(o.scenes.empty() ? out_ / "scenes" : fs::path(o.scenes)),
           runner_(out_ / "logs", o.run_timeout_s, "bench massive") {
-        exe_ = fs::read_symlink("/proc/self/exe").string();
+        exe_ = selfExecutable();
     }
 
     int run() {

@@ -184,7 +184,7 @@ int runBenchRanks(const BenchRanksOptions& o) {
     makeOutputFolder(o.out);
     for (const char* sub : {"scenes", "raw", "logs", "frames"}) fs::create_directories(out / sub);
     Runner runner(out / "logs", o.run_timeout_s, "bench ranks");
-    const std::string exe = fs::read_symlink("/proc/self/exe").string();
+    const std::string exe = selfExecutable();
 
     fs::path scene = o.scene;
     if (scene.empty())
@@ -548,7 +548,7 @@ int runBenchLinks(const BenchLinksOptions& o) {
     makeOutputFolder(o.out);
     for (const char* sub : {"scenes", "raw", "logs", "plots"}) fs::create_directories(out / sub);
     Runner runner(out / "logs", o.run_timeout_s, "bench links");
-    const std::string exe = fs::read_symlink("/proc/self/exe").string();
+    const std::string exe = selfExecutable();
 
     fs::path scene = o.scene;
     if (scene.empty())

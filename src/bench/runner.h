@@ -21,6 +21,7 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -101,6 +102,16 @@ inline std::string findInPath(const std::string& name) {
     return {};
 }
 
+
+// The occswitch the benchmark's child runs start: $OCCSWITCH_SELF where set (launch/gpu-check's
+// bundle runs the binary through its own dynamic loader, so /proc/self/exe names the loader,
+// not occswitch, and the bundle's wrapper script says which command starts this build), else
+// this process's executable.
+inline std::string selfExecutable() {
+    const char* self = std::getenv("OCCSWITCH_SELF");
+    if (self && *self) return self;
+    return fs::read_symlink("/proc/self/exe").string();
+}
 
 struct RunResult {
     double seconds = 0;
