@@ -15,7 +15,14 @@ for f in run bin/occswitch bin/occswitch-cuda bin/occ_tests_cuda \
   [ -e "$dir/b/$f" ] || fail "the bundle lacks $f"
 done
 [ "$(du -sm "$dir/b" | cut -f1)" -lt 64 ] || fail "the bundle is $(du -sm "$dir/b" | cut -f1) MiB"
+# compute-sanitizer's reports name source lines: the kernels are built with -lineinfo.
+grep -q -- "-lineinfo" "$src/build/CMakeFiles/occ_kernels_cuda.dir/flags.make" || fail "the CUDA kernels lack -lineinfo"
 "$dir/b/run" "$dir/results" >"$dir/run.log" 2>&1; status=$?
+# The plain CUDA test run comes first and apart from memcheck, which runs last with its own limit.
+grep -q "^== occ_tests_cuda$" "$dir/run.log" || fail "no plain run of occ_tests_cuda"
+grep -q "under compute-sanitizer" "$dir/b/run" || fail "memcheck is not in the run script"
+[ "$(grep -n -m1 "under compute-sanitizer" "$dir/b/run" | cut -d: -f1)" -gt "$(grep -n -m1 "== CPU and GPU builds, frame by frame" "$dir/b/run" | cut -d: -f1)" ] ||
+  fail "memcheck does not come after the comparisons"
 cat "$dir/run.log"
 if [ $status -eq 3 ]; then
   grep -q "no usable GPU" "$dir/run.log" || fail "exit 3 without saying why"
