@@ -2,6 +2,7 @@
 #include "device_access.h"
 #include "scene/errors.h"
 
+#include <atomic>
 #include <cstdlib>
 #include <cstring>
 #include <new>
@@ -10,6 +11,7 @@
 #if defined(__CUDACC__)
 #include <cuda_gl_interop.h>
 #include <cuda_runtime.h>
+#include <thrust/system/detail/bad_alloc.h>
 #include <thrust/system_error.h>
 
 // Every CUDA runtime call goes through this: a failure becomes one SystemError naming the call,
@@ -64,14 +66,66 @@ int nodeLocalRank() {
     return 0;
 }
 
-std::string mib(uint64_t bytes) { return std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB"; }
 #endif
 
 bool g_selected = false;
 int g_requested = -1;
 DeviceInfo g_device;
 
+std::string mebibytes(uint64_t bytes) { return std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB"; }
+std::string cudaVersion(int v) { return std::to_string(v / 1000) + "." + std::to_string(v % 1000 / 10); }
+
+// OCC_DEVICE_ALLOC_FAIL_AT (deviceAlloc's contract): the call, from 0, that fails; -1: none.
+long injectedAllocFailure() {
+    static const long at = [] {
+        const char* v = std::getenv("OCC_DEVICE_ALLOC_FAIL_AT");
+        if (!v || !*v) return -1L;
+        char* end = nullptr;
+        const long n = std::strtol(v, &end, 10);
+        return end != v && *end == '\0' && n >= 0 ? n : -1L;
+    }();
+    return at;
+}
+std::atomic<long> g_allocs{0};
+bool allocFailsNow() {
+    const long at = injectedAllocFailure();
+    return at >= 0 && g_allocs.fetch_add(1) == at;
+}
+
 }  // namespace
+
+std::string driverTooOldText(int driver_version, int runtime_version) {
+    return "CUDA: the NVIDIA driver supports CUDA up to " + cudaVersion(driver_version) +
+           "; occswitch-cuda carries the CUDA " + cudaVersion(runtime_version) +
+           " runtime, which needs a newer driver: update the driver (or build occswitch-cuda with the CUDA the driver "
+           "supports)";
+}
+
+std::string noKernelImageText(int ordinal, const std::string& name, int major, int minor, const std::string& built) {
+    return "CUDA device " + std::to_string(ordinal) + " (" + name + ", compute capability " + std::to_string(major) +
+           "." + std::to_string(minor) + ") has no kernels in this build (built for " + (built.empty() ? "none" : built) +
+           "): rebuild with OCC_CUDA_ARCHITECTURES=" + std::to_string(major) + std::to_string(minor) +
+           " (launch/setup reads it; cmake -DOCC_CUDA_ARCHITECTURES=" + std::to_string(major) + std::to_string(minor) + ")";
+}
+
+std::string deviceOutOfMemoryText(const DeviceInfo& d, uint64_t bytes, uint64_t bytes_free, uint64_t bytes_total) {
+    std::string device = d.ordinal >= 0 ? "CUDA device " + std::to_string(d.ordinal) + " (" + d.name : d.name;
+    if (d.ordinal >= 0) {
+        if (bytes_total) device += ", " + mebibytes(bytes_total) + ", " + mebibytes(bytes_free) + " free";
+        device += ")";
+    }
+    return "out of device memory: " + device + " could not allocate " +
+           (bytes ? mebibytes(bytes) : std::string("a device algorithm's temporary storage")) +
+           " (a smaller --budget, a smaller scene, or a device with more memory)";
+}
+
+const char* builtArchitectures() {
+#if defined(OCC_CUDA_ARCHITECTURES_TEXT)
+    return OCC_CUDA_ARCHITECTURES_TEXT;
+#else
+    return "";
+#endif
+}
 
 const DeviceInfo& currentDevice() {
     if (!g_selected) selectDevice(-1);
@@ -80,12 +134,18 @@ const DeviceInfo& currentDevice() {
 
 #if defined(__CUDACC__)
 
+namespace {
+__global__ void occProbeKernel() {}
+}  // namespace
+
 void* deviceAlloc(size_t bytes) {
     void* p = nullptr;
-    const cudaError_t status = cudaMalloc(&p, bytes ? bytes : 1);
+    const cudaError_t status = allocFailsNow() ? cudaErrorMemoryAllocation : cudaMalloc(&p, bytes ? bytes : 1);
     if (status == cudaErrorMemoryAllocation) {
         cudaGetLastError();  // clears the sticky error so that later calls work
-        throw std::bad_alloc();
+        size_t bytes_free = 0, total = 0;
+        if (cudaMemGetInfo(&bytes_free, &total) != cudaSuccess) cudaGetLastError(), bytes_free = total = 0;
+        throw DeviceOutOfMemory(deviceOutOfMemoryText(currentDevice(), bytes, bytes_free, total));
     }
     OCC_CUDA_CHECK(status);
     return p;
@@ -111,11 +171,22 @@ const char* deviceBackend() { return "cuda"; }
 std::string deviceErrorText(const std::exception& e) {
     if (const auto* thrust_error = dynamic_cast<const thrust::system_error*>(&e))
         return std::string("CUDA: ") + thrust_error->what();
+    // Thrust's own allocator (a device algorithm's temporary storage) when the device is full.
+    if (dynamic_cast<const thrust::system::detail::bad_alloc*>(&e)) {
+        size_t bytes_free = 0, total = 0;
+        if (cudaMemGetInfo(&bytes_free, &total) != cudaSuccess) cudaGetLastError(), bytes_free = total = 0;
+        return deviceOutOfMemoryText(currentDevice(), 0, bytes_free, total);
+    }
     return "";
 }
 
 DeviceInfo selectDevice(int requested) {
     if (g_selected && requested == g_requested) return g_device;
+    // A driver older than the runtime this build carries makes every CUDA call fail as if there
+    // were no device; said apart, since there is a GPU to run on.
+    int driver = 0;
+    if (cudaDriverGetVersion(&driver) != cudaSuccess) cudaGetLastError(), driver = 0;
+    if (driver > 0 && driver < CUDART_VERSION) throw occ::SystemError(driverTooOldText(driver, CUDART_VERSION));
     int count = 0;
     const cudaError_t status = cudaGetDeviceCount(&count);
     if (status != cudaSuccess || count == 0) {
@@ -141,6 +212,18 @@ DeviceInfo selectDevice(int requested) {
         d.uuid += hex[b >> 4];
         d.uuid += hex[b & 15];
     }
+    d.major = prop.major;
+    d.minor = prop.minor;
+    d.driver_version = driver;
+    d.runtime_version = CUDART_VERSION;
+    // A GPU whose architecture this build has no code for fails every kernel launch with "no
+    // kernel image is available": said once, here, with what to rebuild for.
+    occProbeKernel<<<1, 1>>>();
+    const cudaError_t probe = cudaGetLastError();
+    if (probe == cudaErrorNoKernelImageForDevice || probe == cudaErrorInvalidDeviceFunction)
+        throw occ::SystemError(noKernelImageText(ordinal, d.name, d.major, d.minor, builtArchitectures()));
+    OCC_CUDA_CHECK(probe);
+    OCC_CUDA_CHECK(cudaDeviceSynchronize());
     g_device = d;
     g_requested = requested;
     g_selected = true;
@@ -152,8 +235,8 @@ void requireDeviceMemory(uint64_t bytes, const std::string& what) {
     size_t free_bytes = 0, total = 0;
     OCC_CUDA_CHECK(cudaMemGetInfo(&free_bytes, &total));
     if (bytes > free_bytes)
-        throw occ::SystemError("CUDA device " + std::to_string(d.ordinal) + " (" + d.name + ", " + mib(total) +
-                               ") has " + mib(free_bytes) + " free; " + what + " needs " + mib(bytes));
+        throw occ::SystemError("CUDA device " + std::to_string(d.ordinal) + " (" + d.name + ", " + mebibytes(total) +
+                               ") has " + mebibytes(free_bytes) + " free; " + what + " needs " + mebibytes(bytes));
 }
 bool deviceAvailable(std::string* why) {
     int count = 0;
@@ -234,7 +317,10 @@ void* alignedAlloc(size_t bytes) {
 
 }  // namespace
 
-void* deviceAlloc(size_t bytes) { return alignedAlloc(bytes); }
+void* deviceAlloc(size_t bytes) {
+    if (allocFailsNow()) throw DeviceOutOfMemory(deviceOutOfMemoryText(currentDevice(), bytes, 0, 0));
+    return alignedAlloc(bytes);
+}
 void deviceFree(void* p) { std::free(p); }
 void* pinnedAlloc(size_t bytes) { return alignedAlloc(bytes); }
 void pinnedFree(void* p) { std::free(p); }

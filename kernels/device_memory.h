@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #pragma once
 
+#include "scene/errors.h"
+
 #include <atomic>
 #include <cstddef>
 #include <algorithm>
@@ -74,10 +76,17 @@ DevicePtr<const T> hostView(const T* p) {
     return deviceReadsHostMemory() ? DevicePtr<const T>(p) : DevicePtr<const T>();
 }
 
-// Raw allocation of device memory (bytes may be 0). Never returns null: throws std::bad_alloc
-// when the device has no room, SystemError for any other CUDA failure. deviceFree(nullptr) is
-// a no-op.
+// Raw allocation of device memory (bytes may be 0). Never returns null: throws
+// DeviceOutOfMemory (a SystemError naming the device, what it has and what was asked: exit 1,
+// the machine's limit, not a bad input) when the device has no room, SystemError for any other
+// CUDA failure. deviceFree(nullptr) is a no-op. For tests of that path on any machine,
+// OCC_DEVICE_ALLOC_FAIL_AT=N makes the process's N-th deviceAlloc (from 0) fail as if the
+// device were full.
 void* deviceAlloc(size_t bytes);
+class DeviceOutOfMemory : public occ::SystemError {
+public:
+    using occ::SystemError::SystemError;
+};
 void deviceFree(void* p);
 // Pinned host memory, the same contract.
 void* pinnedAlloc(size_t bytes);
@@ -89,7 +98,20 @@ struct DeviceInfo {
     std::string name;          // "NVIDIA H200", or "CPU (host memory, TBB)"
     std::string uuid;          // CUDA's device UUID as hex, empty in the CPU build
     uint64_t total_bytes = 0;  // device memory (0 in the CPU build: host memory)
+    int major = 0, minor = 0;  // CUDA compute capability (0.0 in the CPU build)
+    int driver_version = 0;    // CUDA version the driver supports, 1000 x major + 10 x minor (0: CPU)
+    int runtime_version = 0;   // CUDA runtime this build carries, likewise (0: CPU)
 };
+// The one-line reasons a GPU cannot run this build, each naming the GPU (or driver), what it
+// has and what is needed (issue 35); selectDevice and deviceAlloc throw them as SystemError
+// (exit 1). Distinct from "no usable CUDA device" (no NVIDIA driver or no GPU: nothing to run
+// on, which launch/gpu-check reports as exit 3). Versions as CUDA gives them (12040: 12.4).
+std::string driverTooOldText(int driver_version, int runtime_version);
+std::string noKernelImageText(int ordinal, const std::string& name, int major, int minor, const std::string& built);
+// bytes_free / bytes_total: 0 where not known (the CPU build).
+std::string deviceOutOfMemoryText(const DeviceInfo& device, uint64_t bytes, uint64_t bytes_free, uint64_t bytes_total);
+// The GPU architectures this build carries kernels for (OCC_CUDA_ARCHITECTURES), "" in the CPU build.
+const char* builtArchitectures();
 // Binds the calling process to its device, once, before any other device call. requested:
 // a CUDA device number, or -1 for the node-local rank of an MPI job (OMPI_COMM_WORLD_LOCAL_RANK,
 // MPI_LOCALRANKID or SLURM_LOCALID; 0 outside one) modulo the device count, so that each rank

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "cli/commands.h"
 
+#include "device_memory.h"
 #include "import/import.h"
 #include "prep/weld.h"
 #include "scene/oss_file.h"
@@ -19,6 +20,7 @@ namespace {
 
 struct InfoOptions {
     std::string file;
+    bool device = false;
     ImportOptions import;
 };
 
@@ -93,7 +95,32 @@ int runOssInfo(const std::string& path) {
     return 0;
 }
 
+// The device this build's kernels run on, or the one line that says why they cannot (exit 1):
+// what launch/gpu-check asks before anything else.
+int runDeviceInfo() {
+    const k::DeviceInfo d = k::selectDevice(-1);
+    nlohmann::ordered_json j;
+    j["backend"] = k::deviceBackend();
+    j["device"] = d.name;
+    j["ordinal"] = d.ordinal;
+    if (d.ordinal >= 0) {
+        j["uuid"] = d.uuid;
+        j["memory_mib"] = d.total_bytes >> 20;
+        j["compute_capability"] = std::to_string(d.major) + "." + std::to_string(d.minor);
+        j["driver_cuda"] = std::to_string(d.driver_version / 1000) + "." + std::to_string(d.driver_version % 1000 / 10);
+        j["runtime_cuda"] = std::to_string(d.runtime_version / 1000) + "." + std::to_string(d.runtime_version % 1000 / 10);
+        j["built_for"] = k::builtArchitectures();
+    }
+    std::cout << j.dump(2) << std::endl;
+    return 0;
+}
+
 int runInfo(const InfoOptions& o) {
+    if (o.device) {
+        if (!o.file.empty()) throw UsageError("info: --device takes no file");
+        return runDeviceInfo();
+    }
+    if (o.file.empty()) throw UsageError("info: a model or .oss file, or --device");
     if (lowerExtension(o.file) == ".oss") return runOssInfo(o.file);
     const auto start = std::chrono::steady_clock::now();
     const Scene scene = importModel(o.file, o.import);
@@ -134,7 +161,10 @@ Command addInfoCommand(CLI::App& app) {
     CLI::App* sub = app.add_subcommand("info", "Print a JSON summary of a model (glTF, GLB, OBJ, PLY, OFF, STL): objects, meshes,\n"
                                                "triangles, vertices, bounds, skipped primitives; or of a .oss scene: counts, |COS|,\n"
                                                "boundary-vertex share, simplification error range, section sizes.");
-    sub->add_option("file", options->file, "model file")->required();
+    sub->add_option("file", options->file, "model file or .oss scene");
+    sub->add_flag("--device", options->device,
+                  "instead: the device this build's kernels run on (occswitch-cuda: the GPU, its memory, compute\n"
+                  "capability, driver and the architectures built), or why they cannot (exit 1)");
     sub->add_option("--scene", options->import.scene, "glTF: the scene to summarize (default: the file's default scene)");
     return {sub, [options] { return runInfo(*options); }};
 }

@@ -60,7 +60,11 @@ int main(int argc, char** argv) {
         return fail(e.what(), kExitInputError);
     } catch (const occ::SystemError& e) {
         return fail(e.what(), 1);
-    } catch (const std::bad_alloc&) {
+    } catch (const std::bad_alloc& e) {
+        // A device algorithm's temporary storage that did not fit (Thrust's bad_alloc under
+        // CUDA) is the machine's limit; the host's own allocations stay "out of memory".
+        const std::string device = occ::k::deviceErrorText(e);
+        if (!device.empty()) return fail(device, 1);
         return fail("out of memory", kExitInputError);
     } catch (const std::exception& e) {
         // A device algorithm's failure (Thrust's system_error under CUDA) is the machine's.
