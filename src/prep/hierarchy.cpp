@@ -149,8 +149,14 @@ void appendLevel(std::span<const glm::vec3> positions, std::span<const int32_t> 
 }
 
 SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<const uint32_t> object_mesh,
-                                    std::span<const glm::mat4> object_world) {
+                                    std::span<const glm::mat4> object_world, std::span<const uint32_t> order) {
     const uint32_t count = uint32_t(nodes.size());
+    std::vector<uint32_t> descending;  // the default order: inner nodes from the last
+    if (order.empty()) {
+        for (uint32_t n = count; n-- > 0;)
+            if (nodes[n].child_count > 0) descending.push_back(n);
+        order = descending;
+    }
     SubtreeRepeats r;
     r.index.assign(count, UINT32_MAX);
     // Per node: its first leaf's object and a class; leaves' classes are their meshes, inner
@@ -190,13 +196,10 @@ SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<
         }
         return true;
     };
-    for (uint32_t n = count; n-- > 0;) {
+    for (uint32_t n = 0; n < count; ++n)
+        if (nodes[n].child_count == 0) first[n] = nodes[n].object, cls[n] = object_mesh[nodes[n].object];
+    for (const uint32_t n : order) {
         const SceneNode& node = nodes[n];
-        if (node.child_count == 0) {
-            first[n] = node.object;
-            cls[n] = object_mesh[node.object];
-            continue;
-        }
         first[n] = first[node.first_child];
         uint64_t key = 0x9e3779b97f4a7c15ull ^ node.child_count;
         for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c)
@@ -286,8 +289,44 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
         progress->total = 0;
         for (const SceneNode& node : h.nodes) progress->total += node.child_count > 0;
     }
-    // Subtrees that repeat take their representative's HLOD; the representatives whose
-    // progressive mesh a repeat's parent merges from keep it until the last such parent is built.
+    // The order HLODs are built in: subtree by subtree (issue 34, item 3), so that what a
+    // finished subtree hands its parent is all that is kept of it. The nodes of the deepest
+    // level whose levels above have at most kChunks nodes root the subtrees; each is built bottom-up, a level of
+    // it at a time (a pass: built in parallel), then the levels above them. A level-by-level
+    // build over the whole tree kept every node's level for its parent at once: 1.6 GB at the
+    // Boeing's size.
+    constexpr uint32_t kChunks = 4096;
+    uint32_t chunk_depth = 0;  // the deepest level with no level above it (or itself) over kChunks nodes
+    while (chunk_depth + 1 < h.levels && level_first[chunk_depth + 2] - level_first[chunk_depth + 1] <= kChunks) ++chunk_depth;
+    std::vector<uint32_t> order;               // inner nodes in build order
+    std::vector<size_t> pass_first{0};         // passes: order[pass_first[i], pass_first[i + 1])
+    for (uint32_t r = level_first[chunk_depth]; r < level_first[chunk_depth + 1]; ++r) {
+        // The subtree's nodes at each depth are a contiguous range of ids (breadth-first).
+        std::vector<std::pair<uint32_t, uint32_t>> ranges{{r, r + 1}};
+        while (true) {
+            const auto [b, e] = ranges.back();
+            uint32_t cb = UINT32_MAX, ce = 0;
+            for (uint32_t n = b; n < e; ++n)
+                if (h.nodes[n].child_count > 0)
+                    cb = std::min(cb, h.nodes[n].first_child), ce = std::max(ce, h.nodes[n].first_child + h.nodes[n].child_count);
+            if (cb == UINT32_MAX) break;
+            ranges.push_back({cb, ce});
+        }
+        for (size_t d = ranges.size(); d-- > 0;) {
+            for (uint32_t n = ranges[d].first; n < ranges[d].second; ++n)
+                if (h.nodes[n].child_count > 0) order.push_back(n);
+            if (order.size() > pass_first.back()) pass_first.push_back(order.size());
+        }
+    }
+    for (uint32_t d = chunk_depth; d-- > 0;) {
+        for (uint32_t n = level_first[d]; n < level_first[d + 1]; ++n)
+            if (h.nodes[n].child_count > 0) order.push_back(n);
+        if (order.size() > pass_first.back()) pass_first.push_back(order.size());
+    }
+
+    // Subtrees that repeat take their representative's HLOD (matched in build order, so that a
+    // representative is built before its repeats); the representatives whose progressive mesh a
+    // repeat's parent merges from keep it until the last such parent is built.
     SubtreeRepeats repeats;
     if (options.share_repeats) {
         std::vector<uint32_t> object_mesh(objects.size());
@@ -296,7 +335,7 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
             object_mesh[o] = objects[o].mesh;
             std::memcpy(&object_world[o], objects[o].world, sizeof(glm::mat4));
         }
-        repeats = findRepeatedSubtrees(h.nodes, object_mesh, object_world);
+        repeats = findRepeatedSubtrees(h.nodes, object_mesh, object_world, order);
     } else {
         repeats.index.assign(count, UINT32_MAX);
     }
@@ -307,17 +346,22 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
             ++pm_uses[repeats.of(n)];
     std::unordered_map<uint32_t, ProgressiveMesh> retained;
 
-    std::vector<KeptLevel> kept(count);
+    // What a built node hands its parent, until the parent is built. Entries are made before a
+    // pass's parallel builds (which then write distinct entries) and erased after its parents'.
+    std::unordered_map<uint32_t, KeptLevel> kept;
     const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
     tbb::task_arena arena{int(threads)};
     const size_t batch = 8 * size_t(threads);
     std::vector<uint32_t> inner, repeated;
     std::vector<ProgressiveMesh> built;
-    for (uint32_t depth = h.levels; depth-- > 0;) {
+    size_t batches = 0;
+    for (size_t pass = 0; pass + 1 < pass_first.size(); ++pass) {
         inner.clear();
         repeated.clear();
-        for (uint32_t n = level_first[depth]; n < level_first[depth + 1]; ++n)
-            if (h.nodes[n].child_count > 0) (repeat(n) ? repeated : inner).push_back(n);
+        for (size_t i = pass_first[pass]; i < pass_first[pass + 1]; ++i)
+            (repeat(order[i]) ? repeated : inner).push_back(order[i]);
+        for (const uint32_t n : inner)
+            if (parent[n] != UINT32_MAX) kept[n];
         for (size_t b = 0; b < inner.size(); b += batch) {
             const size_t e = std::min(inner.size(), b + batch);
             built.assign(e - b, ProgressiveMesh{});
@@ -341,7 +385,7 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                                                           glm::length(glm::vec3(world[2]))});
                             error = std::max(error, scale * levelError(m.error, level));
                         } else {
-                            KeptLevel& k = kept[c];
+                            KeptLevel& k = kept.find(c)->second;  // made by the child's pass
                             error = std::max(error, k.error);
                             const uint32_t base = uint32_t(merged.positions.size());
                             merged.positions.insert(merged.positions.end(), k.positions.begin(), k.positions.end());
@@ -353,7 +397,7 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                     p = options.cluster ? buildClusteredProgressiveMesh(merged) : buildProgressiveMesh(merged, Collapser::Fast);
                     h.nodes[n].error = error;
                     if (parent[n] != UINT32_MAX) {
-                        KeptLevel& k = kept[n];
+                        KeptLevel& k = kept.find(n)->second;
                         const uint32_t level = levelWithTriangles(p.map, p.q, wanted(parent[n], n));
                         appendLevel(p.positions, p.ecol, p.triangles, p.map, level, glm::mat4(1.0f), k.positions,
                                     k.triangles);
@@ -366,10 +410,10 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                 if (pm_uses[inner[j]] > 0) retained.emplace(inner[j], built[j - b]);
                 h.nodes[inner[j]].mesh = add_mesh(std::move(built[j - b]));
             }
-            // What the batch read of the objects' meshes is not kept mapped (OssFile::releasePages).
-            if ((b / batch) % 256 == 255) file.releasePages();
+            // What the batches read of the objects' meshes is not kept mapped (OssFile::releasePages).
+            if (++batches % 256 == 0) file.releasePages();
         }
-        // The repeats of this level: their representatives are built (as deep or deeper).
+        // The repeats of this pass: their representatives are built (earlier in the order).
         for (const uint32_t n : repeated) {
             const SubtreeRepeats::Repeat& rep = *repeats.find(n);
             const uint32_t r = rep.of;
@@ -389,8 +433,12 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
             }
             if (progress) ++progress->done;
         }
-        file.releasePages();
+        // The children's levels are merged: dropped.
+        for (const uint32_t n : inner)
+            for (uint32_t c = h.nodes[n].first_child; c < h.nodes[n].first_child + h.nodes[n].child_count; ++c)
+                kept.erase(c);
     }
+    file.releasePages();
 }
 
 ObjectHierarchy buildObjectHierarchy(const OssFile& file, uint32_t fanout) {

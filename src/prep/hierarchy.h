@@ -44,8 +44,8 @@ ObjectHierarchy buildObjectHierarchy(std::span<const k::Aabb> boxes, std::span<c
 // leaf (the linear parts' entries within 1e-5; translations within 1e-5 of the diagonal plus
 // 1e-6 of the largest coordinate, about what float coordinates can tell apart), so that n's
 // geometry is r's moved by the motion (n's first leaf's world) x (r's)^-1, a similarity without
-// mirror (rotation, translation, uniform scale). Nodes are matched from the last to the first,
-// so a representative has a larger id than its repeats: it is as deep or deeper, and buildHlods
+// mirror (rotation, translation, uniform scale). Nodes are matched in `order`, so a
+// representative comes before its repeats in it, and buildHlods, which builds in that order,
 // builds it first. An engine tiled a thousand times gets one HLOD per distinct subtree instead
 // of one per node.
 struct SubtreeRepeats {
@@ -60,8 +60,10 @@ struct SubtreeRepeats {
     const Repeat* find(uint32_t n) const { return index[n] == UINT32_MAX ? nullptr : &list[index[n]]; }
     uint32_t of(uint32_t n) const { return index[n] == UINT32_MAX ? n : list[index[n]].of; }
 };
+// `order`: the inner nodes, children before parents, in the order their HLODs are built (the
+// first of a class in it is its representative); empty: from the last node to the first.
 SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<const uint32_t> object_mesh,
-                                    std::span<const glm::mat4> object_world);
+                                    std::span<const glm::mat4> object_world, std::span<const uint32_t> order = {});
 
 // The level of detail with k vertices of a progressive mesh (the first k positions, the first
 // map[k] triangles with each corner walked through ecol until it is below k, degenerate ones
