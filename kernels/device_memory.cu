@@ -230,6 +230,33 @@ DeviceInfo selectDevice(int requested) {
     return d;
 }
 
+void matchGlContextDevice(int requested) {
+    const DeviceInfo& d = currentDevice();
+    unsigned int count = 0;
+    int devices[16] = {};
+    const cudaError_t status = cudaGLGetDevices(&count, devices, 16, cudaGLDeviceListAll);
+    if (status != cudaSuccess || count == 0) {
+        cudaGetLastError();
+        throw occ::SystemError(std::string("CUDA: the window's OpenGL context is on no GPU CUDA can use (") +
+                               (status != cudaSuccess ? cudaGetErrorString(status) : "none listed") +
+                               "): CUDA-OpenGL interop needs the NVIDIA GPU's X screen; or render --headless or "
+                               "--no-display");
+    }
+    for (unsigned int i = 0; i < count; ++i)
+        if (devices[i] == d.ordinal) return;
+    if (requested >= 0) {
+        cudaDeviceProp prop{};
+        const std::string gl_name =
+            cudaGetDeviceProperties(&prop, devices[0]) == cudaSuccess ? std::string(prop.name) : std::string("?");
+        throw occ::SystemError("--device " + std::to_string(requested) + " is CUDA device " + std::to_string(d.ordinal) +
+                               " (" + d.name + "), but the window's OpenGL context is on CUDA device " +
+                               std::to_string(devices[0]) + " (" + gl_name + "): CUDA-OpenGL interop needs both on one "
+                               "GPU: give --device " + std::to_string(devices[0]) + " or open the window on GPU " +
+                               std::to_string(d.ordinal) + "'s X screen");
+    }
+    selectDevice(devices[0]);  // the context's GPU: nothing is on the device yet
+}
+
 void requireDeviceMemory(uint64_t bytes, const std::string& what) {
     const DeviceInfo& d = currentDevice();
     size_t free_bytes = 0, total = 0;
@@ -339,6 +366,7 @@ DeviceInfo selectDevice(int requested) {
 }
 
 void requireDeviceMemory(uint64_t, const std::string&) {}
+void matchGlContextDevice(int) {}
 bool deviceAvailable(std::string*) { return true; }
 
 void busToDevice(DevicePtr<void> dst, const void* src, size_t bytes) {

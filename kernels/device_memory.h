@@ -121,6 +121,12 @@ const char* builtArchitectures();
 DeviceInfo selectDevice(int requested = -1);
 // The device selectDevice bound (selecting the default one if none was).
 const DeviceInfo& currentDevice();
+// With an OpenGL context current (a window's): makes sure it is on the CUDA device, so that
+// CUDA-OpenGL interop can register its buffers. Under CUDA, when it is not: with no --device
+// given (requested < 0) the context's GPU becomes the device (selectDevice again, before any
+// device memory is allocated); with one given, SystemError naming both GPUs. A context CUDA
+// cannot use at all (another vendor's) is a SystemError too. A no-op in the CPU build.
+void matchGlContextDevice(int requested);
 // Throws SystemError naming the device when it has less than `bytes` of memory free for `what`
 // (a no-op in the CPU build, whose memory is the host's).
 void requireDeviceMemory(uint64_t bytes, const std::string& what);

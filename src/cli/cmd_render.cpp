@@ -308,6 +308,7 @@ int runInWindow(const RenderConfig& c, const OssFile& file, Transport& transport
     w.height = c.pipeline.height;
     w.path = c.cli.path;
     w.out = c.cli.out.empty() ? "." : c.cli.out;
+    w.device = c.cli.device;
     const bool rank0 = transport.rank() == 0;
     if (rank0 && !c.cli.out.empty()) makeOutputFolder(c.cli.out);
     roles::RunOptions run = runOptions(c);

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "render/window.h"
 
+#include "device_memory.h"
+
 #include "render/frame_display.h"
 #include "render/gl_check.h"
 #include "render/png_writer.h"
@@ -102,6 +104,9 @@ public:
                                     "); the X server needs GLX and a 24-bit screen, or render headless (EGL)");
         }
         glfwMakeContextCurrent(window_);
+        // CUDA-OpenGL interop registers the display's buffers on the CUDA device: the window's
+        // context must be on it (on a workstation with several GPUs the X screen's may not be).
+        k::matchGlContextDevice(wo.device);
         glfwSwapInterval(0);
         glfwSetWindowUserPointer(window_, &input_);
         glfwSetKeyCallback(window_, onKey);

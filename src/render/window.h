@@ -21,6 +21,7 @@ struct WindowOptions {
     uint32_t width = 512, height = 512;  // the pipeline's viewport; the window may be resized
     std::string path;                    // camera path played first (empty: start outside the scene)
     std::string out = ".";               // folder for screenshots (P) and recorded paths (R)
+    int device = -1;                     // --device as given (-1: none): the GL context's GPU must be it
 };
 
 // Opens a GLFW window (OpenGL 4.5 core) on rank 0 and flies through `file` with the frame loop
