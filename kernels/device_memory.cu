@@ -7,6 +7,7 @@
 #include <cstring>
 #include <new>
 #include <string>
+#include <utility>
 
 #if defined(__CUDACC__)
 #include <cuda_gl_interop.h>
@@ -136,6 +137,13 @@ const DeviceInfo& currentDevice() {
 
 namespace {
 __global__ void occProbeKernel() {}
+
+// The device's free and total memory, 0 and 0 where CUDA cannot say (for an error's text).
+std::pair<uint64_t, uint64_t> memoryNow() {
+    size_t bytes_free = 0, total = 0;
+    if (cudaMemGetInfo(&bytes_free, &total) != cudaSuccess) cudaGetLastError(), bytes_free = total = 0;
+    return {bytes_free, total};
+}
 }  // namespace
 
 void* deviceAlloc(size_t bytes) {
@@ -143,8 +151,7 @@ void* deviceAlloc(size_t bytes) {
     const cudaError_t status = allocFailsNow() ? cudaErrorMemoryAllocation : cudaMalloc(&p, bytes ? bytes : 1);
     if (status == cudaErrorMemoryAllocation) {
         cudaGetLastError();  // clears the sticky error so that later calls work
-        size_t bytes_free = 0, total = 0;
-        if (cudaMemGetInfo(&bytes_free, &total) != cudaSuccess) cudaGetLastError(), bytes_free = total = 0;
+        const auto [bytes_free, total] = memoryNow();
         throw DeviceOutOfMemory(deviceOutOfMemoryText(currentDevice(), bytes, bytes_free, total));
     }
     OCC_CUDA_CHECK(status);
@@ -173,8 +180,7 @@ std::string deviceErrorText(const std::exception& e) {
         return std::string("CUDA: ") + thrust_error->what();
     // Thrust's own allocator (a device algorithm's temporary storage) when the device is full.
     if (dynamic_cast<const thrust::system::detail::bad_alloc*>(&e)) {
-        size_t bytes_free = 0, total = 0;
-        if (cudaMemGetInfo(&bytes_free, &total) != cudaSuccess) cudaGetLastError(), bytes_free = total = 0;
+        const auto [bytes_free, total] = memoryNow();
         return deviceOutOfMemoryText(currentDevice(), 0, bytes_free, total);
     }
     return "";

@@ -237,14 +237,9 @@ private:
         done(grid_h_);
         grid_flat_bytes_ = fs::file_size(flat);
         grid_h_bytes_ = fs::file_size(with);
-        const OssFile file = OssFile::open(with.string(), OssFile::Pages::Release);
-        std::vector<uint8_t> used(file.meshCount(), 0);
-        for (const oss::NodeDisk& d : file.nodes()) {
-            if (d.child_count == 0) continue;
-            ++grid_inner_;
-            grid_hlods_ += !used[d.mesh];
-            used[d.mesh] = 1;
-        }
+        const OssFile::HlodCounts hlods = OssFile::open(with.string(), OssFile::Pages::Release).hlodCounts();
+        grid_inner_ = hlods.inner;
+        grid_hlods_ = hlods.meshes;
     }
     void paths(const fs::path& oss, const fs::path& walk, const fs::path& orbit, const std::string& log_prefix) {
         runner_.run(log_prefix + "path_walk",

@@ -31,15 +31,12 @@ int runOssInfo(const std::string& path) {
     const OssFile file = OssFile::open(path);
     // The objects' meshes come first, the hierarchy's HLODs after them.
     uint32_t object_meshes = file.meshCount();
-    uint32_t levels = 0, inner = 0, sharing = 0;
-    std::vector<uint8_t> hlod_used(file.meshCount(), 0);
+    uint32_t levels = 0;
     for (const oss::NodeDisk& n : file.nodes()) {
         levels = std::max(levels, n.depth + 1);
-        if (n.child_count == 0) continue;
-        object_meshes = std::min(object_meshes, n.mesh), ++inner;
-        sharing += hlod_used[n.mesh];  // a repeated subtree drawing an earlier one's HLOD
-        hlod_used[n.mesh] = 1;
+        if (n.child_count > 0) object_meshes = std::min(object_meshes, n.mesh);
     }
+    const OssFile::HlodCounts hlods = file.hlodCounts();
     uint64_t q_sum = 0, n_sum = 0, refused = 0, instanced_triangles = 0, vertices = 0, triangles = 0;
     float error_min = INFINITY, error_max = 0.0f;
     for (uint32_t m = 0; m < object_meshes; ++m) {
@@ -78,8 +75,8 @@ int runOssInfo(const std::string& path) {
     if (file.nodeCount() > 0)
         j["hierarchy"] = {{"nodes", file.nodeCount()},
                           {"levels", levels},
-                          {"inner_nodes", inner},
-                          {"inner_nodes_sharing_an_hlod", sharing},
+                          {"inner_nodes", hlods.inner},
+                          {"inner_nodes_sharing_an_hlod", hlods.inner - hlods.meshes},
                           {"hlod_meshes", file.meshCount() - object_meshes},
                           {"hlod_triangles", file.triangleCount() - triangles}};
     else

@@ -67,18 +67,10 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
             });
             h = writeWithHierarchy(OssFile::open(flat, OssFile::Pages::Release), output, prep.fanout, hlod, &built);
         }
-        uint64_t hlod_triangles = 0, sharing = 0;
-        const OssFile written = OssFile::open(output, OssFile::Pages::Release);  // read once: its pages are not kept
-        std::vector<uint8_t> counted(written.meshCount(), 0);
-        for (const SceneNode& n : h.nodes) {
-            if (n.child_count == 0) continue;
-            if (counted[n.mesh]) {
-                ++sharing;  // a repeated subtree: its representative's HLOD, counted once
-                continue;
-            }
-            counted[n.mesh] = 1;
-            hlod_triangles += written.meshRecords()[n.mesh].triangle_count;
-        }
+        // Read once: its pages are not kept.
+        const OssFile::HlodCounts hlods = OssFile::open(output, OssFile::Pages::Release).hlodCounts();
+        const uint64_t sharing = hlods.inner - hlods.meshes;  // repeated subtrees drawing another's HLOD
+        const uint64_t hlod_triangles = hlods.triangles;
         const double hlod_seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() - flat_seconds;
         char b[256];

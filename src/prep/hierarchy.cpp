@@ -55,32 +55,24 @@ ObjectHierarchy buildObjectHierarchy(std::span<const k::Aabb> boxes, std::span<c
         const size_t n = e - b, balanced = b + n * left / parts;
         const size_t reach = std::min(balanced - b, e - balanced) / 3;
         size_t mid = balanced;
+        bool in_gap = false;
         const auto at = [&](size_t j) { return centre(order[j])[axis]; };
         if (reach > 0) {
             const size_t from = balanced - reach, to = balanced + reach;  // splits in [from, to]
-            const auto first = order.begin() + std::ptrdiff_t(b);
-            std::nth_element(first, order.begin() + std::ptrdiff_t(from - 1), order.begin() + std::ptrdiff_t(e), less);
+            std::nth_element(order.begin() + std::ptrdiff_t(b), order.begin() + std::ptrdiff_t(from - 1),
+                             order.begin() + std::ptrdiff_t(e), less);
             std::nth_element(order.begin() + std::ptrdiff_t(from), order.begin() + std::ptrdiff_t(to),
                              order.begin() + std::ptrdiff_t(e), less);
             std::sort(order.begin() + std::ptrdiff_t(from), order.begin() + std::ptrdiff_t(to), less);
             float widest = 0.0f;
             for (size_t j = from; j <= to; ++j) widest = std::max(widest, at(j) - at(j - 1));
-            if (widest > 0.0f) {
-                size_t best = SIZE_MAX;
-                for (size_t j = from; j <= to; ++j) {
-                    if (!(at(j) - at(j - 1) >= widest * (1.0f - 1e-4f))) continue;
-                    const size_t d = j > balanced ? j - balanced : balanced - j;
-                    const size_t bd = best == SIZE_MAX ? SIZE_MAX : best > balanced ? best - balanced : balanced - best;
-                    if (d < bd) best = j;
-                }
-                mid = best;
-            } else {
-                std::nth_element(first, order.begin() + std::ptrdiff_t(mid), order.begin() + std::ptrdiff_t(e), less);
-            }
-        } else {
+            const auto off = [&](size_t j) { return j > balanced ? j - balanced : balanced - j; };
+            for (size_t j = from; widest > 0.0f && j <= to; ++j)
+                if (at(j) - at(j - 1) >= widest * (1.0f - 1e-4f) && (!in_gap || off(j) < off(mid))) mid = j, in_gap = true;
+        }
+        if (!in_gap)  // no gap to split in: the balanced position
             std::nth_element(order.begin() + std::ptrdiff_t(b), order.begin() + std::ptrdiff_t(mid),
                              order.begin() + std::ptrdiff_t(e), less);
-        }
         self(self, b, mid, left);
         self(self, mid, e, parts - left);
     };
@@ -349,6 +341,14 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
     // What a built node hands its parent, until the parent is built. Entries are made before a
     // pass's parallel builds (which then write distinct entries) and erased after its parents'.
     std::unordered_map<uint32_t, KeptLevel> kept;
+    // Node n hands its parent the level of p (placed by world) that the parent wants; its error
+    // is n's own plus what that level gives up (scaled with the placement).
+    const auto handUp = [&](uint32_t n, const ProgressiveMesh& p, const glm::mat4& world, float error, float scale) {
+        KeptLevel& k = kept.find(n)->second;
+        const uint32_t level = levelWithTriangles(p.map, p.q, wanted(parent[n], n));
+        appendLevel(p.positions, p.ecol, p.triangles, p.map, level, world, k.positions, k.triangles);
+        k.error = error + scale * levelError(p.error, level);
+    };
     const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
     tbb::task_arena arena{int(threads)};
     const size_t batch = 8 * size_t(threads);
@@ -396,13 +396,7 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                     ProgressiveMesh& p = built[j - b];
                     p = options.cluster ? buildClusteredProgressiveMesh(merged) : buildProgressiveMesh(merged, Collapser::Fast);
                     h.nodes[n].error = error;
-                    if (parent[n] != UINT32_MAX) {
-                        KeptLevel& k = kept.find(n)->second;
-                        const uint32_t level = levelWithTriangles(p.map, p.q, wanted(parent[n], n));
-                        appendLevel(p.positions, p.ecol, p.triangles, p.map, level, glm::mat4(1.0f), k.positions,
-                                    k.triangles);
-                        k.error = error + levelError(p.error, level);
-                    }
+                    if (parent[n] != UINT32_MAX) handUp(n, p, glm::mat4(1.0f), error, 1.0f);
                     if (progress) ++progress->done;
                 });
             });
@@ -424,11 +418,8 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
             // The placements matched within a slack: counted as error.
             node.error = scale * h.nodes[r].error + rep.slack;
             if (parent[n] != UINT32_MAX && !repeat(parent[n])) {
-                const ProgressiveMesh& p = retained.at(r);
-                KeptLevel& k = kept[n];
-                const uint32_t level = levelWithTriangles(p.map, p.q, wanted(parent[n], n));
-                appendLevel(p.positions, p.ecol, p.triangles, p.map, level, node.world, k.positions, k.triangles);
-                k.error = node.error + scale * levelError(p.error, level);
+                kept.try_emplace(n);
+                handUp(n, retained.at(r), node.world, node.error, scale);
                 if (--pm_uses[r] == 0) retained.erase(r);
             }
             if (progress) ++progress->done;

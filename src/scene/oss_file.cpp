@@ -987,6 +987,20 @@ std::span<const uint32_t> OssFile::allMaps() const {
 std::span<const uint32_t> OssFile::cos() const { return {sectionData<uint32_t>(SectionId::cos), header().cos_count}; }
 std::span<const NodeDisk> OssFile::nodes() const { return {sectionData<NodeDisk>(SectionId::nodes), nodeCount()}; }
 
+OssFile::HlodCounts OssFile::hlodCounts() const {
+    HlodCounts c;
+    std::vector<uint8_t> seen(meshCount(), 0);
+    for (const NodeDisk& n : nodes()) {
+        if (n.child_count == 0) continue;
+        ++c.inner;
+        if (seen[n.mesh]) continue;
+        seen[n.mesh] = 1;
+        ++c.meshes;
+        c.triangles += meshRecords()[n.mesh].triangle_count;
+    }
+    return c;
+}
+
 std::vector<OssFile::SectionInfo> OssFile::sections() const {
     std::vector<SectionInfo> out;
     out.push_back({"HEADER", 0, sizeof(Header), 1});

@@ -241,6 +241,12 @@ public:
     // The hierarchy (empty without one), breadth-first; inner nodes' HLODs are meshes.
     std::span<const oss::NodeDisk> nodes() const;
     uint32_t nodeCount() const { return header().node_count; }
+    // The hierarchy's HLODs: inner nodes, the distinct HLOD meshes they draw (repeated subtrees
+    // share one) and those meshes' triangles, each counted once.
+    struct HlodCounts {
+        uint64_t inner = 0, meshes = 0, triangles = 0;
+    };
+    HlodCounts hlodCounts() const;
 
     struct SectionInfo {
         std::string name;
