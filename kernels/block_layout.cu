@@ -4,6 +4,7 @@
 #include "block_runs.h"
 #include "device_access.h"
 #include "scan.h"
+#include "device_policy.h"
 
 #include <thrust/copy.h>
 #include <thrust/execution_policy.h>
@@ -445,22 +446,22 @@ struct LeftPred {
 uint64_t allocate(uint32_t n, DevicePtr<const uint32_t> need, const DeviceArray<FreeRange>& free, uint32_t free_count,
                   uint64_t top, DevicePtr<uint64_t> place, DeviceArray<uint8_t>& taken, LayoutScratch& s) {
     taken.growTo(std::max<uint32_t>(1, free_count));
-    thrust::fill_n(thrust::device, raw(taken.ptr()), std::max<uint32_t>(1, free_count), uint8_t(0));
+    thrust::fill_n(onDevice(), raw(taken.ptr()), std::max<uint32_t>(1, free_count), uint8_t(0));
     if (n == 0) return 0;
     const thrust::counting_iterator<uint32_t> j0(0);
     uint32_t* const requests = raw(s.requests.ptr());
     uint32_t* const classes = raw(s.request_classes.ptr());
     const uint32_t count =
-        uint32_t(thrust::copy_if(thrust::device, j0, j0 + n, requests, NeedsRoom{raw(need)}) - requests);
+        uint32_t(thrust::copy_if(onDevice(), j0, j0 + n, requests, NeedsRoom{raw(need)}) - requests);
     countReadback(sizeof(uint32_t));
     if (count == 0) return 0;
-    thrust::transform(thrust::device, requests, requests + count, classes, ClassOfRequest{raw(need)});
-    thrust::stable_sort_by_key(thrust::device, classes, classes + count, requests);
-    thrust::for_each_n(thrust::device, j0, count,
+    thrust::transform(onDevice(), requests, requests + count, classes, ClassOfRequest{raw(need)});
+    thrust::stable_sort_by_key(onDevice(), classes, classes + count, requests);
+    thrust::for_each_n(onDevice(), j0, count,
                        Assign{requests, classes, count, raw(need), raw(free.ptr()), free_count, raw(taken.ptr()),
                               raw(s.bump_size.ptr()), raw(place)});
     const uint64_t bumped = exclusiveScan(s.bump_size.ptr(), count, s.bump_offset.ptr());
-    thrust::for_each_n(thrust::device, j0, count,
+    thrust::for_each_n(onDevice(), j0, count,
                        OnTop{requests, raw(s.bump_size.ptr()), raw(s.bump_offset.ptr()), top, raw(place)});
     return bumped;
 }
@@ -475,13 +476,13 @@ uint32_t freeMoved(const DeviceArray<FreeRange>& free, uint32_t free_count, cons
     FreeRange* const first = raw(out.ptr());
     FreeRange* end = first;
     if (free_count > 0) {
-        end = thrust::copy_if(thrust::device, raw(free.ptr()), raw(free.ptr()) + free_count, raw(taken.ptr()), first,
+        end = thrust::copy_if(onDevice(), raw(free.ptr()), raw(free.ptr()) + free_count, raw(taken.ptr()), first,
                               IsFree());
         countReadback(sizeof(uint32_t));
     }
     if (blocks > 0) {
         const auto made = thrust::make_transform_iterator(j0, moved);
-        end = thrust::copy_if(thrust::device, made, made + blocks, j0, end, MovedPred{moved});
+        end = thrust::copy_if(onDevice(), made, made + blocks, j0, end, MovedPred{moved});
         countReadback(sizeof(uint32_t));
     }
     return uint32_t(end - first);
@@ -494,11 +495,11 @@ uint32_t freeLeft(DeviceArray<FreeRange>& out, uint32_t count, const FreedByLeav
     FreeRange* end = first + count;
     if (previous_count > 0) {
         const auto made = thrust::make_transform_iterator(j0, left);
-        end = thrust::copy_if(thrust::device, made, made + previous_count, j0, end, LeftPred{left});
+        end = thrust::copy_if(onDevice(), made, made + previous_count, j0, end, LeftPred{left});
         countReadback(sizeof(uint32_t));
     }
     const uint32_t total = uint32_t(end - first);
-    thrust::sort(thrust::device, first, end, RangeOrder());
+    thrust::sort(onDevice(), first, end, RangeOrder());
     free.growTo(std::max<uint32_t>(1, total));
     copyOnDevice(free.ptr(), DevicePtr<const FreeRange>(out.ptr()), total);
     return total;
@@ -515,7 +516,7 @@ uint32_t compactList(uint32_t blocks, Make make, Pred pred, DeviceArray<T>& out)
     if (blocks == 0) return 0;
     const thrust::counting_iterator<uint32_t> j(0);
     const auto made = thrust::make_transform_iterator(j, make);
-    T* const end = thrust::copy_if(thrust::device, made, made + blocks, j, raw(out.ptr()), pred);
+    T* const end = thrust::copy_if(onDevice(), made, made + blocks, j, raw(out.ptr()), pred);
     countReadback(sizeof(uint32_t));
     return uint32_t(end - raw(out.ptr()));
 }
@@ -550,26 +551,26 @@ LayoutTotals placeLayout(const VisibleLods& visible, DevicePtr<const LayoutBlock
     if (most > 0) {
         const auto prev_ids = thrust::make_transform_iterator(prev, ObjectOf());
         const auto ends = thrust::set_union_by_key(
-            thrust::device, raw(visible.ids), raw(visible.ids) + visible.count, prev_ids, prev_ids + previous_count,
+            onDevice(), raw(visible.ids), raw(visible.ids) + visible.count, prev_ids, prev_ids + previous_count,
             thrust::counting_iterator<uint32_t>(0), thrust::constant_iterator<uint32_t>(kNotVisible),
             raw(s.union_ids.ptr()), raw(s.union_source.ptr()));
         candidates = uint32_t(ends.first - raw(s.union_ids.ptr()));
         countReadback(sizeof(uint32_t));
-        thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), candidates,
+        thrust::for_each_n(onDevice(), thrust::counting_iterator<uint32_t>(0), candidates,
                            Candidate{raw(s.union_ids.ptr()), raw(s.union_source.ptr()), raw(visible.vertex_counts),
                                      raw(visible.triangle_counts), place, tables, options.frame,
                                      options.retain_frames, retain, raw(s.candidates.ptr())});
         // Over the memory cap, residency starts again from what this frame draws.
         if (retain) {
-            const uint64_t resident = thrust::transform_reduce(thrust::device, raw(s.candidates.ptr()),
+            const uint64_t resident = thrust::transform_reduce(onDevice(), raw(s.candidates.ptr()),
                                                                raw(s.candidates.ptr()) + candidates, KeepCount(),
                                                                uint64_t(0), thrust::plus<uint64_t>());
             countReadback(sizeof(uint64_t));
             if (double(resident) > options.resident_cap)
-                thrust::for_each_n(thrust::device, raw(s.candidates.ptr()), candidates, OnlyDrawn());
+                thrust::for_each_n(onDevice(), raw(s.candidates.ptr()), candidates, OnlyDrawn());
         }
         LayoutBlock* const end =
-            thrust::copy_if(thrust::device, raw(s.candidates.ptr()), raw(s.candidates.ptr()) + candidates, blocks, Holds());
+            thrust::copy_if(onDevice(), raw(s.candidates.ptr()), raw(s.candidates.ptr()) + candidates, blocks, Holds());
         countReadback(sizeof(uint32_t));
         totals.blocks = uint32_t(end - blocks);
     }
@@ -590,7 +591,7 @@ LayoutTotals placeLayout(const VisibleLods& visible, DevicePtr<const LayoutBlock
     bool relocate = compact;  // every block written into the other buffers
     uint64_t need_v = 0, need_t = 0;
     if (!compact) {
-        thrust::for_each_n(thrust::device, j0, n,
+        thrust::for_each_n(onDevice(), j0, n,
                            Need{blocks, place, tables, false, raw(s.vertex_need.ptr()), raw(s.triangle_need.ptr())});
         need_v = allocate(n, s.vertex_need.ptr(), heap.vertex_free, heap.vertex_free_count, heap.vertex_top,
                           s.vertex_need_offset.ptr(), s.vertex_taken, s);
@@ -612,7 +613,7 @@ LayoutTotals placeLayout(const VisibleLods& visible, DevicePtr<const LayoutBlock
         }
     }
     if (compact) {
-        thrust::for_each_n(thrust::device, j0, n,
+        thrust::for_each_n(onDevice(), j0, n,
                            Need{blocks, place, tables, true, raw(s.vertex_need.ptr()), raw(s.triangle_need.ptr())});
         need_v = exclusiveScan(s.vertex_need.ptr(), n, s.vertex_need_offset.ptr());
         need_t = exclusiveScan(s.triangle_need.ptr(), n, s.triangle_need_offset.ptr());
@@ -636,7 +637,7 @@ LayoutTotals placeLayout(const VisibleLods& visible, DevicePtr<const LayoutBlock
 
     // 3. Places, what each block streams, and the staged offsets (layout order, the order the
     //    host stages in).
-    thrust::for_each_n(thrust::device, j0, n,
+    thrust::for_each_n(onDevice(), j0, n,
                        Place{blocks, place, raw(s.vertex_need.ptr()), raw(s.triangle_need.ptr()),
                              raw(s.vertex_need_offset.ptr()), raw(s.triangle_need_offset.ptr()), stamp, options.coherent, relocate, raw(s.next_places.ptr()),
                              raw(s.vertex_staged.ptr()), raw(s.triangle_staged.ptr()), raw(s.reformed.ptr())});
@@ -652,7 +653,7 @@ LayoutTotals placeLayout(const VisibleLods& visible, DevicePtr<const LayoutBlock
     lists.draw_count = compactList(n, MakeDraw{blocks}, IsDrawn{blocks}, lists.draws);
     lists.stream_count = compactList(n, MakeStream{in}, IsStreamed{in}, lists.streams);
     if (n > 0) {
-        const Sums sums = thrust::transform_reduce(thrust::device, j0, j0 + n, BlockSums{in, raw(s.next_places.ptr())},
+        const Sums sums = thrust::transform_reduce(onDevice(), j0, j0 + n, BlockSums{in, raw(s.next_places.ptr())},
                                                    Sums{}, AddSums());
         countReadback(sizeof(Sums));
         totals.active_vertices = sums.active_v;
@@ -678,14 +679,14 @@ LayoutTotals placeLayout(const VisibleLods& visible, DevicePtr<const LayoutBlock
                             FreedByMove{blocks, place, raw(s.vertex_need.ptr()), false}, n, previous_count,
                             s.triangle_freed);
     }
-    thrust::for_each_n(thrust::device, j0, n, Scatter{blocks, raw(s.next_places.ptr()), place});
+    thrust::for_each_n(onDevice(), j0, n, Scatter{blocks, raw(s.next_places.ptr()), place});
     if (!compact) {
         heap.vertex_free_count =
             freeLeft(s.vertex_freed, freed_v, FreedByLeaving{prev, place, stamp, true}, previous_count, heap.vertex_free);
         heap.triangle_free_count = freeLeft(s.triangle_freed, freed_t, FreedByLeaving{prev, place, stamp, false},
                                             previous_count, heap.triangle_free);
     }
-    thrust::for_each_n(thrust::device, j0, previous_count, ClearDropped{prev, place, stamp});
+    thrust::for_each_n(onDevice(), j0, previous_count, ClearDropped{prev, place, stamp});
     return totals;
 }
 

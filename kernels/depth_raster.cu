@@ -7,6 +7,7 @@
 
 #include "hzm.h"
 #include "occluder_gather.h"
+#include "device_policy.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/fill.h>
@@ -648,7 +649,7 @@ namespace {
 uint32_t groupEqualKeys(uint64_t* keys, uint32_t* ids, uint32_t count, DepthRasterScratch& scratch) {
 #if defined(__CUDACC__)
     (void)scratch;
-    thrust::sort_by_key(thrust::device, keys, keys + count, ids);
+    thrust::sort_by_key(onDevice(), keys, keys + count, ids);
     return count;
 #else
     uint32_t bits = 4;
@@ -786,7 +787,7 @@ void listDrawnTriangles(const glm::vec3* positions, const uint32_t* triangles, u
     scratch.drawn_ids.resize(tri_count);
     uint32_t* const drawn_ids = raw(scratch.drawn_ids.ptr());
     scratch.drawn_count = uint32_t(
-        thrust::copy_if(thrust::device, first, first + tri_count, drawn_ids, ByteSet{raw(scratch.drawn.ptr())}) - drawn_ids);
+        thrust::copy_if(onDevice(), first, first + tri_count, drawn_ids, ByteSet{raw(scratch.drawn.ptr())}) - drawn_ids);
     countReadback(sizeof scratch.drawn_count);
     copyDrawnSetup(positions, triangles, setup, scratch, with_seams);
 }
@@ -797,7 +798,7 @@ void depthRasterSetup(const glm::vec3* positions, const uint32_t* triangles, uin
                       const uint8_t* edge_flags, const uint32_t* edge_neighbours, const Camera& camera,
                       DepthRasterScratch& scratch, bool with_seams) {
     const thrust::counting_iterator<uint32_t> first(0);
-    const uint32_t vertex_count = thrust::reduce(thrust::device, triangles, triangles + uint64_t(tri_count) * 3, 0u,
+    const uint32_t vertex_count = thrust::reduce(onDevice(), triangles, triangles + uint64_t(tri_count) * 3, 0u,
                                                  thrust::maximum<uint32_t>()) + 1;
     countReadback(sizeof vertex_count);
     scratch.vertices.resize(vertex_count);
@@ -805,12 +806,12 @@ void depthRasterSetup(const glm::vec3* positions, const uint32_t* triangles, uin
     scratch.drawn.resize(tri_count);
     ProjectVertices project{positions, raw(scratch.vertices.ptr()), {}, float(camera.width), float(camera.height)};
     for (int i = 0; i < 16; ++i) project.m[i] = camera.view_proj[i / 4][i % 4];
-    thrust::for_each_n(thrust::device, first, vertex_count, project);
+    thrust::for_each_n(onDevice(), first, vertex_count, project);
     const SetupTriangles setup{raw(scratch.vertices.ptr()), triangles, edge_flags, edge_neighbours, tri_count,
                                raw(scratch.setup.ptr()), raw(scratch.drawn.ptr()), int64_t(camera.width) - 1,
                                int64_t(camera.height) - 1};
 #if defined(__CUDACC__)
-    thrust::for_each_n(thrust::device, first, tri_count, setup);
+    thrust::for_each_n(onDevice(), first, tri_count, setup);
 #else
     setupTrianglesCpu(setup, 0, tri_count);
 #endif
@@ -882,13 +883,13 @@ TileBins binTriangles(uint32_t tri_count, uint32_t width, uint32_t height, uint3
     withPolicy(cell_count + 1, [&](auto policy) { thrust::fill(policy, cells, cells + cell_count + 1, uint64_t(0)); });
     if (drawn > 0) {
         const thrust::counting_iterator<uint32_t> first(0);
-        thrust::for_each_n(thrust::device, first, chunk_count,
+        thrust::for_each_n(onDevice(), first, chunk_count,
                            CountPerChunk{raw(scratch.drawn_setup.ptr()), cells, grid});
         // One more cell than there are, counting 0, so that the scan leaves the total there.
         withPolicy(cell_count + 1,
                    [&](auto policy) { thrust::exclusive_scan(policy, cells, cells + cell_count + 1, cells); });
         scratch.pair_triangle.resize(readBack(DevicePtr<const uint64_t>(scratch.cells.ptr() + cell_count)));
-        thrust::for_each_n(thrust::device, first, chunk_count,
+        thrust::for_each_n(onDevice(), first, chunk_count,
                            FillPerChunk{raw(scratch.drawn_setup.ptr()), cells,
                                         raw(scratch.pair_triangle.ptr()), grid});
     }
@@ -922,7 +923,7 @@ DepthTiles depthRasterFrontEnd(DevicePtr<const glm::vec3> position_memory, Devic
 }
 
 void rasterTilesScalar(const DepthTiles& t) {
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), t.bins.tiles_x * t.bins.tiles_y,
+    thrust::for_each_n(onDevice(), thrust::counting_iterator<uint32_t>(0), t.bins.tiles_x * t.bins.tiles_y,
                        RasterTiles{t.setup, t.bins, t.depth, t.width, t.height});
 }
 

@@ -2,12 +2,17 @@
 #include "device_access.h"
 #include "scene/errors.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cstdlib>
 #include <cstring>
+#include <map>
+#include <mutex>
 #include <new>
 #include <string>
+#include <unordered_map>
 #include <utility>
+#include <vector>
 
 #if defined(__CUDACC__)
 #include <cuda_gl_interop.h>
@@ -73,7 +78,12 @@ bool g_selected = false;
 int g_requested = -1;
 DeviceInfo g_device;
 
-std::string mebibytes(uint64_t bytes) { return std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB"; }
+// Bytes as MiB: one decimal below 100 MiB (small scenes and test limits), whole above.
+std::string mebibytes(uint64_t bytes) {
+    if (bytes >= (uint64_t(100) << 20)) return std::to_string((bytes + (1u << 19)) >> 20) + " MiB";
+    const uint64_t tenths = (bytes * 10 + (1u << 19)) >> 20;
+    return std::to_string(tenths / 10) + "." + std::to_string(tenths % 10) + " MiB";
+}
 std::string cudaVersion(int v) { return std::to_string(v / 1000) + "." + std::to_string(v % 1000 / 10); }
 
 // OCC_DEVICE_ALLOC_FAIL_AT (deviceAlloc's contract): the call, from 0, that fails; -1: none.
@@ -87,7 +97,48 @@ long injectedAllocFailure() {
     }();
     return at;
 }
+// OCC_DEVICE_MEMORY_BYTES (requireDeviceMemory's contract): the most the device holds.
+uint64_t injectedDeviceBytes() {
+    static const uint64_t most = [] {
+        const char* v = std::getenv("OCC_DEVICE_MEMORY_BYTES");
+        if (!v || !*v) return ~uint64_t(0);
+        char* end = nullptr;
+        const unsigned long long n = std::strtoull(v, &end, 10);
+        return end != v && *end == '\0' ? uint64_t(n) : ~uint64_t(0);
+    }();
+    return most;
+}
 std::atomic<long> g_allocs{0};
+std::atomic<uint64_t> g_allocations{0}, g_frees{0}, g_temporary_requests{0};
+
+// What deviceAlloc lent, by block, for the live and peak byte counts.
+struct LiveBlocks {
+    std::mutex mutex;
+    std::unordered_map<void*, size_t> bytes;
+    uint64_t live = 0, peak = 0;
+};
+LiveBlocks& liveBlocks() {
+    static auto* blocks = new LiveBlocks;  // never destroyed: frees may come during exit
+    return *blocks;
+}
+void* counted(void* p, size_t bytes) {
+    ++g_allocations;
+    LiveBlocks& l = liveBlocks();
+    const std::lock_guard<std::mutex> lock(l.mutex);
+    l.bytes[p] = bytes;
+    l.live += bytes;
+    l.peak = std::max(l.peak, l.live);
+    return p;
+}
+void uncount(void* p) {
+    ++g_frees;
+    LiveBlocks& l = liveBlocks();
+    const std::lock_guard<std::mutex> lock(l.mutex);
+    if (const auto it = l.bytes.find(p); it != l.bytes.end()) {
+        l.live -= it->second;
+        l.bytes.erase(it);
+    }
+}
 bool allocFailsNow() {
     const long at = injectedAllocFailure();
     return at >= 0 && g_allocs.fetch_add(1) == at;
@@ -120,6 +171,40 @@ std::string deviceOutOfMemoryText(const DeviceInfo& d, uint64_t bytes, uint64_t 
            " (a smaller --budget, a smaller scene, or a device with more memory)";
 }
 
+namespace {
+std::string tooSmallText(const DeviceInfo& d, uint64_t total, uint64_t free_bytes, uint64_t bytes, const std::string& what,
+                         const std::string& detail) {
+    const std::string device = d.ordinal >= 0 ? "CUDA device " + std::to_string(d.ordinal) + " (" + d.name + ", " +
+                                                    mebibytes(total) + ")"
+                                              : d.name;
+    return device + " has " + mebibytes(free_bytes) + " free; " + mebibytes(bytes) + " needed for " + what +
+           (detail.empty() ? "" : " (" + detail + ")") + ": a smaller --budget, a smaller scene, or a device with more memory";
+}
+// What is free under OCC_DEVICE_MEMORY_BYTES: its bytes less those allocated; all of `free_bytes` without it.
+uint64_t availableBytes(uint64_t free_bytes);
+}  // namespace
+
+GlDeviceChoice chooseGlContextDevice(int requested, const DeviceInfo& current, const std::vector<int>& gl_devices,
+                                     const std::string& gl_name, const std::string& why_none) {
+    GlDeviceChoice c;
+    if (gl_devices.empty()) {
+        c.error = "CUDA: the window's OpenGL context is on no GPU CUDA can use (" + why_none +
+                  "): CUDA-OpenGL interop needs the NVIDIA GPU's X screen; or render --headless or --no-display";
+        return c;
+    }
+    for (const int g : gl_devices)
+        if (g == current.ordinal) return c;
+    const std::string gl = std::to_string(gl_devices[0]);
+    if (requested >= 0)
+        c.error = "--device " + std::to_string(requested) + " is CUDA device " + std::to_string(current.ordinal) + " (" +
+                  current.name + "), but the window's OpenGL context is on CUDA device " + gl + " (" + gl_name +
+                  "): CUDA-OpenGL interop needs both on one GPU: give --device " + gl + " or open the window on GPU " +
+                  std::to_string(current.ordinal) + "'s X screen";
+    else
+        c.select = gl_devices[0];
+    return c;
+}
+
 const char* builtArchitectures() {
 #if defined(OCC_CUDA_ARCHITECTURES_TEXT)
     return OCC_CUDA_ARCHITECTURES_TEXT;
@@ -148,17 +233,20 @@ std::pair<uint64_t, uint64_t> memoryNow() {
 
 void* deviceAlloc(size_t bytes) {
     void* p = nullptr;
-    const cudaError_t status = allocFailsNow() ? cudaErrorMemoryAllocation : cudaMalloc(&p, bytes ? bytes : 1);
+    const cudaError_t status =
+        allocFailsNow() || availableBytes(~uint64_t(0)) < bytes ? cudaErrorMemoryAllocation : cudaMalloc(&p, bytes ? bytes : 1);
     if (status == cudaErrorMemoryAllocation) {
         cudaGetLastError();  // clears the sticky error so that later calls work
         const auto [bytes_free, total] = memoryNow();
         throw DeviceOutOfMemory(deviceOutOfMemoryText(currentDevice(), bytes, bytes_free, total));
     }
     OCC_CUDA_CHECK(status);
-    return p;
+    return counted(p, bytes);
 }
 void deviceFree(void* p) {
-    if (p) cudaFree(p);  // in destructors: a failure here has nowhere to go
+    if (!p) return;
+    uncount(p);
+    cudaFree(p);  // in destructors: a failure here has nowhere to go
 }
 void* pinnedAlloc(size_t bytes) {
     void* p = nullptr;
@@ -241,35 +329,33 @@ void matchGlContextDevice(int requested) {
     unsigned int count = 0;
     int devices[16] = {};
     const cudaError_t status = cudaGLGetDevices(&count, devices, 16, cudaGLDeviceListAll);
+    std::string why_none, gl_name = "?";
     if (status != cudaSuccess || count == 0) {
+        why_none = status != cudaSuccess ? cudaGetErrorString(status) : "none listed";
         cudaGetLastError();
-        throw occ::SystemError(std::string("CUDA: the window's OpenGL context is on no GPU CUDA can use (") +
-                               (status != cudaSuccess ? cudaGetErrorString(status) : "none listed") +
-                               "): CUDA-OpenGL interop needs the NVIDIA GPU's X screen; or render --headless or "
-                               "--no-display");
-    }
-    for (unsigned int i = 0; i < count; ++i)
-        if (devices[i] == d.ordinal) return;
-    if (requested >= 0) {
+        count = 0;
+    } else {
         cudaDeviceProp prop{};
-        const std::string gl_name =
-            cudaGetDeviceProperties(&prop, devices[0]) == cudaSuccess ? std::string(prop.name) : std::string("?");
-        throw occ::SystemError("--device " + std::to_string(requested) + " is CUDA device " + std::to_string(d.ordinal) +
-                               " (" + d.name + "), but the window's OpenGL context is on CUDA device " +
-                               std::to_string(devices[0]) + " (" + gl_name + "): CUDA-OpenGL interop needs both on one "
-                               "GPU: give --device " + std::to_string(devices[0]) + " or open the window on GPU " +
-                               std::to_string(d.ordinal) + "'s X screen");
+        if (cudaGetDeviceProperties(&prop, devices[0]) == cudaSuccess) gl_name = prop.name;
     }
-    selectDevice(devices[0]);  // the context's GPU: nothing is on the device yet
+    const GlDeviceChoice choice = chooseGlContextDevice(requested, d, std::vector<int>(devices, devices + count), gl_name, why_none);
+    if (!choice.error.empty()) throw occ::SystemError(choice.error);
+    if (choice.select >= 0) selectDevice(choice.select);  // the context's GPU: nothing is on the device yet
 }
 
-void requireDeviceMemory(uint64_t bytes, const std::string& what) {
+void requireDeviceMemory(uint64_t bytes, const std::string& what, const std::string& detail) {
     const DeviceInfo& d = currentDevice();
     size_t free_bytes = 0, total = 0;
     OCC_CUDA_CHECK(cudaMemGetInfo(&free_bytes, &total));
-    if (bytes > free_bytes)
-        throw occ::SystemError("CUDA device " + std::to_string(d.ordinal) + " (" + d.name + ", " + mebibytes(total) +
-                               ") has " + mebibytes(free_bytes) + " free; " + what + " needs " + mebibytes(bytes));
+    const uint64_t available = availableBytes(free_bytes);
+    if (bytes > available) throw occ::SystemError(tooSmallText(d, total, available, bytes, what, detail));
+}
+uint64_t kernelLocalMemoryBytes() {
+    size_t stack = 0;
+    OCC_CUDA_CHECK(cudaDeviceGetLimit(&stack, cudaLimitStackSize));
+    cudaDeviceProp prop{};
+    OCC_CUDA_CHECK(cudaGetDeviceProperties(&prop, currentDevice().ordinal));
+    return uint64_t(stack) * uint64_t(prop.multiProcessorCount) * uint64_t(prop.maxThreadsPerMultiProcessor);
 }
 bool deviceAvailable(std::string* why) {
     int count = 0;
@@ -351,10 +437,15 @@ void* alignedAlloc(size_t bytes) {
 }  // namespace
 
 void* deviceAlloc(size_t bytes) {
-    if (allocFailsNow()) throw DeviceOutOfMemory(deviceOutOfMemoryText(currentDevice(), bytes, 0, 0));
-    return alignedAlloc(bytes);
+    if (allocFailsNow() || availableBytes(~uint64_t(0)) < bytes)
+        throw DeviceOutOfMemory(deviceOutOfMemoryText(currentDevice(), bytes, 0, 0));
+    return counted(alignedAlloc(bytes), bytes);
 }
-void deviceFree(void* p) { std::free(p); }
+void deviceFree(void* p) {
+    if (!p) return;
+    uncount(p);
+    std::free(p);
+}
 void* pinnedAlloc(size_t bytes) { return alignedAlloc(bytes); }
 void pinnedFree(void* p) { std::free(p); }
 void deviceSynchronize() {}
@@ -371,7 +462,11 @@ DeviceInfo selectDevice(int requested) {
     return g_device;
 }
 
-void requireDeviceMemory(uint64_t, const std::string&) {}
+void requireDeviceMemory(uint64_t bytes, const std::string& what, const std::string& detail) {
+    const uint64_t available = availableBytes(~uint64_t(0));  // host memory: only a test's limit applies
+    if (bytes > available) throw occ::SystemError(tooSmallText(currentDevice(), 0, available, bytes, what, detail));
+}
+uint64_t kernelLocalMemoryBytes() { return 0; }
 void matchGlContextDevice(int) {}
 bool deviceAvailable(std::string*) { return true; }
 
@@ -402,6 +497,118 @@ void GlBufferView::unmap() {}
 bool GlBufferView::usesInterop() { return false; }
 
 #endif
+
+namespace {
+
+// The temporary-storage cache (temporaryAlloc's contract). Made on first use and never
+// destroyed: its blocks may outlive the CUDA context at exit, when freeing them would fail.
+struct TemporaryCache {
+    std::mutex mutex;
+    std::multimap<size_t, void*> free;      // size class -> block
+    std::unordered_map<void*, size_t> lent;  // block -> size class
+    uint64_t bytes = 0;                      // held, lent or free
+};
+TemporaryCache& temporaryCache() {
+    static auto* cache = new TemporaryCache;
+    return *cache;
+}
+
+// Sizes rounded up to a quarter of their power of two (at most a quarter more than asked),
+// at least 256 bytes.
+size_t sizeClass(size_t bytes) {
+    if (bytes <= 256) return 256;
+    size_t top = 256;
+    while (bytes > 2 * top) top <<= 1;  // bytes in (top, 2 top]
+    const size_t step = top / 4;
+    return (bytes + step - 1) / step * step;
+}
+
+uint64_t releaseFreeLocked(TemporaryCache& c) {
+    uint64_t released = 0;
+    for (auto& [size, p] : c.free) {
+        deviceFree(p);
+        released += size;
+    }
+    c.free.clear();
+    c.bytes -= released;
+    return released;
+}
+
+}  // namespace
+
+void* temporaryAlloc(size_t bytes) {
+    ++g_temporary_requests;
+    const size_t size = sizeClass(bytes);
+    TemporaryCache& c = temporaryCache();
+    const std::lock_guard<std::mutex> lock(c.mutex);
+    // A free block of this class, or one class or two up (at most twice the size).
+    if (auto it = c.free.lower_bound(size); it != c.free.end() && it->first <= 2 * size) {
+        void* p = it->second;
+        c.lent.emplace(p, it->first);
+        c.free.erase(it);
+        return p;
+    }
+    void* p = nullptr;
+    try {
+        p = deviceAlloc(size);
+    } catch (const DeviceOutOfMemory&) {
+        if (c.free.empty()) throw;
+        releaseFreeLocked(c);
+        p = deviceAlloc(size);
+    }
+    c.lent.emplace(p, size);
+    c.bytes += size;
+    return p;
+}
+
+void temporaryFree(void* p) {
+    if (!p) return;
+    TemporaryCache& c = temporaryCache();
+    const std::lock_guard<std::mutex> lock(c.mutex);
+    const auto it = c.lent.find(p);
+    if (it == c.lent.end()) return;  // not the cache's: nothing to hand back
+    c.free.emplace(it->second, p);
+    c.lent.erase(it);
+}
+
+uint64_t releaseTemporaries() {
+    TemporaryCache& c = temporaryCache();
+    const std::lock_guard<std::mutex> lock(c.mutex);
+    return releaseFreeLocked(c);
+}
+
+DeviceAllocationCounters deviceAllocationCounters() {
+    DeviceAllocationCounters n;
+    n.allocations = g_allocations;
+    n.frees = g_frees;
+    n.temporary_requests = g_temporary_requests;
+    {
+        TemporaryCache& c = temporaryCache();
+        const std::lock_guard<std::mutex> lock(c.mutex);
+        n.temporary_cached_bytes = c.bytes;
+    }
+    LiveBlocks& l = liveBlocks();
+    const std::lock_guard<std::mutex> lock(l.mutex);
+    n.live_bytes = l.live;
+    n.peak_bytes = l.peak;
+    return n;
+}
+
+namespace {
+uint64_t availableBytes(uint64_t free_bytes) {
+    const uint64_t most = injectedDeviceBytes();
+    if (most == ~uint64_t(0)) return free_bytes;
+    LiveBlocks& l = liveBlocks();
+    const std::lock_guard<std::mutex> lock(l.mutex);
+    return std::min(free_bytes, most > l.live ? most - l.live : 0);
+}
+}  // namespace
+
+void resetDevicePeak() {
+    LiveBlocks& l = liveBlocks();
+    const std::lock_guard<std::mutex> lock(l.mutex);
+    l.peak = l.live;
+}
 
 bool deviceReadsHostMemory() {
 #if defined(__CUDACC__)

@@ -11,6 +11,7 @@
 #include <string>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 // The three kinds of memory of a frame (DESIGN.md, "Memory and the bus"), kept apart by type:
 //   DeviceArray<T> / DevicePtr<T>  device memory the kernels work on: cudaMalloc under CUDA,
@@ -88,6 +89,31 @@ public:
     using occ::SystemError::SystemError;
 };
 void deviceFree(void* p);
+// Every allocation of device memory goes through deviceAlloc and deviceFree; these count them,
+// process-wide, for tests that a frame allocates nothing once the first is done (a cudaMalloc or
+// cudaFree waits for the whole device). temporary_requests: the device algorithms' temporary
+// storage (sorts, scans, compactions) asked of the cache below.
+struct DeviceAllocationCounters {
+    uint64_t allocations = 0;           // deviceAlloc calls (cudaMalloc)
+    uint64_t frees = 0;                 // deviceFree calls of a non-null pointer (cudaFree)
+    uint64_t temporary_requests = 0;    // temporaryAlloc calls
+    uint64_t temporary_cached_bytes = 0;  // device memory the cache holds now, lent out or free
+    uint64_t live_bytes = 0;              // allocated by deviceAlloc and not freed, now
+    uint64_t peak_bytes = 0;              // the most live_bytes has been since resetDevicePeak
+};
+DeviceAllocationCounters deviceAllocationCounters();
+void resetDevicePeak();
+// The device algorithms' temporary storage: a cache made once per process. A request takes a
+// free block of its size class (sizes rounded up to a quarter of their power of two, at least
+// 256 bytes) or, failing that, a fresh deviceAlloc; temporaryFree hands the block back to the
+// cache, not to the device. Blocks are only freed when the device runs out of memory (then the
+// request is tried once more) or by releaseTemporaries. Thread-safe. Lending a block back while
+// a kernel still uses it is safe: every kernel and copy runs on the one default stream, so the
+// next user of the block is ordered after it.
+void* temporaryAlloc(size_t bytes);
+void temporaryFree(void* p);
+// Frees the cache's blocks that are not lent out; returns their bytes.
+uint64_t releaseTemporaries();
 // Pinned host memory, the same contract.
 void* pinnedAlloc(size_t bytes);
 void pinnedFree(void* p);
@@ -127,9 +153,24 @@ const DeviceInfo& currentDevice();
 // device memory is allocated); with one given, SystemError naming both GPUs. A context CUDA
 // cannot use at all (another vendor's) is a SystemError too. A no-op in the CPU build.
 void matchGlContextDevice(int requested);
-// Throws SystemError naming the device when it has less than `bytes` of memory free for `what`
-// (a no-op in the CPU build, whose memory is the host's).
-void requireDeviceMemory(uint64_t bytes, const std::string& what);
+// matchGlContextDevice's decision, apart from CUDA (so that it is tested without a GPU): given
+// the --device asked for (-1: none), the device in use and the CUDA devices of the GL context
+// (empty: none, why_none says why), either nothing to do, a device to select, or the error.
+struct GlDeviceChoice {
+    int select = -1;    // the device to select, -1: none
+    std::string error;  // non-empty: the one line to refuse with
+};
+GlDeviceChoice chooseGlContextDevice(int requested, const DeviceInfo& current, const std::vector<int>& gl_devices,
+                                     const std::string& gl_name, const std::string& why_none);
+// Throws SystemError naming the device, its memory and what is free when it has less than
+// `bytes` free for `what` ("the scene F"; `detail`, if any, says what the bytes are); a no-op in
+// the CPU build, whose memory is the host's. For tests of that path on any machine,
+// OCC_DEVICE_MEMORY_BYTES=N makes the device hold at most N bytes (free: N less what
+// deviceAlloc holds; deviceAlloc beyond it is DeviceOutOfMemory), in both builds.
+void requireDeviceMemory(uint64_t bytes, const std::string& what, const std::string& detail = "");
+// The device memory CUDA reserves for the kernels' local memory (their stacks) when it launches
+// them: the stack size limit for every thread the GPU can hold at once. 0 in the CPU build.
+uint64_t kernelLocalMemoryBytes();
 
 // Waits until every kernel launched so far has finished (a no-op on the CPU).
 void deviceSynchronize();

@@ -2,6 +2,7 @@
 #include "draw_commands.h"
 
 #include "device_access.h"
+#include "device_policy.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
@@ -31,7 +32,7 @@ struct WriteCommand {
 void writeDrawCommands(DevicePtr<const DrawBlock> blocks, uint32_t count, DevicePtr<const ObjectInfo> objects,
                        const Camera& camera, DevicePtr<DrawCommand> commands, DevicePtr<DrawAttributes> attributes) {
     if (count == 0) return;
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), count,
+    thrust::for_each_n(onDevice(), thrust::counting_iterator<uint32_t>(0), count,
                        WriteCommand{raw(blocks), raw(objects), camera.view_proj, camera.near_plane, raw(commands),
                                     raw(attributes)});
 }

@@ -3,6 +3,7 @@
 
 // For kernel sources only: passes over an index range that may be short.
 #include "device_access.h"
+#include "device_policy.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
@@ -20,7 +21,7 @@ namespace occ::k {
 inline constexpr uint64_t kSerialPassMost = 4096;
 
 // body(policy) with the Thrust execution policy for a pass over n elements: thrust::seq on the
-// CPU when n <= kSerialPassMost, thrust::device otherwise. body must compile with both.
+// CPU when n <= kSerialPassMost, onDevice() otherwise. body must compile with both.
 template <class Body>
 decltype(auto) withPolicy(uint64_t n, Body&& body) {
 #if !defined(__CUDACC__)
@@ -28,7 +29,7 @@ decltype(auto) withPolicy(uint64_t n, Body&& body) {
 #else
     (void)n;
 #endif
-    return body(thrust::device);
+    return body(onDevice());
 }
 
 // f(i) for every i in [0, n), as thrust::for_each_n over a counting iterator, serial when short.

@@ -4,6 +4,7 @@
 #include "device_access.h"
 #include "for_each_index.h"
 #include "scan.h"
+#include "device_policy.h"
 
 #include <thrust/copy.h>
 #include <thrust/count.h>
@@ -92,11 +93,11 @@ uint32_t frustumCullIds(DevicePtr<const ObjectInfo> objects, DevicePtr<const uin
 uint32_t frustumCull(DevicePtr<const ObjectInfo> objects, uint32_t count, const Frustum& frustum,
                      DevicePtr<uint8_t> in_frustum, DevicePtr<uint32_t> ids) {
     if (count == 0) return 0;
-    thrust::transform(thrust::device, thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(count),
+    thrust::transform(onDevice(), thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(count),
                       raw(in_frustum), PVertexTest{frustum, raw(objects)});
     if (ids) return compactIndices(in_frustum, count, 1, ids);
     countReadback(sizeof(uint32_t));
-    return uint32_t(thrust::count(thrust::device, raw(in_frustum), raw(in_frustum) + count, uint8_t(1)));
+    return uint32_t(thrust::count(onDevice(), raw(in_frustum), raw(in_frustum) + count, uint8_t(1)));
 }
 
 }  // namespace occ::k

@@ -3,6 +3,7 @@
 
 #include "device_access.h"
 #include "hzm_box_image.h"
+#include "device_policy.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/iterator/counting_iterator.h>
@@ -252,7 +253,7 @@ void hzmVisibleShare(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32
     // inverse(view_proj) x (nx, ny, 1, 1). Its direction from the eye, times its w (> 0), is too.
     const glm::mat4 inverse = glm::inverse(camera.view_proj);
     const auto fromEye = [&](const glm::vec4& v) { return glm::vec3(v) - camera.eye * v.w; };
-    thrust::transform(thrust::device, thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(count),
+    thrust::transform(onDevice(), thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(count),
                       raw(share),
                       VisibleShare{raw(objects), raw(ids), camera.view_proj, camera.near_plane, hzm, raw(hzm.data),
                                    camera.eye, fromEye(inverse[0]), fromEye(inverse[1]),
@@ -262,7 +263,7 @@ void hzmVisibleShare(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32
 void hzmTestScalar(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
                    const Camera& camera, const HzmLevels& hzm, DevicePtr<uint8_t> occluded) {
     if (count == 0) return;
-    thrust::transform(thrust::device, thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(count),
+    thrust::transform(onDevice(), thrust::counting_iterator<uint32_t>(0), thrust::counting_iterator<uint32_t>(count),
                       raw(occluded),
                       HzmOcclusion{raw(objects), raw(ids), camera.view_proj, camera.near_plane, hzm, raw(hzm.data)});
 }

@@ -3,6 +3,7 @@
 
 #include "device_access.h"
 #include "for_each_index.h"
+#include "device_policy.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
@@ -70,7 +71,7 @@ void markNewlyVisible(DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t> oc
 
 void mergeNearest(DevicePtr<float> depth, DevicePtr<const float> other, uint32_t count) {
     if (count == 0) return;
-    thrust::transform(thrust::device, raw(depth), raw(depth) + count, raw(other), raw(depth), Nearest{});
+    thrust::transform(onDevice(), raw(depth), raw(depth) + count, raw(other), raw(depth), Nearest{});
 }
 
 void scatterFlags(DevicePtr<const uint32_t> indices, DevicePtr<const uint8_t> values, uint32_t count,

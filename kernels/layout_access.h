@@ -4,6 +4,7 @@
 // For kernel sources only: running functors over the elements of blocks on the device.
 #include "block_runs.h"
 #include "device_access.h"
+#include "device_policy.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
@@ -16,7 +17,7 @@ namespace occ::k {
 template <class F>
 void forEachTile(uint64_t total, const F& f) {
     if (total == 0) return;
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), (total + kRunTile - 1) / kRunTile, f);
+    thrust::for_each_n(onDevice(), thrust::counting_iterator<uint64_t>(0), (total + kRunTile - 1) / kRunTile, f);
 }
 
 // The elements of `count` blocks, block j having size(j) of them (a functor that runs on the
@@ -30,7 +31,7 @@ uint64_t forEachBlockTile(uint32_t count, const Size& size, DeviceArray<uint32_t
     lengths.growTo(count);
     offsets.growTo(count);
     const thrust::counting_iterator<uint32_t> first(0);
-    thrust::transform(thrust::device, first, first + count, raw(lengths.ptr()), size);
+    thrust::transform(onDevice(), first, first + count, raw(lengths.ptr()), size);
     const uint64_t total = exclusiveScan(lengths.ptr(), count, offsets.ptr());
     forEachTile(total, make(static_cast<const uint64_t*>(raw(offsets.ptr())), total));
     return total;

@@ -3,6 +3,7 @@
 
 #include "block_runs.h"
 #include "device_access.h"
+#include "device_policy.h"
 
 #include <thrust/copy.h>
 #include <thrust/execution_policy.h>
@@ -104,30 +105,30 @@ void keepSimilarLods(DevicePtr<const uint32_t> ids, uint32_t count, DevicePtr<co
     uint64_t* const sums = raw(scratch.sums.ptr());
     copyOnDevice(scratch.eq1.ptr(), DevicePtr<const uint32_t>(vertex_count), count);
     const auto wide_eq1 = thrust::make_transform_iterator(eq1, Widen());
-    const uint64_t chosen = thrust::reduce(thrust::device, wide_eq1, wide_eq1 + count, uint64_t(0));
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), count,
+    const uint64_t chosen = thrust::reduce(onDevice(), wide_eq1, wide_eq1 + count, uint64_t(0));
+    thrust::for_each_n(onDevice(), thrust::counting_iterator<uint32_t>(0), count,
                        KeepSimilar{raw(ids), raw(previous), previous_count, double(hysteresis), vc, raised});
     const auto wide_vc = thrust::make_transform_iterator(vc, Widen());
-    const uint64_t total = thrust::reduce(thrust::device, wide_vc, wide_vc + count, uint64_t(0));
+    const uint64_t total = thrust::reduce(onDevice(), wide_vc, wide_vc + count, uint64_t(0));
     countReadback(2 * sizeof(uint64_t));
     // Sums of integer counts are exact in 64 bits; the limit is compared as the host would.
     const double limit = budget > double(chosen) ? budget : double(chosen);
     if (double(total) > limit) {
-        uint64_t* const end = thrust::copy_if(thrust::device, raised, raised + count, sums, IsRaised{});
+        uint64_t* const end = thrust::copy_if(onDevice(), raised, raised + count, sums, IsRaised{});
         const uint32_t n = uint32_t(end - sums);
-        thrust::copy(thrust::device, sums, sums + n, raised);
-        thrust::sort(thrust::device, raised, raised + n, thrust::greater<uint64_t>());
+        thrust::copy(onDevice(), sums, sums + n, raised);
+        thrust::sort(onDevice(), raised, raised + n, thrust::greater<uint64_t>());
         const auto extras = thrust::make_transform_iterator(raised, Extra());
-        thrust::inclusive_scan(thrust::device, extras, extras + n, sums);
+        thrust::inclusive_scan(onDevice(), extras, extras + n, sums);
         // Give back raises, largest first, while the total is above the limit: the m-th sum is
         // the first with total - sum <= limit (limit >= chosen >= 0, so floor(limit) fits).
         const uint64_t limit_floor = uint64_t(limit);
-        const uint64_t* const first = thrust::find_if(thrust::device, sums, sums + n, Fits{total, limit_floor});
+        const uint64_t* const first = thrust::find_if(onDevice(), sums, sums + n, Fits{total, limit_floor});
         countReadback(2 * sizeof(uint32_t));  // copy_if's and find_if's positions
         const uint32_t m = first == sums + n ? n : uint32_t(first - sums) + 1;
-        thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), m, GiveBack{raised, eq1, vc});
+        thrust::for_each_n(onDevice(), thrust::counting_iterator<uint32_t>(0), m, GiveBack{raised, eq1, vc});
     }
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), count,
+    thrust::for_each_n(onDevice(), thrust::counting_iterator<uint32_t>(0), count,
                        Retriangulate{raw(ids), eq1, vc, raw(objects), raw(map_first), raw(maps),
                                      raw(triangle_count)});
 }

@@ -3,6 +3,7 @@
 
 #include "box_projection.h"
 #include "device_access.h"
+#include "device_policy.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
@@ -244,7 +245,7 @@ uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const u
     if (count == 0) return 0;
     const thrust::counting_iterator<uint32_t> first(0);
     const uint64_t sum = thrust::transform_reduce(
-        thrust::device, first, first + count,
+        onDevice(), first, first + count,
         ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first), raw(lod_error), raw(scale), raw(error_offset), raw(maps),
                    raw(vertex_count), raw(triangle_count)},
         uint64_t(0), Plus());
@@ -264,22 +265,22 @@ uint64_t lodSelect(DevicePtr<const ObjectInfo> object_memory, DevicePtr<const ui
     float* const shares = raw(share_memory.ptr());
 
     const float exponent = (params.alpha - 1.0f) / params.alpha;
-    thrust::transform(thrust::device, first, first + count, shares, LogShare{objects, ids, camera, exponent, params.pet, raw(params.visible_share)});
-    const float max_log = thrust::reduce(thrust::device, shares, shares + count, -INFINITY, Maximum());
+    thrust::transform(onDevice(), first, first + count, shares, LogShare{objects, ids, camera, exponent, params.pet, raw(params.visible_share)});
+    const float max_log = thrust::reduce(onDevice(), shares, shares + count, -INFINITY, Maximum());
     countReadback(sizeof max_log);
-    thrust::transform(thrust::device, shares, shares + count, shares, NormalizeShare{max_log});
+    thrust::transform(onDevice(), shares, shares + count, shares, NormalizeShare{max_log});
 
-    const Totals totals = thrust::transform_reduce(thrust::device, first, first + count, TotalsOf{objects, ids, shares},
+    const Totals totals = thrust::transform_reduce(onDevice(), first, first + count, TotalsOf{objects, ids, shares},
                                                    Totals{0, 0, 0.0, 0.0}, AddTotals());
     countReadback(sizeof totals);
     const auto evaluate = [&](double lambda) {
         countReadback(sizeof(Evaluation));
-        return thrust::transform_reduce(thrust::device, first, first + count, EvaluateAt{objects, ids, shares, lambda},
+        return thrust::transform_reduce(onDevice(), first, first + count, EvaluateAt{objects, ids, shares, lambda},
                                         Evaluation{0.0, 0.0, 0}, AddEvaluations());
     };
 
     const double lambda = solveLambda(evaluate, totals, params.budget);
-    thrust::for_each_n(thrust::device, first, count,
+    thrust::for_each_n(onDevice(), first, count,
                        WriteCounts{objects, ids, shares, raw(map_first), raw(maps), lambda, raw(vertex_count),
                                    raw(triangle_count)});
     return evaluate(lambda).rounded_sum;

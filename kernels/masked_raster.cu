@@ -4,6 +4,7 @@
 #include "device_access.h"
 #include "masked_tile.h"
 #include "raster_setup.h"
+#include "device_policy.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
@@ -55,7 +56,7 @@ MaskedBands maskedFrontEnd(DevicePtr<const glm::vec3> positions, DevicePtr<const
 void rasterSubtiles(const MaskedBands& bands) {
     const uint32_t subtiles_x = (bands.width + kSubtileWidth - 1) / kSubtileWidth;
     const uint32_t subtiles_y = (bands.height + kSubtileHeight - 1) / kSubtileHeight;
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), subtiles_x * subtiles_y,
+    thrust::for_each_n(onDevice(), thrust::counting_iterator<uint32_t>(0), subtiles_x * subtiles_y,
                        RasterSubtiles{bands.setup, bands.bins, bands.depth, bands.width, bands.height, subtiles_x});
 }
 

@@ -6,6 +6,7 @@
 #include "device_access.h"
 #include "layout_access.h"
 #include "scan.h"
+#include "device_policy.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/for_each.h>
@@ -90,7 +91,7 @@ void gatherOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const glm::m
     out.offsets.growTo(2 * uint64_t(count));
     uint32_t* const sizes = raw(out.sizes.ptr());
     uint64_t* const offsets = raw(out.offsets.ptr());
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), count,
+    thrust::for_each_n(onDevice(), thrust::counting_iterator<uint32_t>(0), count,
                        SizesOf{raw(objects), raw(ids), count, sizes});
     out.vertex_total = exclusiveScan(out.sizes.ptr(), count, out.offsets.ptr());
     out.triangle_total = exclusiveScan(out.sizes.ptr() + count, count, out.offsets.ptr() + count);
@@ -222,20 +223,20 @@ uint64_t appendNearClipped(OccluderGeometry& g, const Camera& camera) {
     // corner instead of a position.
     g.front.growTo(vertices);
     uint8_t* const front = raw(g.front.ptr());
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint64_t>(0), vertices,
+    thrust::for_each_n(onDevice(), thrust::counting_iterator<uint64_t>(0), vertices,
                        NearSides{raw(g.positions.ptr()), nearPlaneRow(camera.view_proj), front});
-    const uint64_t in_front = uint64_t(thrust::count(thrust::device, front, front + vertices, uint8_t(1)));
+    const uint64_t in_front = uint64_t(thrust::count(onDevice(), front, front + vertices, uint8_t(1)));
     countReadback(sizeof in_front);
     if (in_front == 0 || in_front == vertices) return 0;
     g.sizes.growTo(triangles);
     g.offsets.growTo(triangles);
     const auto n = uint32_t(triangles);
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), n,
+    thrust::for_each_n(onDevice(), thrust::counting_iterator<uint32_t>(0), n,
                        CountNearClipped{front, raw(g.triangles.ptr()), raw(g.sizes.ptr())});
     const uint64_t added = exclusiveScan(g.sizes.ptr(), n, g.offsets.ptr());
     if (added == 0) return 0;
     growForClipped(g, added);
-    thrust::for_each_n(thrust::device, thrust::counting_iterator<uint32_t>(0), n,
+    thrust::for_each_n(onDevice(), thrust::counting_iterator<uint32_t>(0), n,
                        clippedWriter(g, camera, raw(g.sizes.ptr()), raw(g.offsets.ptr())));
     g.vertex_total += 3 * added;
     g.triangle_total += added;

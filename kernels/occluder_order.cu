@@ -2,6 +2,7 @@
 #include "occluder_order.h"
 
 #include "device_access.h"
+#include "device_policy.h"
 
 #include <thrust/execution_policy.h>
 #include <thrust/sort.h>
@@ -29,8 +30,8 @@ void sortFrontToBack(DevicePtr<const ObjectInfo> objects, DevicePtr<uint32_t> id
     key_memory.growTo(count);
     uint32_t* const ids = raw(id_memory);
     float* const keys = raw(key_memory.ptr());
-    thrust::transform(thrust::device, ids, ids + count, keys, EyeToBox{raw(objects), camera.eye});
-    thrust::stable_sort_by_key(thrust::device, keys, keys + count, ids);
+    thrust::transform(onDevice(), ids, ids + count, keys, EyeToBox{raw(objects), camera.eye});
+    thrust::stable_sort_by_key(onDevice(), keys, keys + count, ids);
 }
 
 }  // namespace occ::k

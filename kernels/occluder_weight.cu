@@ -3,6 +3,7 @@
 
 #include "device_access.h"
 #include "for_each_index.h"
+#include "device_policy.h"
 
 #include <algorithm>
 
@@ -70,7 +71,7 @@ struct KeyToId {
 void occluderWeight(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> cos, uint32_t cos_count,
                     DevicePtr<const uint8_t> in_frustum, const Camera& camera, DevicePtr<float> weight) {
     if (cos_count == 0) return;
-    thrust::transform(thrust::device, thrust::counting_iterator<uint32_t>(0),
+    thrust::transform(onDevice(), thrust::counting_iterator<uint32_t>(0),
                       thrust::counting_iterator<uint32_t>(cos_count), raw(weight),
                       Eq3Weight{raw(objects), raw(cos), raw(in_frustum), camera.eye, camera.forward});
 }
@@ -83,19 +84,19 @@ uint32_t selectTopK(DevicePtr<const uint32_t> cos, DevicePtr<const float> weight
     const auto first_key =
         thrust::make_transform_iterator(thrust::counting_iterator<uint32_t>(0), TopKKey{raw(cos), raw(weight)});
     uint64_t* const keys_end =
-        thrust::copy_if(thrust::device, first_key, first_key + cos_count, raw(weight), key_data, IsPositive{});
+        thrust::copy_if(onDevice(), first_key, first_key + cos_count, raw(weight), key_data, IsPositive{});
     countReadback(sizeof(uint32_t));  // copy_if's count
     const auto positive = uint32_t(keys_end - key_data);
     const uint32_t chosen = positive < k ? positive : k;
 #if defined(__CUDACC__)
-    thrust::sort(thrust::device, key_data, keys_end);
+    thrust::sort(onDevice(), key_data, keys_end);
 #else
     // Only the k smallest keys are read, in order: on the CPU a partial sort finds them (the keys
     // are distinct, ids in their low bits, so these are the full sort's first k). Sorting all
     // the frustum's candidates to take 16 was a third of the occluder choice on the 10^5 orbit.
     std::partial_sort(key_data, key_data + chosen, keys_end);
 #endif
-    thrust::transform(thrust::device, key_data, key_data + chosen, raw(aos), KeyToId{});
+    thrust::transform(onDevice(), key_data, key_data + chosen, raw(aos), KeyToId{});
     return chosen;
 }
 
@@ -187,7 +188,7 @@ uint32_t selectPvsOccluders(DevicePtr<const ObjectInfo> objects, DevicePtr<const
     if (exclude_count > 0)
         withPolicy(exclude_count,
                    [&](auto policy) { thrust::for_each_n(policy, raw(exclude), exclude_count, MarkTaken{taken, 1}); });
-    thrust::for_each_n(thrust::device, first, 1,
+    thrust::for_each_n(onDevice(), first, 1,
                        TakeWithinBudget{raw(objects), keys, count, taken, triangle_budget, raw(out),
                                         raw(scratch.chosen.ptr())});
     if (exclude_count > 0)

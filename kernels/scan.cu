@@ -4,6 +4,7 @@
 #include "block_runs.h"
 #include "device_access.h"
 #include "for_each_index.h"
+#include "device_policy.h"
 
 #include <thrust/copy.h>
 #include <thrust/execution_policy.h>
@@ -26,7 +27,7 @@ struct Equals {
 uint64_t exclusiveScan(DevicePtr<const uint32_t> in, uint32_t count, DevicePtr<uint64_t> out) {
     if (count == 0) return 0;
     const auto wide = thrust::make_transform_iterator(raw(in), Widen());
-    thrust::exclusive_scan(thrust::device, wide, wide + count, raw(out), uint64_t(0));
+    thrust::exclusive_scan(onDevice(), wide, wide + count, raw(out), uint64_t(0));
     // The total is the last offset plus the last count: 12 bytes back to the host.
     return readBack(DevicePtr<const uint64_t>(out + (count - 1))) + readBack(in + (count - 1));
 }

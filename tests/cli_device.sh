@@ -2,7 +2,8 @@
 # SPDX-License-Identifier: MIT
 # `info --device` says which device the kernels run on; a device that runs out of memory is one
 # line naming it, exit 1 (the machine's limit, not a bad input's 2), reached here through
-# OCC_DEVICE_ALLOC_FAIL_AT (the N-th device allocation fails as if the device were full).
+# OCC_DEVICE_ALLOC_FAIL_AT (the N-th device allocation fails as if the device were full); a
+# device too small for the scene or its frames says so before the first frame.
 set -u
 exe=$1
 dir=$(mktemp -d)
@@ -19,8 +20,27 @@ for at in 0 5 40; do
   status=$?
   [ $status -eq 1 ] || fail "allocation $at failing: exit $status, $(cat "$dir/err")"
   [ "$(wc -l <"$dir/err")" -eq 1 ] || fail "allocation $at failing: not one line: $(cat "$dir/err")"
-  grep -q "^error: out of device memory: CPU (host memory, TBB) could not allocate [0-9]* MiB" "$dir/err" ||
+  grep -q "^error: out of device memory: CPU (host memory, TBB) could not allocate [0-9.]* MiB" "$dir/err" ||
     fail "allocation $at failing: $(cat "$dir/err")"
 done
+# A device too small (OCC_DEVICE_MEMORY_BYTES: it holds that many bytes) is said before the
+# first frame, one line, exit 1: for the scene, or for the frames (their active arrays and
+# occluder raster) once the scene and the per-object arrays are on the device.
+small() {
+  OCC_DEVICE_MEMORY_BYTES=$1 "$exe" render "$dir/p.oss" --path "$dir/p.cam" --no-display >"$dir/out" 2>"$dir/err"
+  status=$?
+  [ $status -eq 1 ] || fail "a device of $1 bytes: exit $status, $(cat "$dir/err")"
+  [ "$(wc -l <"$dir/err")" -eq 1 ] || fail "a device of $1 bytes: not one line: $(cat "$dir/err")"
+  [ ! -s "$dir/out" ] || fail "a device of $1 bytes: frames ran: $(head -3 "$dir/out")"
+}
+small 1000
+grep -q "^error: CPU (host memory, TBB) has 0.0 MiB free; [0-9.]* MiB needed for the scene .*p.oss: a smaller --budget" "$dir/err" ||
+  fail "scene too large: $(cat "$dir/err")"
+# The scene and per-object arrays of this plant take under 3 MB here; its frames more than 1 MB.
+small 4000000
+grep -q "MiB needed for the frames of .*p.oss (beyond the scene and its per-object arrays: active arrays for [0-9]* vertices and [0-9]* triangles [0-9.]* MiB, occluder raster of [0-9]* triangles [0-9.]* MiB)" "$dir/err" ||
+  fail "frames too large: $(cat "$dir/err")"
+OCC_DEVICE_MEMORY_BYTES=100000000 "$exe" render "$dir/p.oss" --path "$dir/p.cam" --no-display >/dev/null ||
+  fail "a device of 100 MB"
 "$exe" render "$dir/p.oss" --path "$dir/p.cam" --no-display >/dev/null || fail "the same render without the failure"
 echo ok

@@ -65,6 +65,45 @@ void validatePipelineOptions(const PipelineOptions& options) {
         throw OptionError("draw_cost", OptionError::value(options.draw_cost) + ": must be a number of triangles >= 0");
 }
 
+FrameMemoryNeed frameMemoryNeed(const OssFile& file, const PipelineOptions& options, double budget) {
+    uint64_t all_vertices = 0, all_triangles = 0;
+    const auto meshes = file.meshRecords();
+    for (const oss::ObjectDisk& o : file.objects()) {
+        all_vertices += meshes[o.mesh].vertex_count;
+        all_triangles += meshes[o.mesh].triangle_count;
+    }
+    FrameMemoryNeed n;
+    n.vertices = options.mode == CullMode::Full
+                     ? all_vertices
+                     : std::min<uint64_t>(all_vertices, uint64_t(std::max(0.0, std::floor(budget))));
+    n.triangles = all_vertices ? uint64_t(double(n.vertices) * double(all_triangles) / double(all_vertices)) : 0;
+    // vertices: heap + staging (12 bytes each); triangles: heap, index buffer, staging.
+    n.active_bytes = n.vertices * 2 * sizeof(glm::vec3) + n.triangles * 3 * 3 * sizeof(uint32_t);
+    if (options.mode == CullMode::OcLod) {
+        n.occluder_triangles = std::min<uint64_t>(options.pvs_occluder_triangles, all_triangles);
+        // Per triangle: its corners' positions (about one vertex each), its three indices,
+        // edge flags and neighbours (OccluderGeometry), then drawn, drawn_ids and the scan of
+        // boundary edges (DepthRasterScratch); the per-triangle setup is not counted.
+        n.raster_bytes = n.occluder_triangles * (sizeof(glm::vec3) + 3 * sizeof(uint32_t) + 1 + 3 * sizeof(uint32_t) +
+                                                 1 + 2 * sizeof(uint32_t));
+    }
+    n.local_bytes = k::kernelLocalMemoryBytes();
+    return n;
+}
+
+std::string FrameMemoryNeed::detail() const {
+    const auto mib = [](uint64_t b) {
+        const uint64_t tenths = (b * 10 + (1u << 19)) >> 20;
+        return std::to_string(tenths / 10) + "." + std::to_string(tenths % 10) + " MiB";
+    };
+    std::string t = "beyond the scene and its per-object arrays: active arrays for " + std::to_string(vertices) +
+                    " vertices and " + std::to_string(triangles) + " triangles " + mib(active_bytes);
+    if (occluder_triangles)
+        t += ", occluder raster of " + std::to_string(occluder_triangles) + " triangles " + mib(raster_bytes);
+    if (local_bytes) t += ", kernels' local memory " + mib(local_bytes);
+    return t;
+}
+
 Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(file), options_(options) {
     validatePipelineOptions(options);
     if (options.hierarchy && file.nodeCount() == 0)
@@ -86,6 +125,9 @@ Pipeline::Pipeline(const OssFile& file, const PipelineOptions& options) : file_(
         StreamStage::Options{coherent, options_.stream == StreamMode::None, coherent ? options_.retain_frames : 0u,
                              options_.resident_factor * lod_->budget()});
     visible_.reserve(scene_.item_count);
+    // What the frames need beyond what is allocated now: said before the first frame.
+    const FrameMemoryNeed need = frameMemoryNeed(file, options_, lod_->budget());
+    k::requireDeviceMemory(need.total(), "the frames of " + file.path(), need.detail());
 }
 
 void Pipeline::frustumPass(const CameraPose& pose, FrameStats& stats, FrustumUse use) {

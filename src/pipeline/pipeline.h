@@ -156,6 +156,29 @@ LodRule parseLodRule(const std::string& s);  // "budget" or "error"; OptionError
 // anything.
 void validatePipelineOptions(const PipelineOptions& options);
 
+// The device memory a pipeline's frames need beyond what its constructor allocates (the scene
+// and the per-object arrays), counted before the first frame so that a GPU too small says so
+// at once (issue 35): at least the active arrays for the vertices a frame may draw (every
+// object's full detail in mode full, else the vertex budget, at most the scene's instanced
+// vertices; triangles in the scene's proportion), each once in the heap, once in the index buffer
+// (triangles) and once in the device staging of the first frame, which streams all of it; in
+// oc+lod the occluder raster's lists for its triangle budget (at most the scene's); and the
+// kernels' local memory CUDA reserves. A lower bound of what frames use (arrays grow by half
+// again when short; defragmentation and the raster's bins take more): enough to refuse a
+// configuration that cannot run, never one that could.
+struct FrameMemoryNeed {
+    uint64_t vertices = 0, triangles = 0;  // what the active arrays hold for a full frame
+    uint64_t active_bytes = 0;
+    uint64_t occluder_triangles = 0;  // 0 outside oc+lod
+    uint64_t raster_bytes = 0;
+    uint64_t local_bytes = 0;
+    uint64_t total() const { return active_bytes + raster_bytes + local_bytes; }
+    // What the bytes are, for requireDeviceMemory's message.
+    std::string detail() const;
+};
+// `options` resolved (pvs_occluder_triangles not automatic), `budget` the LOD stage's vertices.
+FrameMemoryNeed frameMemoryNeed(const OssFile& file, const PipelineOptions& options, double budget);
+
 class Pipeline {
 public:
     // file must outlive the pipeline. Throws UsageError for impossible options.

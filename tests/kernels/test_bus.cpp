@@ -98,5 +98,34 @@ TEST_F(DeviceArrays, CapacityNeverShrinks) {
     EXPECT_TRUE(a.ptr() == before);
 }
 
+// Issue 35: the device algorithms' temporary storage comes from a cache made once: a block handed
+// back is lent again to a request of its size class (or one up to half the size) without a new
+// deviceAlloc, blocks lent at once are distinct, and releaseTemporaries frees only what is not
+// lent.
+TEST_F(DeviceArrays, TemporariesAreLentAgainFromTheCache) {
+    releaseTemporaries();  // what earlier tests handed back
+    const DeviceAllocationCounters start = deviceAllocationCounters();
+    void* const a = temporaryAlloc(3'000'013);
+    void* const b = temporaryAlloc(3'000'013);
+    EXPECT_NE(a, b);
+    EXPECT_EQ(deviceAllocationCounters().allocations - start.allocations, 2u);
+    EXPECT_GE(deviceAllocationCounters().temporary_cached_bytes - start.temporary_cached_bytes, 2 * 3'000'013u);
+    temporaryFree(a);
+    void* const again = temporaryAlloc(2'000'000);  // a smaller request takes the free block
+    EXPECT_EQ(again, a);
+    EXPECT_EQ(deviceAllocationCounters().allocations - start.allocations, 2u);
+    void* const small = temporaryAlloc(1000);  // far smaller: a block of its own size
+    EXPECT_EQ(deviceAllocationCounters().allocations - start.allocations, 3u);
+    EXPECT_EQ(deviceAllocationCounters().temporary_requests - start.temporary_requests, 4u);
+    temporaryFree(small);
+    temporaryFree(b);
+    const DeviceAllocationCounters before_release = deviceAllocationCounters();
+    EXPECT_GE(releaseTemporaries(), 3'000'013u + 1000u);
+    EXPECT_EQ(deviceAllocationCounters().frees - before_release.frees, 2u) << "the lent block stays";
+    temporaryFree(again);
+    EXPECT_GE(releaseTemporaries(), 3'000'013u);
+    temporaryFree(nullptr);
+}
+
 }  // namespace
 }  // namespace occ::k

@@ -43,8 +43,38 @@ TEST(DeviceErrors, AFullDeviceNamesTheGpuItsMemoryAndTheRequest) {
         << temporary;
     DeviceInfo cpu;
     cpu.name = "CPU (host memory, TBB)";
-    EXPECT_NE(deviceOutOfMemoryText(cpu, 1 << 20, 0, 0).find("CPU (host memory, TBB) could not allocate 1 MiB"),
+    EXPECT_NE(deviceOutOfMemoryText(cpu, 1 << 20, 0, 0).find("CPU (host memory, TBB) could not allocate 1.0 MiB"),
               std::string::npos);
+}
+
+// Item 7: the window's GL context and the CUDA device. The decision is checked here; the CUDA
+// call that lists the context's devices (cudaGLGetDevices) needs a GPU and its X screen.
+TEST(DeviceErrors, TheWindowTakesItsContextsGpuOrSaysWhyItCannot) {
+    DeviceInfo in_use;
+    in_use.ordinal = 1;
+    in_use.name = "NVIDIA H100";
+    // The context is on the device in use (one of several it spans): nothing to do.
+    GlDeviceChoice c = chooseGlContextDevice(-1, in_use, {0, 1}, "NVIDIA L40", "");
+    EXPECT_EQ(c.select, -1);
+    EXPECT_TRUE(c.error.empty());
+    // Elsewhere, no --device: the context's GPU becomes the device.
+    c = chooseGlContextDevice(-1, in_use, {0}, "NVIDIA L40", "");
+    EXPECT_EQ(c.select, 0);
+    EXPECT_TRUE(c.error.empty()) << c.error;
+    // Elsewhere, --device given: one line naming both GPUs and the two ways out.
+    c = chooseGlContextDevice(1, in_use, {0}, "NVIDIA L40", "");
+    EXPECT_EQ(c.select, -1);
+    EXPECT_NE(c.error.find("--device 1 is CUDA device 1 (NVIDIA H100), but the window's OpenGL context is on CUDA device "
+                           "0 (NVIDIA L40)"),
+              std::string::npos)
+        << c.error;
+    EXPECT_NE(c.error.find("give --device 0 or open the window on GPU 1's X screen"), std::string::npos) << c.error;
+    EXPECT_EQ(c.error.find('\n'), std::string::npos);
+    // A context on no CUDA GPU (another vendor's, or Mesa's): refused with CUDA's reason.
+    c = chooseGlContextDevice(-1, in_use, {}, "?", "OS call failed or operation not supported on this OS");
+    EXPECT_EQ(c.select, -1);
+    EXPECT_NE(c.error.find("on no GPU CUDA can use (OS call failed"), std::string::npos) << c.error;
+    EXPECT_NE(c.error.find("--headless or --no-display"), std::string::npos) << c.error;
 }
 
 }  // namespace

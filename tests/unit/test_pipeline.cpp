@@ -7,6 +7,7 @@
 #include "import/plant.h"
 #include "pipeline/pipeline.h"
 #include "prep/prepare.h"
+#include "prep/hierarchy.h"
 #include "scene/errors.h"
 #include "test_support.h"
 #include "view/camera_path.h"
@@ -320,6 +321,39 @@ TEST_F(PipelineFrames, AnUnchangedFrameStreamsMovesAndReformsNothing) {
     EXPECT_EQ(drawnGeometry(pipeline), drawnGeometry(fresh));
 }
 
+// Issue 35: once a frame's sizes have been seen, a frame allocates and frees no device memory (a
+// cudaMalloc or cudaFree waits for the whole device): arrays keep their capacity and grow by half
+// again when short, and the device algorithms' temporaries come back from the cache. So frames
+// with one camera stop allocating within a few frames, and so does a path flown again (its
+// later passes see sizes its first pass has seen; the layout's free list and the hysteresis
+// settle over a pass or two). Counted by deviceAlloc and deviceFree, in both builds.
+TEST_F(PipelineFrames, AFrameMakesNoDeviceAllocationOnceItsSizesHaveBeenSeen) {
+    const PipelineFixture& f = fixture();
+    for (const CullMode mode : {CullMode::OcLod, CullMode::Lod}) {
+        PipelineOptions options = smallOptions(StreamMode::Coherent);
+        options.mode = mode;
+        Pipeline pipeline(*f.file, options);
+        uint64_t frame = 0;
+        k::DeviceAllocationCounters before, after;
+        for (int i = 0; i < 5; ++i) {
+            before = k::deviceAllocationCounters();
+            pipeline.runFrame(f.cameras[5], frame++);
+            after = k::deviceAllocationCounters();
+        }
+        EXPECT_EQ(after.allocations, before.allocations) << "the fifth frame from one camera";
+        EXPECT_EQ(after.frees, before.frees) << "the fifth frame from one camera";
+        const uint64_t temporaries = after.temporary_requests;
+        for (int pass = 0; pass < 4; ++pass) {
+            before = k::deviceAllocationCounters();
+            for (const CameraPose& camera : f.cameras) pipeline.runFrame(camera, frame++);
+            after = k::deviceAllocationCounters();
+        }
+        EXPECT_EQ(after.allocations, before.allocations) << "the path's fourth pass";
+        EXPECT_EQ(after.frees, before.frees) << "the path's fourth pass";
+        EXPECT_GT(after.temporary_requests, temporaries) << "the frames' sorts and compactions bypass the cache";
+    }
+}
+
 TEST_F(PipelineFrames, FullModeDrawsEveryFrustumObjectAtFullDetail) {
     const PipelineFixture& f = fixture();
     PipelineOptions options = smallOptions(StreamMode::Coherent);
@@ -487,6 +521,46 @@ TEST_F(PipelineFrames, ImpossibleOptionsAreRefused) {
     EXPECT_THROW(Pipeline(*f.file, o), UsageError);
     EXPECT_THROW(parseCullMode("everything"), UsageError);
     EXPECT_THROW(parseStreamMode("fast"), UsageError);
+}
+
+// Issue 35: the device memory a pipeline's frames need, counted before the first frame, is a
+// lower bound of what they use (a configuration that fits is never refused) that counts a third
+// or more of it where the active arrays dominate: measured by deviceAlloc over the orbit (the whole plant in view, so a frame fills
+// its budget) in every mode, flat and with the hierarchy, at two budgets and two viewports.
+TEST_F(PipelineFrames, TheFramesMemoryNeedIsALowerBoundOfWhatTheyUse) {
+    const PipelineFixture& f = fixture();
+    const std::string path = (test::scratchDir() / "pipeline_plant_hierarchy.oss").string();
+    writeWithHierarchy(*f.file, path, 8, HlodOptions{});
+    const OssFile with_nodes = OssFile::open(path);
+    const std::vector<CameraPose> orbit = orbitPath(pathSceneOf(*f.file), 8);
+    for (const OssFile* file : {static_cast<const OssFile*>(f.file.get()), &with_nodes})
+        for (const CullMode mode : {CullMode::OcLod, CullMode::Lod, CullMode::Full})
+            for (const uint32_t width : {160u, 512u})
+                for (const double share : {0.1, 1.0}) {
+                    PipelineOptions o;
+                    o.width = width;
+                    o.height = width * 3 / 4;
+                    o.mode = mode;
+                    o.budget_share = share;
+                    o.hierarchy = file->nodeCount() > 0;
+                    const std::string config = std::string(o.hierarchy ? "hierarchy" : "flat") + ", mode " +
+                                               std::to_string(int(mode)) + ", " + std::to_string(width) + " wide, " +
+                                               std::to_string(share) + " of the vertices";
+                    k::releaseTemporaries();
+                    Pipeline pipeline(*file, o);
+                    const FrameMemoryNeed need = frameMemoryNeed(*file, pipeline.options(), pipeline.budget());
+                    const uint64_t made = k::deviceAllocationCounters().live_bytes;
+                    k::resetDevicePeak();
+                    uint64_t frame = 0;
+                    for (const CameraPose& camera : orbit) pipeline.runFrame(camera, frame++);
+                    // What deviceAlloc lent; the kernels' local memory CUDA reserves itself.
+                    const uint64_t used = k::deviceAllocationCounters().peak_bytes - made + need.local_bytes;
+                    EXPECT_LE(need.total(), used) << config;
+                    // Where the active arrays dominate (the whole scene's vertices), most of it.
+                    if (share == 1.0 || mode == CullMode::Full) {
+                        EXPECT_GE(need.total() * 3, used) << config << ": counts less than a third of " << used;
+                    }
+                }
 }
 
 }  // namespace
