@@ -32,7 +32,7 @@ int runOssInfo(const std::string& path) {
     // The objects' meshes come first, the hierarchy's HLODs after them.
     uint32_t object_meshes = file.meshCount();
     uint32_t levels = 0;
-    for (const oss::NodeDisk& n : file.nodes()) {
+    for (const oss::Node& n : file.nodes()) {
         levels = std::max(levels, n.depth + 1);
         if (n.child_count > 0) object_meshes = std::min(object_meshes, n.mesh);
     }

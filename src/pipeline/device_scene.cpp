@@ -62,14 +62,14 @@ DeviceScene DeviceScene::upload(const OssFile& file, bool hierarchy) {
     d.host_world.resize(d.item_count);
     std::vector<uint32_t> item_of_object;  // with nodes: each object's leaf
     if (hierarchy) {
-        const std::span<const oss::NodeDisk> nodes = file.nodes();
+        const std::span<const oss::Node> nodes = file.nodes();
         d.host_nodes.resize(d.item_count);
         item_of_object.resize(file.objectCount());
         // Bottom-up (children come after their parent): an HLOD shows the colour of its
         // subtree's object with the most triangles.
         std::vector<uint64_t> colour_triangles(d.item_count, 0);
         for (uint32_t i = d.item_count; i-- > 0;) {
-            const oss::NodeDisk& n = nodes[i];
+            const oss::Node& n = nodes[i];
             NodeLinks& links = d.host_nodes[i];
             links.first_child = n.first_child;
             links.child_count = n.child_count;

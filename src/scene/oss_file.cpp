@@ -46,7 +46,8 @@ struct SectionKind {
 constexpr SectionKind kKinds[kSectionCount] = {
     {"MESHES", sizeof(MeshRecord)}, {"POSITIONS", 3 * sizeof(float)}, {"ECOL", sizeof(int32_t)},
     {"ERROR", sizeof(float)},        {"TRIANGLES", 3 * sizeof(uint32_t)}, {"MAP", sizeof(uint32_t)},
-    {"OBJECTS", sizeof(ObjectDisk)}, {"COS", sizeof(uint32_t)},          {"NODES", sizeof(NodeDisk)},
+    {"OBJECTS", sizeof(ObjectDisk)}, {"COS", sizeof(uint32_t)},          {"NODES", sizeof(NodeLink)},
+    {"INNER", sizeof(InnerDisk)},
 };
 
 }  // namespace
@@ -86,22 +87,7 @@ ObjectRecord fromDisk(const ObjectDisk& d) {
     return o;
 }
 
-NodeDisk toDisk(const SceneNode& n) {
-    NodeDisk d{};
-    std::memcpy(d.box_min, glm::value_ptr(n.box.min), sizeof d.box_min);
-    std::memcpy(d.box_max, glm::value_ptr(n.box.max), sizeof d.box_max);
-    d.first_child = n.first_child;
-    d.child_count = n.child_count;
-    d.object = n.object;
-    d.mesh = n.mesh;
-    d.depth = n.depth;
-    d.error = n.error;
-    d.triangles = n.triangles;
-    std::memcpy(d.world, glm::value_ptr(n.world), sizeof d.world);
-    return d;
-}
-
-SceneNode fromDisk(const NodeDisk& d) {
+SceneNode fromNode(const Node& d) {
     SceneNode n;
     n.box.min = glm::make_vec3(d.box_min);
     n.box.max = glm::make_vec3(d.box_max);
@@ -473,12 +459,28 @@ void OssStreamWriter::finish(std::span<const ObjectRecord> objects, std::span<co
     w.beginSection();
     w.put(cos.data(), cos.size() * sizeof(uint32_t));
     h.sections[7] = w.endSection(SectionId::cos);
+    // A leaf is its object alone; an inner node's fields go to INNER, in node order.
     w.beginSection();
+    uint64_t inner_count = 0;
     for (const SceneNode& n : nodes) {
-        const NodeDisk d = toDisk(n);
-        w.put(&d, sizeof d);
+        const NodeLink l{n.child_count ? n.first_child : n.object, n.child_count};
+        w.put(&l, sizeof l);
+        inner_count += n.child_count > 0;
     }
     h.sections[8] = w.endSection(SectionId::nodes);
+    w.beginSection();
+    for (const SceneNode& n : nodes) {
+        if (n.child_count == 0) continue;
+        InnerDisk d{};
+        std::memcpy(d.box_min, glm::value_ptr(n.box.min), sizeof d.box_min);
+        std::memcpy(d.box_max, glm::value_ptr(n.box.max), sizeof d.box_max);
+        d.mesh = n.mesh;
+        d.error = n.error;
+        d.triangles = n.triangles;
+        std::memcpy(d.world, glm::value_ptr(n.world), sizeof d.world);
+        w.put(&d, sizeof d);
+    }
+    h.sections[9] = w.endSection(SectionId::inner);
     w.padToAlignment();
 
     std::memcpy(h.magic, kMagic, sizeof h.magic);
@@ -493,6 +495,7 @@ void OssStreamWriter::finish(std::span<const ObjectRecord> objects, std::span<co
     h.triangle_count = s.triangle_count;
     h.ct = ct;
     h.node_count = uint32_t(nodes.size());
+    h.inner_count = uint32_t(inner_count);
     h.header_checksum = XXH3_64bits(&h, kHeaderChecksummedBytes);
     w.commit(h);
 }
@@ -546,18 +549,22 @@ OssFile OssFile::open(const std::string& path, Pages pages) {
     // Validation touches every byte once, front to back.
     ::madvise(p, size_t(size), MADV_SEQUENTIAL);
     f.validate();
+    f.nodes_ = f.validateNodes();
+    f.releaseIfAsked();
     ::madvise(p, size_t(size), MADV_NORMAL);
     return f;
 }
 
 OssFile::OssFile(OssFile&& other) noexcept
-    : path_(std::move(other.path_)), base_(std::exchange(other.base_, nullptr)), size_(std::exchange(other.size_, 0)),
+    : path_(std::move(other.path_)), nodes_(std::move(other.nodes_)), base_(std::exchange(other.base_, nullptr)),
+      size_(std::exchange(other.size_, 0)),
       release_pages_(other.release_pages_) {}
 
 OssFile& OssFile::operator=(OssFile&& other) noexcept {
     if (this != &other) {
         unmap();
         path_ = std::move(other.path_);
+        nodes_ = std::move(other.nodes_);
         base_ = std::exchange(other.base_, nullptr);
         size_ = std::exchange(other.size_, 0);
         release_pages_ = other.release_pages_;
@@ -614,6 +621,10 @@ void OssFile::validate() const {
              "COS has " + str(h.cos_count) + " entries but there are only " + str(h.object_count) + " objects");
     if (!(h.ct >= 0.0f && h.ct <= 1.0f))
         fail("HEADER", offsetof(Header, ct), "compactness threshold ct = " + str(h.ct) + " is not in [0, 1]");
+    if (h.node_count == 0 ? h.inner_count != 0 : h.inner_count == 0 || h.inner_count >= h.node_count)
+        fail("HEADER", offsetof(Header, inner_count),
+             str(h.inner_count) + " inner nodes for " + str(h.node_count) +
+                 " nodes (none without a hierarchy; else at least the root, and fewer than the nodes)");
     for (uint64_t i = 0; i < sizeof h.reserved1; ++i)
         if (h.reserved1[i] != 0) fail("HEADER", offsetof(Header, reserved1) + i, "reserved byte is not 0");
 
@@ -626,7 +637,7 @@ void OssFile::validate() const {
         fail("HEADER", offsetof(Header, vertex_count), "vertex count " + str(h.vertex_count) + " overflows");
     const uint64_t counts[kSectionCount] = {h.mesh_count, h.vertex_count, h.vertex_count,  h.vertex_count,
                                             h.triangle_count, map_count,  h.object_count, h.cos_count,
-                                            h.node_count};
+                                            h.node_count, h.inner_count};
     auto requireZeros = [&](const char* section, uint64_t from, uint64_t to, const char* where) {
         for (uint64_t o = from; o < to; ++o)
             if (base_[o] != std::byte{0})
@@ -847,99 +858,117 @@ void OssFile::validate() const {
             fail("COS", at, entry() + " has compactness " + str(c) + " > " + str(objs[cos_ids[j - 1]].compactness) +
                                 " of cos[" + str(j - 1) + "] (must be sorted highest first)");
     }
-    validateNodes();
     releaseIfAsked();
 }
 
-void OssFile::validateNodes() const {
+std::vector<Node> OssFile::validateNodes() const {
     const Header& h = header();
-    if (h.node_count == 0) return;
-    const NodeDisk* nodes = sectionData<NodeDisk>(SectionId::nodes);
+    std::vector<Node> out;
+    if (h.node_count == 0) return out;
+    const NodeLink* links = sectionData<NodeLink>(SectionId::nodes);
+    const InnerDisk* inner = sectionData<InnerDisk>(SectionId::inner);
     const ObjectDisk* objs = sectionData<ObjectDisk>(SectionId::objects);
     const MeshRecord* meshes = sectionData<MeshRecord>(SectionId::meshes);
-    const uint64_t nodes_at = h.sections[uint32_t(SectionId::nodes) - 1].offset;
-    const auto at = [&](uint32_t i, size_t field) { return nodes_at + uint64_t(i) * sizeof(NodeDisk) + field; };
+    const uint64_t links_at = h.sections[uint32_t(SectionId::nodes) - 1].offset;
+    const uint64_t inner_at = h.sections[uint32_t(SectionId::inner) - 1].offset;
     const auto fail = [&](uint32_t i, size_t field, const std::string& what) {
-        raise(path_, {"NODES", at(i, field), "node " + str(i) + ": " + what});
+        raise(path_, {"NODES", links_at + uint64_t(i) * sizeof(NodeLink) + field, "node " + str(i) + ": " + what});
+    };
+    std::vector<uint32_t> inner_of(h.node_count, UINT32_MAX);  // an inner node's INNER record
+    const auto failInner = [&](uint32_t i, size_t field, const std::string& what) {
+        raise(path_, {"INNER", inner_at + uint64_t(inner_of[i]) * sizeof(InnerDisk) + field,
+                      "node " + str(i) + " (inner record " + str(inner_of[i]) + "): " + what});
     };
     // One pass in node order: breadth-first, so every node's parent comes before it and the
     // children of consecutive inner nodes follow each other from node 1 on. That makes the
     // nodes one tree; each object must then be exactly one leaf.
+    out.resize(h.node_count);
     std::vector<uint32_t> parent(h.node_count, UINT32_MAX);
     std::vector<bool> leaf_of(h.object_count, false);
     uint64_t next_child = 1, leaves = 0;
+    uint32_t inner_seen = 0;
     for (uint32_t i = 0; i < h.node_count; ++i) {
-        const NodeDisk& n = nodes[i];
-        for (int a = 0; a < 3; ++a) {
-            if (!std::isfinite(n.box_min[a]) || !std::isfinite(n.box_max[a]))
-                fail(i, offsetof(NodeDisk, box_min), "box is not finite");
-            if (n.box_min[a] > n.box_max[a])
-                fail(i, offsetof(NodeDisk, box_min) + 4 * size_t(a),
-                     "box_min[" + str(uint32_t(a)) + "] = " + str(n.box_min[a]) + " > box_max = " + str(n.box_max[a]));
-        }
+        const NodeLink& l = links[i];
+        Node& n = out[i];
         if (i > 0 && parent[i] == UINT32_MAX)
             fail(i, 0, "no node has it as a child (the tree reaches only " + str(next_child) + " nodes)");
-        if (i == 0 && n.child_count == 0) fail(i, offsetof(NodeDisk, child_count), "the root has no children");
-        const uint32_t depth = i == 0 ? 0 : nodes[parent[i]].depth + 1;
-        if (n.depth != depth) fail(i, offsetof(NodeDisk, depth), "depth " + str(n.depth) + ", expected " + str(depth));
-        if (!(n.error >= 0.0f && n.error < INFINITY))  // also NaN
-            fail(i, offsetof(NodeDisk, error), "error " + str(n.error) + " is not a finite number >= 0");
-        if (n.child_count == 0 && n.error != 0.0f) fail(i, offsetof(NodeDisk, error), "a leaf with error " + str(n.error));
-        for (int e = 0; e < 16; ++e) {
-            if (!std::isfinite(n.world[e]))
-                fail(i, offsetof(NodeDisk, world) + 4 * size_t(e), "world[" + str(uint32_t(e)) + "] is not finite");
-            if (n.child_count == 0 && n.world[e] != (e % 5 == 0 ? 1.0f : 0.0f))
-                fail(i, offsetof(NodeDisk, world) + 4 * size_t(e), "a leaf whose world is not the identity");
-        }
-        if (n.child_count == 0) {
-            if (n.first_child != 0) fail(i, offsetof(NodeDisk, first_child), "a leaf with first_child " + str(n.first_child));
-            if (n.object >= h.object_count)
-                fail(i, offsetof(NodeDisk, object), "leaf object " + str(n.object) + " is not < object count " + str(h.object_count));
-            if (leaf_of[n.object]) fail(i, offsetof(NodeDisk, object), "object " + str(n.object) + " is a second leaf");
-            leaf_of[n.object] = true;
+        if (i == 0 && l.child_count == 0) fail(i, offsetof(NodeLink, child_count), "the root has no children");
+        n.depth = i == 0 ? 0 : out[parent[i]].depth + 1;
+        n.child_count = l.child_count;
+        if (l.child_count == 0) {
+            if (l.first >= h.object_count)
+                fail(i, 0, "leaf object " + str(l.first) + " is not < object count " + str(h.object_count));
+            if (leaf_of[l.first]) fail(i, 0, "object " + str(l.first) + " is a second leaf");
+            leaf_of[l.first] = true;
             ++leaves;
-            if (n.mesh != UINT32_MAX) fail(i, offsetof(NodeDisk, mesh), "a leaf with an HLOD mesh " + str(n.mesh));
-            const ObjectDisk& o = objs[n.object];
-            for (int a = 0; a < 3; ++a)
-                if (o.aabb_min[a] < n.box_min[a] || o.aabb_max[a] > n.box_max[a])
-                    fail(i, offsetof(NodeDisk, box_min), "box does not hold object " + str(n.object) + "'s box");
-            if (n.triangles != meshes[o.mesh].triangle_count)
-                fail(i, offsetof(NodeDisk, triangles),
-                     str(n.triangles) + " triangles, object " + str(n.object) + "'s mesh has " + str(meshes[o.mesh].triangle_count));
+            const ObjectDisk& o = objs[l.first];
+            std::memcpy(n.box_min, o.aabb_min, sizeof n.box_min);
+            std::memcpy(n.box_max, o.aabb_max, sizeof n.box_max);
+            n.first_child = 0;
+            n.object = l.first;
+            n.mesh = UINT32_MAX;
+            n.error = 0.0f;
+            n.triangles = meshes[o.mesh].triangle_count;
+            for (int e = 0; e < 16; ++e) n.world[e] = e % 5 == 0 ? 1.0f : 0.0f;
             continue;
         }
-        if (n.first_child != next_child)
-            fail(i, offsetof(NodeDisk, first_child),
-                 "first_child " + str(n.first_child) + ", expected " + str(next_child) +
-                     " (children follow in breadth-first order)");
-        if (n.child_count > h.node_count - next_child)
-            fail(i, offsetof(NodeDisk, child_count),
-                 str(n.child_count) + " children from node " + str(next_child) + " pass the " + str(h.node_count) + " nodes");
-        if (n.object != UINT32_MAX) fail(i, offsetof(NodeDisk, object), "an inner node with object " + str(n.object));
-        if (n.mesh >= h.mesh_count)
-            fail(i, offsetof(NodeDisk, mesh), "HLOD mesh " + str(n.mesh) + " is not < mesh count " + str(h.mesh_count));
-        for (uint32_t c = n.first_child; c < n.first_child + n.child_count; ++c) parent[c] = i;
-        next_child += n.child_count;
+        if (inner_seen == h.inner_count)
+            fail(i, offsetof(NodeLink, child_count),
+                 "inner node past the " + str(h.inner_count) + " the header counts (and INNER holds)");
+        inner_of[i] = inner_seen++;
+        const InnerDisk& d = inner[inner_of[i]];
+        if (l.first != next_child)
+            fail(i, 0, "first_child " + str(l.first) + ", expected " + str(next_child) +
+                           " (children follow in breadth-first order)");
+        if (l.child_count > h.node_count - next_child)
+            fail(i, offsetof(NodeLink, child_count),
+                 str(l.child_count) + " children from node " + str(next_child) + " pass the " + str(h.node_count) + " nodes");
+        for (int a = 0; a < 3; ++a) {
+            if (!std::isfinite(d.box_min[a]) || !std::isfinite(d.box_max[a]))
+                failInner(i, offsetof(InnerDisk, box_min), "box is not finite");
+            if (d.box_min[a] > d.box_max[a])
+                failInner(i, offsetof(InnerDisk, box_min) + 4 * size_t(a),
+                          "box_min[" + str(uint32_t(a)) + "] = " + str(d.box_min[a]) + " > box_max = " + str(d.box_max[a]));
+        }
+        if (d.mesh >= h.mesh_count)
+            failInner(i, offsetof(InnerDisk, mesh), "HLOD mesh " + str(d.mesh) + " is not < mesh count " + str(h.mesh_count));
+        if (!(d.error >= 0.0f && d.error < INFINITY))  // also NaN
+            failInner(i, offsetof(InnerDisk, error), "error " + str(d.error) + " is not a finite number >= 0");
+        for (int e = 0; e < 16; ++e)
+            if (!std::isfinite(d.world[e]))
+                failInner(i, offsetof(InnerDisk, world) + 4 * size_t(e), "world[" + str(uint32_t(e)) + "] is not finite");
+        std::memcpy(n.box_min, d.box_min, sizeof n.box_min);
+        std::memcpy(n.box_max, d.box_max, sizeof n.box_max);
+        n.first_child = l.first;
+        n.object = UINT32_MAX;
+        n.mesh = d.mesh;
+        n.error = d.error;
+        n.triangles = d.triangles;
+        std::memcpy(n.world, d.world, sizeof n.world);
+        for (uint32_t c = l.first; c < l.first + l.child_count; ++c) parent[c] = i;
+        next_child += l.child_count;
     }
-    if (next_child != h.node_count)
-        fail(0, 0, "the tree reaches " + str(next_child) + " of the " + str(h.node_count) + " nodes");
+    if (next_child != h.node_count) fail(0, 0, "the tree reaches " + str(next_child) + " of the " + str(h.node_count) + " nodes");
+    if (inner_seen != h.inner_count)
+        raise(path_, {"INNER", inner_at + uint64_t(inner_seen) * sizeof(InnerDisk),
+                      str(h.inner_count) + " inner records, but the nodes have " + str(inner_seen) + " inner nodes"});
     if (leaves != h.object_count)
         fail(0, 0, str(leaves) + " leaves for " + str(h.object_count) + " objects (one leaf per object)");
     // Bottom-up: a node holds its children's boxes and triangles.
     std::vector<uint64_t> sums(h.node_count, 0);
     for (uint32_t i = h.node_count; i-- > 1;) {
-        const NodeDisk& n = nodes[i];
-        const NodeDisk& p = nodes[parent[i]];
+        const Node& n = out[i];
+        const Node& p = out[parent[i]];
         for (int a = 0; a < 3; ++a)
             if (n.box_min[a] < p.box_min[a] || n.box_max[a] > p.box_max[a])
-                fail(parent[i], offsetof(NodeDisk, box_min), "box does not hold child " + str(i) + "'s box");
+                failInner(parent[i], offsetof(InnerDisk, box_min), "box does not hold child " + str(i) + "'s box");
         if (__builtin_add_overflow(sums[parent[i]], n.triangles, &sums[parent[i]]))
-            fail(parent[i], offsetof(NodeDisk, triangles), "the children's triangles overflow 64 bits");
+            failInner(parent[i], offsetof(InnerDisk, triangles), "the children's triangles overflow 64 bits");
     }
     for (uint32_t i = 0; i < h.node_count; ++i)
-        if (nodes[i].child_count > 0 && nodes[i].triangles != sums[i])
-            fail(i, offsetof(NodeDisk, triangles),
-                 str(nodes[i].triangles) + " triangles, its children have " + str(sums[i]));
+        if (out[i].child_count > 0 && out[i].triangles != sums[i])
+            failInner(i, offsetof(InnerDisk, triangles), str(out[i].triangles) + " triangles, its children have " + str(sums[i]));
+    return out;
 }
 
 OssFile::MeshView OssFile::mesh(uint32_t i) const {
@@ -985,12 +1014,11 @@ std::span<const uint32_t> OssFile::allMaps() const {
 }
 
 std::span<const uint32_t> OssFile::cos() const { return {sectionData<uint32_t>(SectionId::cos), header().cos_count}; }
-std::span<const NodeDisk> OssFile::nodes() const { return {sectionData<NodeDisk>(SectionId::nodes), nodeCount()}; }
 
 OssFile::HlodCounts OssFile::hlodCounts() const {
     HlodCounts c;
     std::vector<uint8_t> seen(meshCount(), 0);
-    for (const NodeDisk& n : nodes()) {
+    for (const Node& n : nodes()) {
         if (n.child_count == 0) continue;
         ++c.inner;
         if (seen[n.mesh]) continue;
@@ -1051,7 +1079,7 @@ PreparedScene OssFile::toPreparedScene() const {
     const std::span<const uint32_t> c = cos();
     scene.cos.assign(c.begin(), c.end());
     scene.nodes.reserve(nodeCount());
-    for (const NodeDisk& d : nodes()) scene.nodes.push_back(fromDisk(d));
+    for (const Node& d : nodes()) scene.nodes.push_back(fromNode(d));
     return scene;
 }
 

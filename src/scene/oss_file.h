@@ -24,7 +24,9 @@ static_assert(std::endian::native == std::endian::little,
 namespace oss {
 
 inline constexpr char kMagic[8] = {'O', 'C', 'C', 'S', 'W', 'O', 'S', 'S'};
-inline constexpr uint32_t kVersion = 3;  // 2: the NODES section (the hierarchy); 3: HLOD placement
+// 2: the NODES section (the hierarchy); 3: HLOD placement; 4: leaves stored as their object's
+// id alone (NODES), inner nodes' fields in INNER.
+inline constexpr uint32_t kVersion = 4;
 inline constexpr uint64_t kAlignment = 64;  // of every section, so any element type can be mapped
 
 // Section ids, also their order in the header's table and in the file.
@@ -37,9 +39,10 @@ enum class SectionId : uint32_t {
     map = 6,        // uint32 per (vertex_count + 1) per mesh
     objects = 7,    // ObjectDisk per object
     cos = 8,        // uint32 object id per candidate occluder
-    nodes = 9,      // NodeDisk per hierarchy node; empty without a hierarchy
+    nodes = 9,      // NodeLink per hierarchy node; empty without a hierarchy
+    inner = 10,     // InnerDisk per inner node, in node order; empty without a hierarchy
 };
-inline constexpr uint32_t kSectionCount = 9;
+inline constexpr uint32_t kSectionCount = 10;
 const char* sectionName(SectionId id);  // "MESHES", "POSITIONS", ...
 
 // One row of the header's section table.
@@ -52,7 +55,7 @@ struct SectionEntry {
 };
 static_assert(sizeof(SectionEntry) == 32);
 
-// The first 384 bytes of the file.
+// The first 448 bytes of the file.
 struct Header {
     char magic[8];              // kMagic
     uint32_t version;           // kVersion
@@ -67,14 +70,16 @@ struct Header {
     float ct;                   // compactness threshold the COS was built with, in [0, 1]
     uint32_t node_count;        // hierarchy nodes, 0 (none) or 1 + objects' leaves and more
     SectionEntry sections[kSectionCount];
-    uint8_t reserved1[24];      // 0
+    uint32_t inner_count;       // the hierarchy's inner nodes (< node_count; 0 without one)
+    uint8_t reserved1[52];      // 0
     uint64_t header_checksum;   // XXH3_64bits (seed 0) of the bytes before it
 };
-static_assert(sizeof(Header) == 384 && sizeof(Header) % kAlignment == 0);
+static_assert(sizeof(Header) == 448 && sizeof(Header) % kAlignment == 0);
 static_assert(offsetof(Header, version) == 8 && offsetof(Header, file_size) == 16);
 static_assert(offsetof(Header, section_count) == 24 && offsetof(Header, vertex_count) == 40);
 static_assert(offsetof(Header, ct) == 56 && offsetof(Header, node_count) == 60 && offsetof(Header, sections) == 64);
-static_assert(offsetof(Header, reserved1) == 352 && offsetof(Header, header_checksum) == 376);
+static_assert(offsetof(Header, inner_count) == 384 && offsetof(Header, reserved1) == 388 &&
+              offsetof(Header, header_checksum) == 440);
 
 // Where one mesh's elements start in the shared per-vertex / per-triangle / map sections. The
 // ranges of consecutive meshes are contiguous (first[i+1] = first[i] + count[i]), from 0.
@@ -112,25 +117,41 @@ static_assert(sizeof(glm::vec3) == 12 && alignof(glm::vec3) <= 4, "positions are
 ObjectDisk toDisk(const ObjectRecord& o);
 ObjectRecord fromDisk(const ObjectDisk& d);
 
-// SceneNode with fixed-width fields: box finite and min <= max, children in breadth-first
-// order, leaves naming their object, inner nodes their HLOD mesh (docs/oss_format.md).
-struct NodeDisk {
+// The hierarchy on disk (docs/oss_format.md): nodes in breadth-first order, children of a node
+// consecutive. A leaf is its object and nothing more (its box, triangles and placement are the
+// object's); an inner node's fields live in INNER, in node order.
+struct NodeLink {
+    uint32_t first;        // inner nodes: the first child; leaves: the object, < object_count
+    uint32_t child_count;  // 0: a leaf
+};
+static_assert(sizeof(NodeLink) == 8);
+struct InnerDisk {
+    float box_min[3];      // holds the children's boxes
+    float box_max[3];
+    uint32_t mesh;         // the HLOD mesh, < mesh_count
+    float error;           // SceneNode::error: finite, >= 0
+    uint64_t triangles;    // the subtree's full-detail triangles: the children's sum
+    float world[16];       // where the HLOD mesh is placed, column-major
+};
+static_assert(sizeof(InnerDisk) == 104 && offsetof(InnerDisk, mesh) == 24 && offsetof(InnerDisk, triangles) == 32 &&
+              offsetof(InnerDisk, world) == 40);
+
+// A node as the reader hands it out: NODES and INNER put together, with a leaf's box and
+// triangles taken from its object and mesh, and every node's depth.
+struct Node {
     float box_min[3];
     float box_max[3];
-    uint32_t first_child;        // inner nodes; 0 for leaves
-    uint32_t child_count;        // 0: a leaf
-    uint32_t object;             // leaves: < object_count; inner nodes: UINT32_MAX
-    uint32_t mesh;               // inner nodes: < mesh_count; leaves: UINT32_MAX
-    uint32_t depth;              // the parent's + 1; 0 at the root
-    float error;                 // SceneNode::error: finite, >= 0; 0 for leaves
-    uint64_t triangles;          // the subtree's full-detail triangles
-    float world[16];             // inner nodes: where the HLOD mesh is placed, column-major; leaves: identity
+    uint32_t first_child;  // inner nodes; 0 for leaves
+    uint32_t child_count;  // 0: a leaf
+    uint32_t object;       // leaves: the object; inner nodes: UINT32_MAX
+    uint32_t mesh;         // inner nodes: the HLOD mesh; leaves: UINT32_MAX
+    uint32_t depth;        // the parent's + 1; 0 at the root
+    float error;           // 0 for leaves
+    uint64_t triangles;    // the subtree's full-detail triangles
+    float world[16];       // inner nodes: the HLOD mesh's placement; leaves: identity
 };
-static_assert(sizeof(NodeDisk) == 120 && offsetof(NodeDisk, first_child) == 24 && offsetof(NodeDisk, triangles) == 48 &&
-              offsetof(NodeDisk, world) == 56);
 
-NodeDisk toDisk(const SceneNode& n);
-SceneNode fromDisk(const NodeDisk& d);
+SceneNode fromNode(const Node& n);
 
 }  // namespace oss
 
@@ -238,8 +259,9 @@ public:
     std::span<const uint32_t> allMaps() const;
     ObjectRecord object(uint32_t i) const;             // throws std::out_of_range if i >= objectCount()
     std::span<const uint32_t> cos() const;             // sorted by compactness, highest first
-    // The hierarchy (empty without one), breadth-first; inner nodes' HLODs are meshes.
-    std::span<const oss::NodeDisk> nodes() const;
+    // The hierarchy (empty without one), breadth-first; inner nodes' HLODs are meshes. Built
+    // from NODES and INNER when the file is opened (120 bytes a node in memory).
+    std::span<const oss::Node> nodes() const { return nodes_; }
     uint32_t nodeCount() const { return header().node_count; }
     // The hierarchy's HLODs: inner nodes, the distinct HLOD meshes they draw (repeated subtrees
     // share one) and those meshes' triangles, each counted once.
@@ -271,10 +293,11 @@ private:
     template <typename T>
     const T* sectionData(oss::SectionId id) const;
     void validate() const;
-    void validateNodes() const;
+    std::vector<oss::Node> validateNodes() const;  // NODES and INNER checked and put together
     void unmap() noexcept;
 
     std::string path_;
+    std::vector<oss::Node> nodes_;
     const std::byte* base_ = nullptr;
     uint64_t size_ = 0;
     bool release_pages_ = false;  // opened with Pages::Release

@@ -207,7 +207,7 @@ TEST(Hierarchy, TheFileCarriesTheHierarchyAndItsHlods) {
     uint32_t inner = 0;
     std::set<uint32_t> hlods;
     for (size_t n = 0; n < h.nodes.size(); ++n) {
-        const oss::NodeDisk& d = file.nodes()[n];
+        const oss::Node& d = file.nodes()[n];
         EXPECT_EQ(d.child_count, h.nodes[n].child_count);
         EXPECT_EQ(d.triangles, h.nodes[n].triangles);
         EXPECT_EQ(d.error, h.nodes[n].error);

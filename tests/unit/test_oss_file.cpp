@@ -4,6 +4,7 @@
 #include "scene/errors.h"
 #include "test_support.h"
 
+#include <glm/gtc/type_ptr.hpp>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -258,6 +259,33 @@ TEST(OssFile, RoundTripKeepsEveryField) {
     expectSameScene(g.toPreparedScene(), flat);
 }
 
+// A leaf is stored as its object alone (format 4): what a SceneNode leaf would repeat (box,
+// triangles, placement, error, depth) is not written, and comes back from the object, its mesh
+// and the tree.
+TEST(OssFile, ALeafIsItsObject) {
+    PreparedScene scene = smallScene();
+    SceneNode& leaf = scene.nodes[3];  // object 0, depth 2
+    leaf.box.max += glm::vec3(1.0f);
+    leaf.triangles = 99;
+    leaf.error = 3.0f;
+    leaf.depth = 7;
+    leaf.world[3][0] = 5.0f;
+    leaf.mesh = 1;
+    const std::string path = scratch("leaf.oss");
+    writeOss(path, scene);
+    const OssFile f = OssFile::open(path);
+    const oss::Node& n = f.nodes()[3];
+    EXPECT_EQ(glm::make_vec3(n.box_min), scene.objects[0].aabb.min);
+    EXPECT_EQ(glm::make_vec3(n.box_max), scene.objects[0].aabb.max);
+    EXPECT_EQ(n.triangles, 4u);  // the tetrahedron
+    EXPECT_EQ(n.error, 0.0f);
+    EXPECT_EQ(n.depth, 2u);
+    EXPECT_EQ(n.object, 0u);
+    EXPECT_EQ(n.mesh, UINT32_MAX);
+    EXPECT_EQ(glm::make_mat4(n.world), glm::mat4(1.0f));
+    EXPECT_EQ(f.nodes()[1].depth, 1u);
+}
+
 TEST(OssFile, MeshViewsPointIntoTheMapping) {
     const std::string path = scratch("views.oss");
     writeOss(path, smallScene());
@@ -283,8 +311,8 @@ TEST(OssFile, SectionsAreAlignedInOrderAndCoverTheFile) {
     writeOss(path, smallScene());
     const OssFile f = OssFile::open(path);
     const std::vector<OssFile::SectionInfo> s = f.sections();
-    const std::vector<std::string> names = {"HEADER",    "MESHES", "POSITIONS", "ECOL", "ERROR",
-                                            "TRIANGLES", "MAP",    "OBJECTS",   "COS",  "NODES"};
+    const std::vector<std::string> names = {"HEADER",    "MESHES", "POSITIONS", "ECOL",  "ERROR", "TRIANGLES",
+                                            "MAP",       "OBJECTS", "COS",      "NODES", "INNER"};
     ASSERT_EQ(s.size(), names.size());
     for (size_t i = 0; i < s.size(); ++i) {
         EXPECT_EQ(s[i].name, names[i]);
@@ -296,7 +324,8 @@ TEST(OssFile, SectionsAreAlignedInOrderAndCoverTheFile) {
     EXPECT_EQ(s[2].count, 10u);  // positions
     EXPECT_EQ(s[6].count, 12u);  // map: 5 + 7
     EXPECT_EQ(s[7].size, 3 * sizeof(oss::ObjectDisk));
-    EXPECT_EQ(s[9].size, 5 * sizeof(oss::NodeDisk));
+    EXPECT_EQ(s[9].size, 5 * sizeof(oss::NodeLink));
+    EXPECT_EQ(s[10].size, 2 * sizeof(oss::InnerDisk));  // the root and node 1
     EXPECT_EQ(f.fileSize() % 64, 0u);
     EXPECT_EQ(f.fileSize(), fs::file_size(path));
 }
@@ -376,7 +405,7 @@ TEST(OssFile, ErrorsNameFileSectionAndOffset) {
                                    ": checksum mismatch (corrupt data)");
     writeBytes(path, bytes, 100);
     EXPECT_EQ(openError(path), path + ": section HEADER at offset 0: file is 100 bytes, shorter than the "
-                                      "384-byte header (truncated, or not an .oss file)");
+                                      "448-byte header (truncated, or not an .oss file)");
     EXPECT_NE(openError(scratch("missing.oss")).find("cannot open"), std::string::npos);
 }
 
@@ -384,12 +413,12 @@ TEST(OssFile, FutureVersionIsNamed) {
     const std::string good = scratch("version_source.oss"), path = scratch("version.oss");
     writeOss(good, smallScene());
     std::vector<char> bytes = readBytes(good);
-    bytes[8] = 4;
+    bytes[8] = 5;
     writeBytes(path, bytes, bytes.size());
-    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 4, this build reads version 3");
-    bytes[8] = 2;  // a file of an older build: prepared again
+    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 5, this build reads version 4");
+    bytes[8] = 3;  // a file of an older build: prepared again
     writeBytes(path, bytes, bytes.size());
-    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 2, this build reads version 3 "
+    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 3, this build reads version 4 "
                                       "(prepare the model again: occswitch prep)");
     bytes[0] = 'X';
     writeBytes(path, bytes, bytes.size());
@@ -513,42 +542,41 @@ TEST(OssFile, CosEntriesMustBeQualifiedDistinctObjects) {
 // The hierarchy, written with valid checksums: one tree in breadth-first order, every object
 // one leaf, boxes and triangle counts that hold their children's, HLOD meshes that exist.
 TEST(OssFile, ABrokenHierarchyIsRejected) {
-    const uint64_t nodes = sectionOffsetOf(smallScene(), "NODES");
-    const auto at = [&](uint32_t n, size_t field) { return "section NODES at offset " + std::to_string(nodes + n * sizeof(oss::NodeDisk) + field) + ": node " + std::to_string(n) + ": "; };
+    const uint64_t nodes = sectionOffsetOf(smallScene(), "NODES"), inner = sectionOffsetOf(smallScene(), "INNER");
+    const auto at = [&](uint32_t n, size_t field) {
+        return "section NODES at offset " + std::to_string(nodes + n * sizeof(oss::NodeLink) + field) + ": node " +
+               std::to_string(n) + ": ";
+    };
+    // Nodes 0 and 1 are the inner nodes: INNER records 0 and 1.
+    const auto in = [&](uint32_t n, size_t field) {
+        return "section INNER at offset " + std::to_string(inner + n * sizeof(oss::InnerDisk) + field) + ": node " +
+               std::to_string(n) + " (inner record " + std::to_string(n) + "): ";
+    };
     const auto broken = [](const std::function<void(PreparedScene&)>& change) {
         PreparedScene scene = smallScene();
         change(scene);
         return errorOfWritten(scene);
     };
     EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].first_child = 2; }),
-              at(1, 24) + "first_child 2, expected 3 (children follow in breadth-first order)");
+              at(1, 0) + "first_child 2, expected 3 (children follow in breadth-first order)");
     EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].child_count = 3; }),
-              at(1, 28) + "3 children from node 3 pass the 5 nodes");
-    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[4].object = 0; }), at(4, 32) + "object 0 is a second leaf");
-    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[4].object = 3; }), at(4, 32) + "leaf object 3 is not < object count 3");
-    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].mesh = 2; }), at(1, 36) + "HLOD mesh 2 is not < mesh count 2");
-    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[3].mesh = 0; }), at(3, 36) + "a leaf with an HLOD mesh 0");
-    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[3].depth = 1; }), at(3, 40) + "depth 1, expected 2");
-    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[3].triangles = 5; }),
-              at(3, 48) + "5 triangles, object 0's mesh has 4");
-    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[0].triangles = 17; }), at(0, 48) + "17 triangles, its children have 16");
-    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[3].box.max.x += 5.0f; }),
-              at(1, 0) + "box does not hold child 3's box");
-    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[2].box.max.y -= 0.5f; }),
-              at(2, 0) + "box does not hold object 2's box");
-    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[2].box.min.z = std::numeric_limits<float>::infinity(); }),
-              at(2, 0) + "box is not finite");
-    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[3].error = 1.0f; }), at(3, 44) + "a leaf with error 1");
+              at(1, 4) + "3 children from node 3 pass the 5 nodes");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[4].object = 0; }), at(4, 0) + "object 0 is a second leaf");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[4].object = 3; }), at(4, 0) + "leaf object 3 is not < object count 3");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].mesh = 2; }), in(1, 24) + "HLOD mesh 2 is not < mesh count 2");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[0].triangles = 17; }), in(0, 32) + "17 triangles, its children have 16");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].box.max = s.nodes[1].box.min; }),
+              in(1, 0) + "box does not hold child 4's box");
+    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].box.min.z = std::numeric_limits<float>::infinity(); }),
+              in(1, 0) + "box is not finite");
     EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].world[3][1] = std::numeric_limits<float>::infinity(); }),
-              at(1, 56 + 4 * 13) + "world[13] is not finite");
-    EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[4].world[0][0] = 2.0f; }),
-              at(4, 56) + "a leaf whose world is not the identity");
+              in(1, 40 + 4 * 13) + "world[13] is not finite");
     EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[1].error = std::numeric_limits<float>::quiet_NaN(); }),
-              at(1, 44) + "error nan is not a finite number >= 0");
+              in(1, 28) + "error nan is not a finite number >= 0");
     EXPECT_EQ(broken([](PreparedScene& s) { s.nodes[0].child_count = 0, s.nodes[0].first_child = 0; }),
-              at(0, 28) + "the root has no children");
+              at(0, 4) + "the root has no children");
     EXPECT_EQ(broken([](PreparedScene& s) { s.nodes.pop_back(); }),
-              at(1, 28) + "2 children from node 3 pass the 4 nodes");
+              at(1, 4) + "2 children from node 3 pass the 4 nodes");
     EXPECT_EQ(broken([](PreparedScene& s) {
                   s.nodes[1].child_count = 1, s.nodes[1].triangles = 4, s.nodes[0].triangles = 10;
               }),
