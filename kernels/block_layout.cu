@@ -528,7 +528,9 @@ LayoutTotals placeLayout(const VisibleLods& visible, DevicePtr<const LayoutBlock
                          const LayoutOptions& options, LayoutHeap& heap, LayoutLists& lists, LayoutScratch& s) {
     const Tables tables{raw(scene.objects), raw(scene.map_first), raw(scene.maps)};
     const uint32_t most = previous_count + visible.count;
-    const uint32_t room = std::max<uint32_t>(1, most);
+    // Room for the union, sized by twice the larger set rather than their sum, so that the first
+    // frame (nothing before it) already has the room of the frames after it.
+    const uint32_t room = std::max<uint32_t>(1, 2 * std::max(previous_count, visible.count));
     for (DeviceArray<uint32_t>* a : {&s.union_ids, &s.union_source, &s.vertex_need, &s.triangle_need, &s.vertex_staged,
                                      &s.triangle_staged})
         a->growTo(room);
