@@ -94,7 +94,7 @@ ErrorCalibration calibrateRecordedErrors(ProgressiveMesh& pm, uint32_t samples) 
             dropped_cap.clear();
             const uint32_t stride = std::max(1u, (n - k + kVertexSamples - 1) / kVertexSamples);
             for (uint32_t v = k; v < n; v += stride) dropped.push_back(pm.positions[v]), dropped_cap.push_back(extent[v]);
-            const double d = std::max(full.distanceTo(level).max, level.farthestFrom(dropped, dropped_cap));
+            const double d = std::max(full.maxDistanceTo(level), level.farthestFrom(dropped, dropped_cap));
             const double h = std::isfinite(d) ? std::min(d, diagonal) : diagonal;
             const double e = level_error[k];
             ks.push_back(k);

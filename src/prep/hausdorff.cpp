@@ -149,12 +149,17 @@ public:
 
     // Squared distance from p to the closest triangle, and that triangle (leaf order) so the
     // next, nearby query can start from it: its distance bounds the search from the start.
-    std::pair<float, uint32_t> closest(const glm::vec3& p, uint32_t hint) const {
-        float best = std::numeric_limits<float>::infinity();
+    // Only triangles nearer than `bound` (a squared distance) are looked for: none nearer
+    // gives kNoTriangle. The search stops as soon as one is within `enough` (squared): then the
+    // distance returned is that one's, not necessarily the smallest.
+    std::pair<float, uint32_t> closest(const glm::vec3& p, uint32_t hint,
+                                       float bound = std::numeric_limits<float>::infinity(), float enough = -1.0f) const {
+        float best = bound;
         uint32_t best_triangle = kNoTriangle;
         if (hint != kNoTriangle) {
-            best = distance2(p, triangleClosest(p, hint));
-            best_triangle = hint;
+            const float d = distance2(p, triangleClosest(p, hint));
+            if (d < best) best = d, best_triangle = hint;
+            if (best <= enough) return {best, best_triangle};
         }
         // Pending nodes with their box distance, so a node pushed before best shrank is dropped
         // on pop without measuring its box again. Depth <= log2(triangles) + 1 (median splits).
@@ -175,6 +180,7 @@ public:
                     const float d = distance2(p, triangleClosest(p, t));
                     if (d < best) best = d, best_triangle = t;
                 }
+                if (best <= enough) return {best, best_triangle};
                 continue;
             }
             const float dl = boxDistance2(p, nodes_[node.first]), dr = boxDistance2(p, nodes_[node.first + 1]);
@@ -214,16 +220,47 @@ struct OneSided {
     double max = 0.0, sum = 0.0;
 };
 
-// caps: empty, or one per sample (the most its distance counts).
-OneSided measure(std::span<const glm::vec3> samples, const TriangleBvh& to, std::span<const float> caps = {}) {
+// The smallest float whose square root (in double) is at least x: a squared distance below it
+// is a distance below x, one at or above it a distance of at least x.
+float squaredAtLeast(double x) {
+    float b = float(x * x);
+    while (std::sqrt(double(b)) < x && b < std::numeric_limits<float>::max())
+        b = std::nextafter(b, std::numeric_limits<float>::infinity());
+    return b;
+}
+// The largest float whose square root (in double) is at most x (x >= 0).
+float squaredAtMost(double x) {
+    float b = float(x * x);
+    while (b > 0.0f && std::sqrt(double(b)) > x) b = std::nextafter(b, 0.0f);
+    return b;
+}
+
+// caps: empty, or one per sample (the most its distance counts). max_only: the largest distance
+// alone (sum left 0), found with less work and the same value: a sample's search stops once a
+// triangle is nearer than the largest distance so far (it cannot raise it), and looks no
+// farther than its cap (beyond it the distance counts as the cap).
+OneSided measure(std::span<const glm::vec3> samples, const TriangleBvh& to, std::span<const float> caps = {},
+                 bool max_only = false) {
     OneSided r;
     uint32_t hint = kNoTriangle;
     for (size_t i = 0; i < samples.size(); ++i) {
-        const auto [d2, t] = to.closest(samples[i], hint);
+        if (!max_only) {
+            const auto [d2, t] = to.closest(samples[i], hint);
+            hint = t;
+            const double d = caps.empty() ? std::sqrt(double(d2)) : std::min(std::sqrt(double(d2)), double(caps[i]));
+            r.max = std::max(r.max, d);
+            r.sum += d;
+            continue;
+        }
+        const float bound = caps.empty() ? std::numeric_limits<float>::infinity() : squaredAtLeast(double(caps[i]));
+        const auto [d2, t] = to.closest(samples[i], hint, bound, squaredAtMost(r.max));
+        if (t == kNoTriangle) {  // nothing nearer than the cap (or no triangle at all)
+            r.max = std::max(r.max, caps.empty() ? double(std::numeric_limits<float>::infinity()) : double(caps[i]));
+            continue;
+        }
         hint = t;
         const double d = caps.empty() ? std::sqrt(double(d2)) : std::min(std::sqrt(double(d2)), double(caps[i]));
         r.max = std::max(r.max, d);
-        r.sum += d;
     }
     return r;
 }
@@ -347,7 +384,13 @@ double SampledSurface::farthestFrom(std::span<const glm::vec3> points, std::span
         if (caps.empty()) return std::numeric_limits<double>::infinity();
         return double(*std::max_element(caps.begin(), caps.end()));
     }
-    return measure(points, *impl_->bvh, caps).max;
+    return measure(points, *impl_->bvh, caps, true).max;
+}
+
+double SampledSurface::maxDistanceTo(const SampledSurface& other) const {
+    const Impl &a = *impl_, &b = *other.impl_;
+    if (!a.bvh || !b.bvh) return distanceTo(other).max;
+    return std::max(measure(a.samples, *b.bvh, a.caps, true).max, measure(b.samples, *a.bvh, b.caps, true).max);
 }
 
 HausdorffDistance sampledHausdorff(std::span<const glm::vec3> a_positions, std::span<const uint32_t> a_triangles,

@@ -78,6 +78,8 @@ public:
 
     // sampledHausdorff(this surface as A, other as B), with each surface's own options.
     HausdorffDistance distanceTo(const SampledSurface& other) const;
+    // distanceTo(other).max, the same value found with less work (no mean).
+    double maxDistanceTo(const SampledSurface& other) const;
     // The largest distance from one of `points` to this surface (+infinity when it is empty and
     // there are points, 0 when there are none); with `caps` (one per point), point i's distance
     // counts at most caps[i].

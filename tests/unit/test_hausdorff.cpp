@@ -233,4 +233,37 @@ TEST(SampledHausdorff, CapsBoundWhatAVanishedComponentCounts) {
 }
 
 }  // namespace
+// The max-only measure (calibration's) stops a sample's search once a triangle is nearer than
+// the largest distance so far and looks no farther than its cap: the same largest distance, to
+// the bit, as the full measure, with and without caps, either way round.
+TEST(SampledHausdorff, TheMaxAloneIsTheFullMeasuresMax) {
+    TriangleMesh a = bumpyGrid(25);
+    for (glm::vec3& p : a.positions) p.z *= -1.5f;
+    const TriangleMesh b = bumpyGrid(7), c = cube(0.6f);
+    std::vector<float> caps(a.triangles.size() / 3);
+    for (size_t t = 0; t < caps.size(); ++t) caps[t] = 0.05f + 0.5f * float(t % 7) / 7.0f;
+    const HausdorffOptions options{3000, 11};
+    const SampledSurface sa(a.positions, a.triangles, options), sb(b.positions, b.triangles, options),
+        sc(c.positions, c.triangles, options), capped(a.positions, a.triangles, options, caps);
+    for (const auto& [x, y] : {std::pair{&sa, &sb}, {&sb, &sa}, {&sa, &sc}, {&sc, &sb}, {&capped, &sb}, {&sb, &capped},
+                               {&capped, &sc}})
+        EXPECT_EQ(x->maxDistanceTo(*y), x->distanceTo(*y).max);
+    std::vector<glm::vec3> points = sampleSurface(a.positions, a.triangles, 500, 3);
+    std::vector<float> point_caps(points.size());
+    for (size_t i = 0; i < points.size(); ++i) point_caps[i] = 0.02f * float(i % 13);
+    double worst = 0.0, worst_capped = 0.0;
+    for (size_t i = 0; i < points.size(); ++i) {
+        float best = std::numeric_limits<float>::infinity();
+        for (size_t t = 0; t < b.triangles.size(); t += 3) {
+            const glm::vec3 q = closestPointOnTriangle(points[i], b.positions[b.triangles[t]], b.positions[b.triangles[t + 1]],
+                                                       b.positions[b.triangles[t + 2]]);
+            best = std::min(best, glm::dot(points[i] - q, points[i] - q));
+        }
+        worst = std::max(worst, std::sqrt(double(best)));
+        worst_capped = std::max(worst_capped, std::min(std::sqrt(double(best)), double(point_caps[i])));
+    }
+    EXPECT_EQ(sb.farthestFrom(points), worst);
+    EXPECT_EQ(sb.farthestFrom(points, point_caps), worst_capped);
+}
+
 }  // namespace occ
