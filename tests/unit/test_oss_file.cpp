@@ -6,9 +6,11 @@
 
 #include <glm/gtc/type_ptr.hpp>
 #include <gtest/gtest.h>
+#include <xxhash.h>
 
 #include <algorithm>
 #include <csignal>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -586,6 +588,29 @@ TEST(OssFile, ABrokenHierarchyIsRejected) {
                   s.nodes[1].depth = s.nodes[2].depth = 1, s.nodes[0].triangles = 10;
               }),
               "section NODES at offset " + std::to_string(nodes) + ": node 0: 2 leaves for 3 objects (one leaf per object)");
+}
+
+// The header's count of inner nodes (version 4) agrees with the nodes and with INNER's size:
+// changed with a valid header checksum, it is named.
+TEST(OssFile, AnInnerCountThatDisagreesIsRejected) {
+    const std::string good = scratch("inner_source.oss"), path = scratch("inner.oss");
+    writeOss(good, smallScene());
+    const std::vector<char> bytes = readBytes(good);
+    const auto withInnerCount = [&](uint32_t inner) {
+        std::vector<char> b = bytes;
+        std::memcpy(b.data() + offsetof(oss::Header, inner_count), &inner, sizeof inner);
+        const uint64_t checksum = XXH3_64bits(b.data(), offsetof(oss::Header, header_checksum));
+        std::memcpy(b.data() + offsetof(oss::Header, header_checksum), &checksum, sizeof checksum);
+        writeBytes(path, b, b.size());
+        return openError(path);
+    };
+    EXPECT_EQ(withInnerCount(2), "");  // the file as written: the root and node 1
+    EXPECT_EQ(withInnerCount(0), path + ": section HEADER at offset 384: 0 inner nodes for 5 nodes (none without a "
+                                        "hierarchy; else at least the root, and fewer than the nodes)");
+    EXPECT_EQ(withInnerCount(5), path + ": section HEADER at offset 384: 5 inner nodes for 5 nodes (none without a "
+                                        "hierarchy; else at least the root, and fewer than the nodes)");
+    EXPECT_NE(withInnerCount(1).find("section INNER at offset "), std::string::npos) << withInnerCount(1);
+    EXPECT_NE(withInnerCount(1).find("size 208 bytes, expected 1 elements * 104 bytes = 104"), std::string::npos);
 }
 
 TEST(OssFile, EmptySceneIsRejected) {
