@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "device_access.h"
 #include "scene/errors.h"
+#include "util/number_format.h"
 
 #include <algorithm>
 #include <atomic>
@@ -78,12 +79,6 @@ bool g_selected = false;
 int g_requested = -1;
 DeviceInfo g_device;
 
-// Bytes as MiB: one decimal below 100 MiB (small scenes and test limits), whole above.
-std::string mebibytes(uint64_t bytes) {
-    if (bytes >= (uint64_t(100) << 20)) return std::to_string((bytes + (1u << 19)) >> 20) + " MiB";
-    const uint64_t tenths = (bytes * 10 + (1u << 19)) >> 20;
-    return std::to_string(tenths / 10) + "." + std::to_string(tenths % 10) + " MiB";
-}
 std::string cudaVersion(int v) { return std::to_string(v / 1000) + "." + std::to_string(v % 1000 / 10); }
 
 // OCC_DEVICE_ALLOC_FAIL_AT (deviceAlloc's contract): the call, from 0, that fails; -1: none.
@@ -108,7 +103,6 @@ uint64_t injectedDeviceBytes() {
     }();
     return most;
 }
-std::atomic<long> g_allocs{0};
 std::atomic<uint64_t> g_allocations{0}, g_frees{0}, g_temporary_requests{0};
 
 // What deviceAlloc lent, by block, for the live and peak byte counts.
@@ -122,7 +116,6 @@ LiveBlocks& liveBlocks() {
     return *blocks;
 }
 void* counted(void* p, size_t bytes) {
-    ++g_allocations;
     LiveBlocks& l = liveBlocks();
     const std::lock_guard<std::mutex> lock(l.mutex);
     l.bytes[p] = bytes;
@@ -139,9 +132,20 @@ void uncount(void* p) {
         l.bytes.erase(it);
     }
 }
-bool allocFailsNow() {
+// What is free under OCC_DEVICE_MEMORY_BYTES: its bytes less those allocated; all of
+// `free_bytes` without it.
+uint64_t availableBytes(uint64_t free_bytes) {
+    const uint64_t most = injectedDeviceBytes();
+    if (most == ~uint64_t(0)) return free_bytes;
+    LiveBlocks& l = liveBlocks();
+    const std::lock_guard<std::mutex> lock(l.mutex);
+    return std::min(free_bytes, most > l.live ? most - l.live : 0);
+}
+// Counts a deviceAlloc call; whether it must fail as if the device were full (the tests'
+// OCC_DEVICE_ALLOC_FAIL_AT and OCC_DEVICE_MEMORY_BYTES).
+bool allocFailsNow(size_t bytes) {
     const long at = injectedAllocFailure();
-    return at >= 0 && g_allocs.fetch_add(1) == at;
+    return g_allocations.fetch_add(1) == uint64_t(at) || availableBytes(~uint64_t(0)) < bytes;
 }
 
 }  // namespace
@@ -180,8 +184,6 @@ std::string tooSmallText(const DeviceInfo& d, uint64_t total, uint64_t free_byte
     return device + " has " + mebibytes(free_bytes) + " free; " + mebibytes(bytes) + " needed for " + what +
            (detail.empty() ? "" : " (" + detail + ")") + ": a smaller --budget, a smaller scene, or a device with more memory";
 }
-// What is free under OCC_DEVICE_MEMORY_BYTES: its bytes less those allocated; all of `free_bytes` without it.
-uint64_t availableBytes(uint64_t free_bytes);
 }  // namespace
 
 GlDeviceChoice chooseGlContextDevice(int requested, const DeviceInfo& current, const std::vector<int>& gl_devices,
@@ -234,7 +236,7 @@ std::pair<uint64_t, uint64_t> memoryNow() {
 void* deviceAlloc(size_t bytes) {
     void* p = nullptr;
     const cudaError_t status =
-        allocFailsNow() || availableBytes(~uint64_t(0)) < bytes ? cudaErrorMemoryAllocation : cudaMalloc(&p, bytes ? bytes : 1);
+        allocFailsNow(bytes) ? cudaErrorMemoryAllocation : cudaMalloc(&p, bytes ? bytes : 1);
     if (status == cudaErrorMemoryAllocation) {
         cudaGetLastError();  // clears the sticky error so that later calls work
         const auto [bytes_free, total] = memoryNow();
@@ -437,8 +439,7 @@ void* alignedAlloc(size_t bytes) {
 }  // namespace
 
 void* deviceAlloc(size_t bytes) {
-    if (allocFailsNow() || availableBytes(~uint64_t(0)) < bytes)
-        throw DeviceOutOfMemory(deviceOutOfMemoryText(currentDevice(), bytes, 0, 0));
+    if (allocFailsNow(bytes)) throw DeviceOutOfMemory(deviceOutOfMemoryText(currentDevice(), bytes, 0, 0));
     return counted(alignedAlloc(bytes), bytes);
 }
 void deviceFree(void* p) {
@@ -593,16 +594,6 @@ DeviceAllocationCounters deviceAllocationCounters() {
     n.peak_bytes = l.peak;
     return n;
 }
-
-namespace {
-uint64_t availableBytes(uint64_t free_bytes) {
-    const uint64_t most = injectedDeviceBytes();
-    if (most == ~uint64_t(0)) return free_bytes;
-    LiveBlocks& l = liveBlocks();
-    const std::lock_guard<std::mutex> lock(l.mutex);
-    return std::min(free_bytes, most > l.live ? most - l.live : 0);
-}
-}  // namespace
 
 void resetDevicePeak() {
     LiveBlocks& l = liveBlocks();

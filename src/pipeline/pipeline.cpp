@@ -12,6 +12,7 @@
 #include "reform.h"
 #include "scene/errors.h"
 #include "util/config.h"
+#include "util/number_format.h"
 
 #include <xxhash.h>
 
@@ -92,15 +93,11 @@ FrameMemoryNeed frameMemoryNeed(const OssFile& file, const PipelineOptions& opti
 }
 
 std::string FrameMemoryNeed::detail() const {
-    const auto mib = [](uint64_t b) {
-        const uint64_t tenths = (b * 10 + (1u << 19)) >> 20;
-        return std::to_string(tenths / 10) + "." + std::to_string(tenths % 10) + " MiB";
-    };
     std::string t = "beyond the scene and its per-object arrays: active arrays for " + std::to_string(vertices) +
-                    " vertices and " + std::to_string(triangles) + " triangles " + mib(active_bytes);
+                    " vertices and " + std::to_string(triangles) + " triangles " + mebibytes(active_bytes);
     if (occluder_triangles)
-        t += ", occluder raster of " + std::to_string(occluder_triangles) + " triangles " + mib(raster_bytes);
-    if (local_bytes) t += ", kernels' local memory " + mib(local_bytes);
+        t += ", occluder raster of " + std::to_string(occluder_triangles) + " triangles " + mebibytes(raster_bytes);
+    if (local_bytes) t += ", kernels' local memory " + mebibytes(local_bytes);
     return t;
 }
 

@@ -241,26 +241,19 @@ float squaredAtMost(double x) {
 // farther than its cap (beyond it the distance counts as the cap).
 OneSided measure(std::span<const glm::vec3> samples, const TriangleBvh& to, std::span<const float> caps = {},
                  bool max_only = false) {
+    constexpr float kNoBound = std::numeric_limits<float>::infinity();
     OneSided r;
     uint32_t hint = kNoTriangle;
     for (size_t i = 0; i < samples.size(); ++i) {
-        if (!max_only) {
-            const auto [d2, t] = to.closest(samples[i], hint);
+        const float bound = max_only && !caps.empty() ? squaredAtLeast(double(caps[i])) : kNoBound;
+        const auto [d2, t] = to.closest(samples[i], hint, bound, max_only ? squaredAtMost(r.max) : -1.0f);
+        double d = caps.empty() ? double(kNoBound) : double(caps[i]);  // nothing nearer than the cap
+        if (t != kNoTriangle) {
             hint = t;
-            const double d = caps.empty() ? std::sqrt(double(d2)) : std::min(std::sqrt(double(d2)), double(caps[i]));
-            r.max = std::max(r.max, d);
-            r.sum += d;
-            continue;
+            d = std::min(d, std::sqrt(double(d2)));
         }
-        const float bound = caps.empty() ? std::numeric_limits<float>::infinity() : squaredAtLeast(double(caps[i]));
-        const auto [d2, t] = to.closest(samples[i], hint, bound, squaredAtMost(r.max));
-        if (t == kNoTriangle) {  // nothing nearer than the cap (or no triangle at all)
-            r.max = std::max(r.max, caps.empty() ? double(std::numeric_limits<float>::infinity()) : double(caps[i]));
-            continue;
-        }
-        hint = t;
-        const double d = caps.empty() ? std::sqrt(double(d2)) : std::min(std::sqrt(double(d2)), double(caps[i]));
         r.max = std::max(r.max, d);
+        if (!max_only) r.sum += d;
     }
     return r;
 }

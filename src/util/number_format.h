@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <string>
 
@@ -14,6 +15,12 @@ inline std::string fixed(double v, int digits) {
     char buffer[64];
     std::snprintf(buffer, sizeof buffer, "%.*f", digits, v);
     return buffer;
+}
+
+// Bytes as MiB for messages: one decimal below 100 MiB (small scenes, test limits), whole above.
+inline std::string mebibytes(uint64_t bytes) {
+    const double mib = double(bytes) / double(1u << 20);
+    return fixed(mib, mib < 100.0 ? 1 : 0) + " MiB";
 }
 
 }  // namespace occ
