@@ -47,7 +47,7 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
             return ProgressBar::Sample{double(progress.meshes_done), double(progress.meshes_total),
                                        double(progress.triangles_done)};
         });
-        s = prepareToFile(*source, flat, prep, &progress);
+        s = prepareToFile(*source, flat, prep, &progress, !prep.hierarchy);
     }
     const double flat_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::string hierarchy = "; no hierarchy";
@@ -61,14 +61,13 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
         hlod.share_repeats = prep.hlod_share;
         hlod.threads = prep.threads;
         ObjectHierarchy h;
+        OssFile::HlodCounts hlods;
         {
             ProgressBar bar("prep: HLODs", "nodes", "nodes", [&built] {
                 return ProgressBar::Sample{double(built.done), double(built.total), double(built.done)};
             });
-            h = writeWithHierarchy(OssFile::open(flat, OssFile::Pages::Release), output, prep.fanout, hlod, &built);
+            h = writeWithHierarchy(OssFile::open(flat, OssFile::Pages::Release), output, prep.fanout, hlod, &built, &hlods);
         }
-        // Read once: its pages are not kept.
-        const OssFile::HlodCounts hlods = OssFile::open(output, OssFile::Pages::Release).hlodCounts();
         const uint64_t sharing = hlods.inner - hlods.meshes;  // repeated subtrees drawing another's HLOD
         const uint64_t hlod_triangles = hlods.triangles;
         const double hlod_seconds =

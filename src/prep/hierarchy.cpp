@@ -460,20 +460,24 @@ ObjectHierarchy buildObjectHierarchy(const OssFile& file, uint32_t fanout) {
 }
 
 ObjectHierarchy writeWithHierarchy(const OssFile& file, const std::string& path, uint32_t fanout,
-                                   const HlodOptions& options, HlodProgress* progress) {
+                                   const HlodOptions& options, HlodProgress* progress, OssFile::HlodCounts* counts) {
     ObjectHierarchy h = buildObjectHierarchy(file, fanout);
     OssStreamWriter writer(path);
-    // The flat scene's meshes are read once, front to back; its pages are dropped as they go
-    // (OssFile::releasePages), so that prep holds a batch of HLODs, not the flat scene.
-    uint64_t read = 0;
-    for (uint32_t m = 0; m < file.meshCount(); ++m) {
-        const ProgressiveMesh mesh = file.progressiveMesh(m);
-        writer.addMesh(mesh);
-        read += mesh.positions.size() * 24 + mesh.triangles.size() * 4;
-        if (read >= OssFile::kReleaseBytes) file.releasePages(), read = 0;
-    }
+    // The flat scene's meshes come first, as they are: the kernel copies their bytes from the
+    // flat file when the writer finishes (they are hashed here, a chunk of pages at a time).
+    writer.addMeshesOf(file);
     file.releasePages();
-    buildHlods(file, h, options, [&writer](ProgressiveMesh&& p) { return writer.addMesh(p); }, progress);
+    OssFile::HlodCounts c;  // every HLOD built is some inner node's mesh
+    buildHlods(
+        file, h, options,
+        [&writer, &c](ProgressiveMesh&& p) {
+            ++c.meshes;
+            c.triangles += p.triangleCount();
+            return writer.addMesh(p);
+        },
+        progress);
+    for (const SceneNode& n : h.nodes) c.inner += n.child_count > 0;
+    if (counts) *counts = c;
     std::vector<ObjectRecord> objects;
     objects.reserve(file.objectCount());
     for (const oss::ObjectDisk& d : file.objects()) objects.push_back(oss::fromDisk(d));

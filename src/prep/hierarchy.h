@@ -116,8 +116,10 @@ ObjectHierarchy buildObjectHierarchy(const OssFile& file, uint32_t fanout);
 
 // Writes `file`'s scene with a hierarchy and its HLODs to `path` (atomically, OssStreamWriter):
 // the same meshes, then one HLOD mesh per inner node, the same objects and COS, and the nodes.
-// Returns the hierarchy written.
+// Returns the hierarchy written; counts (if given) gets what OssFile::hlodCounts would say of
+// the written file.
 ObjectHierarchy writeWithHierarchy(const OssFile& file, const std::string& path, uint32_t fanout,
-                                   const HlodOptions& options, HlodProgress* progress = nullptr);
+                                   const HlodOptions& options, HlodProgress* progress = nullptr,
+                                   OssFile::HlodCounts* counts = nullptr);
 
 }  // namespace occ

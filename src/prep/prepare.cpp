@@ -212,8 +212,9 @@ PreparedScene prepareScene(const Scene& scene, const PrepOptions& options, PrepP
 }
 
 PrepSummary prepareToFile(const SceneSource& source, const std::string& path, const PrepOptions& options,
-                          PrepProgress* progress) {
+                          PrepProgress* progress, bool durable) {
     OssStreamWriter writer(path);
+    writer.setDurable(durable);
     std::vector<ObjectRecord> objects;
     std::vector<uint32_t> cos;
     PrepSummary summary = prepareFromSource(

@@ -66,8 +66,10 @@ PreparedScene prepareScene(const Scene& scene, const PrepOptions& options, PrepP
 
 // prepareFromSource streamed into a .oss file at `path` (OssStreamWriter): memory stays a few
 // meshes per thread plus the object records, however large the scene. InputError(path) for a
-// source without triangles; nothing is left at `path` on failure.
+// source without triangles; nothing is left at `path` on failure. durable false: the file is
+// not synced to disk (a temporary this process reads back and removes, such as prep's flat
+// scene before its hierarchy).
 PrepSummary prepareToFile(const SceneSource& source, const std::string& path, const PrepOptions& options,
-                          PrepProgress* progress = nullptr);
+                          PrepProgress* progress = nullptr, bool durable = true);
 
 }  // namespace occ

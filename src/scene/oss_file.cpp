@@ -24,6 +24,7 @@
 #include <mutex>
 #include <optional>
 #include <stdexcept>
+#include <thread>
 #include <utility>
 
 #include <fcntl.h>
@@ -224,22 +225,42 @@ public:
                 XXH3_64bits_digest(state_.get())};
     }
 
-    // Appends the first `n` bytes of file `fd` (a spooled section), copied in the kernel.
-    void appendFrom(int fd, uint64_t n) {
+    // Copies byte ranges of other files to given offsets of this one, in the kernel, the
+    // ranges in parallel (after what is buffered is written); position() becomes `end`.
+    struct Copy {
+        int fd;
+        uint64_t from, size, to;
+    };
+    void copyRanges(const std::vector<Copy>& copies, uint64_t end) {
         flush();
-        loff_t from = 0, to = loff_t(position_);
-        while (n > 0) {
-            const ssize_t c = ::copy_file_range(fd, &from, fd_, &to, size_t(std::min<uint64_t>(n, 1u << 30)), 0);
-            if (c < 0 && errno == EINTR) continue;
-            if (c <= 0) ioFailure("cannot copy a spooled section into");
-            n -= uint64_t(c);
-        }
-        position_ = uint64_t(to);
+        std::vector<int> failed(copies.size(), 0);
+        const auto run = [&](size_t i) {
+            loff_t from = loff_t(copies[i].from), to = loff_t(copies[i].to);
+            for (uint64_t n = copies[i].size; n > 0;) {
+                const ssize_t c = ::copy_file_range(copies[i].fd, &from, fd_, &to, size_t(std::min<uint64_t>(n, 1u << 28)), 0);
+                if (c < 0 && errno == EINTR) continue;
+                if (c <= 0) {
+                    failed[i] = c < 0 ? errno : EIO;
+                    return;
+                }
+                n -= uint64_t(c);
+            }
+        };
+        std::vector<std::thread> threads;
+        for (size_t i = 1; i < copies.size(); ++i) threads.emplace_back(run, i);
+        if (!copies.empty()) run(0);
+        for (std::thread& t : threads) t.join();
+        for (const int e : failed)
+            if (e) {
+                errno = e;
+                ioFailure("cannot copy a section into");
+            }
+        position_ = end;
         if (::lseek(fd_, off_t(position_), SEEK_SET) < 0) ioFailure("cannot seek in");
     }
 
     // Writes the header over the placeholder at offset 0, syncs, and renames into place.
-    void commit(const Header& header) {
+    void commit(const Header& header, bool durable) {
         flush();
         const auto* p = reinterpret_cast<const std::byte*>(&header);
         for (uint64_t done = 0; done < sizeof header;) {
@@ -248,7 +269,7 @@ public:
             if (n <= 0) ioFailure("cannot write");
             done += uint64_t(n);
         }
-        if (::fsync(fd_) != 0) ioFailure("cannot sync");
+        if (durable && ::fsync(fd_) != 0) ioFailure("cannot sync");
         if (unnamed_) {
             // linkat cannot replace a file, so the unnamed file gets a fresh name first and is
             // then renamed over the target like a named temporary.
@@ -262,6 +283,7 @@ public:
         if (::rename(tmp_.c_str(), path_.c_str()) != 0)
             throw InputError(path_, "cannot rename " + tmp_ + " into place: " + std::strerror(errno));
         committed_ = true;
+        if (!durable) return;
         // The rename is durable only once the directory is synced. The new file is already in
         // place, so a failure here is not reported as a failed write.
         std::string dir = std::filesystem::path(path_).parent_path().string();
@@ -356,6 +378,8 @@ public:
         writeAll(buffer_.data(), buffer_.size());
         buffer_.clear();
     }
+    // Hashes bytes that come before what is spooled (the section's part copied from elsewhere).
+    void hashPrefix(const void* data, uint64_t n) { XXH3_64bits_update(state_.get(), data, n); }
     int fd() const { return fd_; }
     uint64_t size() const { return size_; }
     uint64_t digest() const { return XXH3_64bits_digest(state_.get()); }
@@ -400,6 +424,13 @@ struct OssStreamWriter::Impl {
     SectionSpool positions, ecol, error, triangles, map;
     std::vector<MeshRecord> records;
     uint64_t vertex_count = 0, triangle_count = 0;
+    bool durable = true;
+    // addMeshesOf: the flat file the five sections start with, and each one's range in it.
+    int prefix_fd = -1;
+    uint64_t prefix_offset[5] = {}, prefix_size[5] = {};
+    ~Impl() {
+        if (prefix_fd >= 0) ::close(prefix_fd);
+    }
 };
 
 OssStreamWriter::OssStreamWriter(const std::string& path) : impl_(std::make_unique<Impl>(path)) {}
@@ -422,6 +453,30 @@ uint32_t OssStreamWriter::addMesh(const ProgressiveMesh& m) {
     return uint32_t(i);
 }
 
+void OssStreamWriter::setDurable(bool durable) { impl_->durable = durable; }
+
+void OssStreamWriter::addMeshesOf(const OssFile& flat) {
+    Impl& w = *impl_;
+    if (!w.records.empty() || w.prefix_fd >= 0) throw std::logic_error("OssStreamWriter::addMeshesOf: must come first");
+    w.prefix_fd = ::open(flat.path().c_str(), O_RDONLY | O_CLOEXEC);
+    if (w.prefix_fd < 0) throw InputError(flat.path(), std::string("cannot open: ") + std::strerror(errno));
+    const auto records = flat.meshRecords();
+    w.records.assign(records.begin(), records.end());
+    w.vertex_count = flat.vertexCount();
+    w.triangle_count = flat.triangleCount();
+    SectionSpool* spools[] = {&w.positions, &w.ecol, &w.error, &w.triangles, &w.map};
+    const std::vector<OssFile::SectionInfo> sections = flat.sections();  // [0] is the header, [id] section id
+    tbb::parallel_for(0, 5, [&](int k) {
+        const std::span<const std::byte> bytes = flat.sectionBytes(uint32_t(k + 2));
+        w.prefix_offset[k] = sections[size_t(k + 2)].offset;
+        w.prefix_size[k] = bytes.size();
+        for (uint64_t at = 0; at < bytes.size(); at += OssFile::kReleaseBytes) {
+            spools[k]->hashPrefix(bytes.data() + at, std::min<uint64_t>(OssFile::kReleaseBytes, bytes.size() - at));
+            flat.releasePages();
+        }
+    }, tbb::simple_partitioner());
+}
+
 uint32_t OssStreamWriter::meshCount() const { return uint32_t(impl_->records.size()); }
 uint64_t OssStreamWriter::vertexCount() const { return impl_->vertex_count; }
 uint64_t OssStreamWriter::triangleCount() const { return impl_->triangle_count; }
@@ -440,16 +495,23 @@ void OssStreamWriter::finish(std::span<const ObjectRecord> objects, std::span<co
     w.beginSection();
     w.put(s.records.data(), s.records.size() * sizeof(MeshRecord));
     h.sections[0] = w.endSection(SectionId::meshes);
+    // The five large sections: each one's part from addMeshesOf's file, then its spool, copied
+    // by the kernel, all at once (their offsets follow from their sizes).
     SectionSpool* spools[] = {&s.positions, &s.ecol, &s.error, &s.triangles, &s.map};
+    std::vector<TempFileWriter::Copy> copies;
+    uint64_t at = w.position();
     for (int k = 0; k < 5; ++k) {
         SectionSpool& spool = *spools[k];
         spool.flush();
-        w.padToAlignment();
-        const uint64_t offset = w.position();
-        w.appendFrom(spool.fd(), spool.size());
+        at = alignUp(at);
+        const uint64_t size = s.prefix_size[k] + spool.size();
+        if (s.prefix_size[k] > 0) copies.push_back({s.prefix_fd, s.prefix_offset[k], s.prefix_size[k], at});
+        if (spool.size() > 0) copies.push_back({spool.fd(), 0, spool.size(), at + s.prefix_size[k]});
         const SectionId id = SectionId(k + 2);
-        h.sections[k + 1] = {uint32_t(id), kKinds[uint32_t(id) - 1].element_size, offset, spool.size(), spool.digest()};
+        h.sections[k + 1] = {uint32_t(id), kKinds[uint32_t(id) - 1].element_size, at, size, spool.digest()};
+        at += size;
     }
+    w.copyRanges(copies, at);
     w.beginSection();
     for (const ObjectRecord& o : objects) {
         const ObjectDisk d = toDisk(o);
@@ -497,7 +559,7 @@ void OssStreamWriter::finish(std::span<const ObjectRecord> objects, std::span<co
     h.node_count = uint32_t(nodes.size());
     h.inner_count = uint32_t(inner_count);
     h.header_checksum = XXH3_64bits(&h, kHeaderChecksummedBytes);
-    w.commit(h);
+    w.commit(h, s.durable);
 }
 
 void writeOss(const std::string& path, const PreparedScene& scene) {
@@ -683,18 +745,21 @@ void OssFile::validate() const {
 
     // Checksums a chunk at a time (the same digest as in one go), with Pages::Release the pages
     // read dropped as it goes: a file larger than memory is then read, not held.
-    XXH3_state_t* const state = XXH3_createState();
-    if (!state) throw std::bad_alloc();
-    const std::unique_ptr<XXH3_state_t, XXH_errorcode (*)(XXH3_state_t*)> state_owner(state, XXH3_freeState);
-    for (uint32_t i = 0; i < kSectionCount; ++i) {
+    // The sections are hashed in parallel; the first one that fails (in file order) is named.
+    std::vector<uint8_t> mismatch(kSectionCount, 0);
+    tbb::parallel_for(uint32_t(0), kSectionCount, [&](uint32_t i) {
         const SectionEntry& e = h.sections[i];
-        XXH3_64bits_reset(state);
+        const std::unique_ptr<XXH3_state_t, XXH_errorcode (*)(XXH3_state_t*)> state(XXH3_createState(), XXH3_freeState);
+        if (!state) throw std::bad_alloc();
+        XXH3_64bits_reset(state.get());
         for (uint64_t at = 0; at < e.size; at += kReleaseBytes) {
-            XXH3_64bits_update(state, base_ + e.offset + at, size_t(std::min(kReleaseBytes, e.size - at)));
+            XXH3_64bits_update(state.get(), base_ + e.offset + at, size_t(std::min(kReleaseBytes, e.size - at)));
             releaseIfAsked();
         }
-        if (XXH3_64bits_digest(state) != e.checksum) fail(kKinds[i].name, e.offset, "checksum mismatch (corrupt data)");
-    }
+        mismatch[i] = XXH3_64bits_digest(state.get()) != e.checksum;
+    }, tbb::simple_partitioner());
+    for (uint32_t i = 0; i < kSectionCount; ++i)
+        if (mismatch[i]) fail(kKinds[i].name, h.sections[i].offset, "checksum mismatch (corrupt data)");
 
     // Every index and value. From here on the bytes are what a writer wrote; these checks catch
     // a writer's bugs and hand-made files, and make every later access in bounds.
@@ -1027,6 +1092,12 @@ OssFile::HlodCounts OssFile::hlodCounts() const {
         c.triangles += meshRecords()[n.mesh].triangle_count;
     }
     return c;
+}
+
+std::span<const std::byte> OssFile::sectionBytes(uint32_t id) const {
+    if (id < 1 || id > kSectionCount) throw std::out_of_range("OssFile::sectionBytes: no section " + std::to_string(id));
+    const SectionEntry& e = header().sections[id - 1];
+    return {base_ + e.offset, size_t(e.size)};
 }
 
 std::vector<OssFile::SectionInfo> OssFile::sections() const {

@@ -171,6 +171,8 @@ void writeOss(const std::string& path, const PreparedScene& scene);
 // copied in by the kernel) and renames it into place. Same bytes as writeOss of the same scene;
 // same checks (std::invalid_argument) and failures (InputError). Destroyed without finish(),
 // it leaves nothing behind.
+class OssFile;
+
 class OssStreamWriter {
 public:
     explicit OssStreamWriter(const std::string& path);
@@ -179,6 +181,13 @@ public:
     OssStreamWriter& operator=(const OssStreamWriter&) = delete;
 
     uint32_t addMesh(const ProgressiveMesh& mesh);  // returns the mesh's index
+    // Takes every mesh of `flat` as meshes 0 .. flat.meshCount() - 1, before any other: their
+    // bytes are copied by the kernel from flat's file at finish (not spooled), hashed now.
+    // flat must stay open until finish; its pages are released as they are hashed.
+    void addMeshesOf(const OssFile& flat);
+    // false: finish does not fsync the file (a temporary that this process reads back and
+    // removes); true, the default, makes the written file durable before its rename.
+    void setDurable(bool durable);
     uint32_t meshCount() const;
     uint64_t vertexCount() const;
     uint64_t triangleCount() const;
@@ -277,6 +286,8 @@ public:
         uint64_t count = 0;  // elements
     };
     std::vector<SectionInfo> sections() const;  // in file order, for `occswitch info`
+    // The bytes of section `id` (oss::SectionId, 1-based), as stored (checksummed at open).
+    std::span<const std::byte> sectionBytes(uint32_t id) const;
 
     // Checks the LOD prefix property of every mesh: for every k in [q, n], the first map[k]
     // triangles with corners walked through ecol until < k are non-degenerate and every later

@@ -195,11 +195,18 @@ TEST(Hierarchy, TheFileCarriesTheHierarchyAndItsHlods) {
     options.node_triangles = 300;
     const std::string one = (test::scratchDir() / "hierarchy_1.oss").string(), two = (test::scratchDir() / "hierarchy_2.oss").string();
     options.threads = 1;
-    const ObjectHierarchy h = writeWithHierarchy(*f.file, one, 4, options);
+    OssFile::HlodCounts counts;
+    const ObjectHierarchy h = writeWithHierarchy(*f.file, one, 4, options, nullptr, &counts);
     options.threads = 2;
     writeWithHierarchy(*f.file, two, 4, options);
     EXPECT_EQ(test::readBytes(one), test::readBytes(two));
     const OssFile file = OssFile::open(one);
+    // What the writer counted is what the file holds (prep prints it without reading the file).
+    const OssFile::HlodCounts read = file.hlodCounts();
+    EXPECT_EQ(counts.inner, read.inner);
+    EXPECT_EQ(counts.meshes, read.meshes);
+    EXPECT_EQ(counts.triangles, read.triangles);
+    EXPECT_GT(counts.triangles, 0u);
     file.verifyLodPrefix();
     ASSERT_EQ(file.nodeCount(), h.nodes.size());
     EXPECT_EQ(file.objectCount(), f.file->objectCount());
@@ -310,12 +317,18 @@ TEST(Hierarchy, ATiledModelBuildsEachDistinctSubtreeOnceAndPlacesItsHlodOnTheCop
     options.node_triangles = 512;
     const std::string shared_path = (test::scratchDir() / "hierarchy_grid_shared.oss").string();
     const std::string own_path = (test::scratchDir() / "hierarchy_grid_own.oss").string();
-    const ObjectHierarchy shared = writeWithHierarchy(file, shared_path, 8, options);
+    OssFile::HlodCounts counted;
+    const ObjectHierarchy shared = writeWithHierarchy(file, shared_path, 8, options, nullptr, &counted);
     options.share_repeats = false;
     const ObjectHierarchy own = writeWithHierarchy(file, own_path, 8, options);
     ASSERT_EQ(shared.nodes.size(), own.nodes.size());
 
     const OssFile with = OssFile::open(shared_path), without = OssFile::open(own_path);
+    const OssFile::HlodCounts read = with.hlodCounts();
+    EXPECT_EQ(counted.inner, read.inner);
+    EXPECT_EQ(counted.meshes, read.meshes);
+    EXPECT_EQ(counted.triangles, read.triangles);
+    EXPECT_LT(counted.meshes, counted.inner) << "repeats draw their representative's HLOD";
     with.verifyLodPrefix();
     uint32_t inner = 0, repeats = 0;
     std::set<uint32_t> hlods;

@@ -734,6 +734,43 @@ TEST(OssFile, FailedWriteLeavesTheExistingFileUntouched) {
     EXPECT_EQ(filesIn(dir), std::vector<std::string>{"scene.oss"});
 }
 
+// prep's hierarchy pass starts its writer from the flat file (addMeshesOf): the meshes' bytes
+// are copied from it by the kernel instead of being added one by one, and the file is the same.
+TEST(OssFile, AWriterStartedFromAFileWritesWhatAddingItsMeshesWould) {
+    const PreparedScene base = grownScene(5, 40, 6, 3), more = grownScene(3, 30, 2, 9);
+    const std::string flat_path = scratch("writer_base.oss");
+    writeOss(flat_path, base);
+    const OssFile flat = OssFile::open(flat_path, OssFile::Pages::Release);
+    const auto write = [&](const std::string& path, bool from_file) {
+        OssStreamWriter w(path);
+        w.setDurable(from_file);  // syncing or not writes the same bytes
+        if (from_file) {
+            w.addMeshesOf(flat);
+            EXPECT_EQ(w.meshCount(), flat.meshCount());
+            EXPECT_EQ(w.vertexCount(), flat.vertexCount());
+            EXPECT_EQ(w.triangleCount(), flat.triangleCount());
+        } else {
+            for (uint32_t m = 0; m < flat.meshCount(); ++m) w.addMesh(flat.progressiveMesh(m));
+        }
+        for (const ProgressiveMesh& m : more.meshes) w.addMesh(m);
+        w.finish(base.objects, base.cos, base.ct);
+    };
+    const std::string copied = scratch("writer_copied.oss"), added = scratch("writer_added.oss");
+    write(copied, true);
+    write(added, false);
+    EXPECT_EQ(readBytes(copied), readBytes(added));
+    const OssFile f = OssFile::open(copied);
+    ASSERT_EQ(f.meshCount(), base.meshes.size() + more.meshes.size());
+    f.verifyLodPrefix();
+    const ProgressiveMesh last = f.progressiveMesh(f.meshCount() - 1);
+    EXPECT_EQ(last.positions, more.meshes.back().positions);
+    EXPECT_EQ(last.triangles, more.meshes.back().triangles);
+    // Only first.
+    OssStreamWriter late(scratch("writer_late.oss"));
+    late.addMesh(more.meshes[0]);
+    EXPECT_THROW(late.addMeshesOf(flat), std::logic_error);
+}
+
 TEST(OssFile, WriteReplacesAnExistingFile) {
     const fs::path dir = scratchDir() / "replace";
     fs::create_directories(dir);
