@@ -61,7 +61,8 @@ done
 for t in "orbit with the hierarchy: median" "items drawn on the orbit with the hierarchy: [0-9]*" \
          "cut churn on the orbit: [0-9.]* %" "PSNR against the full-detail picture over the orbit's first 3 frames" \
          "growth from the 300-object plant" "prep with the hierarchy (prep's default): [0-9]* MB peak" \
-         "the engine grid (\`gen grid --nx 2 --ny 2 --nz 2\`) prepared with the hierarchy: [0-9.]* s"; do
+         "the engine grid (\`gen grid --nx 2 --ny 2 --nz 2\`) prepared with the hierarchy: [0-9.]* s" \
+         "prep's time with the hierarchy: [0-9.]* s against [0-9.]* s with \`--hierarchy off\`"; do
   grep -q "$t" "$out/massive.md" || fail "no '$t' in massive.md"
 done
 # Eight engines: most of the grid's inner nodes share a copy's HLOD.
@@ -79,6 +80,8 @@ OCCSWITCH_SELF=$dir/wrapper "$exe" "${massive[@]}" >/dev/null 2>"$dir/stderr2" |
 grep -q "gen plant\|gen grid" "$dir/stderr2" && fail "the second run made the scene again"
 grep -q "reused; its cost from when it was made" "$out/massive.md" || fail "reuse not said"
 grep -q "gen: [0-9.]* s, [0-9]* MB peak" "$out/massive.md" || fail "gen cost lost on reuse"
+grep -q "prep's time with the hierarchy: [0-9.]* s against" "$out/massive.md" || fail "prep's time ratio lost on reuse"
+ls "$out/scenes" | grep -q "flat.oss" && fail "the flat .oss was kept"
 
 # Impossible options.
 "$exe" bench massive --out "$out" --objects 10 2>/dev/null; [ $? -eq 2 ] || fail "--objects 10 did not exit 2"

@@ -135,6 +135,7 @@ public:
         const Scene scene = makeScene(o_.objects, "");
         gen_ = scene.gen;
         prep_ = scene.prep;
+        prep_flat_ = scene.prep_flat;
         {
             const OssFile file = OssFile::open(scene.oss.string());
             objects_ = file.objectCount();
@@ -189,7 +190,7 @@ public:
 private:
     struct Scene {
         fs::path oss;
-        StepCost gen, prep;
+        StepCost gen, prep, prep_flat;  // prep_flat: the same input prepared with --hierarchy off
         uint64_t input_bytes = 0;
     };
     // The plant of `objects` objects in the scenes folder, generated and prepared unless it is
@@ -212,9 +213,21 @@ private:
             writeCost(scenes_ / (stem + ".prep.cost"), r);
             made_ = made_ || log_prefix.empty();
             done(r);
+            if (log_prefix.empty()) {
+                // Issue 34: prep's time with the hierarchy against without it, right after, by
+                // the same build; the flat file is not kept.
+                step("prep with --hierarchy off (the time it takes without the hierarchy)");
+                const fs::path flat = scenes_ / (stem + ".flat.oss");
+                const RunResult f = runner_.run("prep_flat", command({"prep", gltf.string(), "-o", flat.string(), "--hierarchy", "off"}));
+                writeCost(scenes_ / (stem + ".prep_flat.cost"), f);
+                std::error_code ec;
+                fs::remove(flat, ec);
+                done(f);
+            }
         }
         s.gen = readCost(scenes_ / (stem + ".gen.cost"));
         s.prep = readCost(scenes_ / (stem + ".prep.cost"));
+        s.prep_flat = readCost(scenes_ / (stem + ".prep_flat.cost"));
         std::error_code ec;
         s.input_bytes = fs::file_size(gltf, ec) + fs::file_size(scenes_ / (stem + ".bin"), ec);
         return s;
@@ -383,7 +396,7 @@ private:
     fs::path out_, scenes_;
     Runner runner_;
     std::string exe_, step_;
-    StepCost gen_, prep_;
+    StepCost gen_, prep_, prep_flat_;
     bool made_ = false;
     uint64_t objects_ = 0, triangles_ = 0, oss_bytes_ = 0, input_bytes_ = 0;
     bool hierarchy_ = false;
@@ -420,6 +433,13 @@ private:
         md << "- prep with the hierarchy (prep's default): " << (std::isfinite(prep_.peak_mb) ? fixed(prep_.peak_mb, 0) + " MB peak" : std::string("n/a"))
            << " (target at most a quarter of the input plus 1.5 GB, " << fixed(bound_mb, 0) << " MB: "
            << (std::isfinite(prep_.peak_mb) ? verdict(prep_.peak_mb <= bound_mb) : "not known") << ")\n";
+        if (std::isfinite(prep_.seconds) && std::isfinite(prep_flat_.seconds) && prep_flat_.seconds > 0)
+            md << "- prep's time with the hierarchy: " << fixed(prep_.seconds, 1) << " s against " << fixed(prep_flat_.seconds, 1)
+               << " s with `--hierarchy off`, run right after it (target at most 1.5x: "
+               << verdict(prep_.seconds <= 1.5 * prep_flat_.seconds) << ", " << fixed(prep_.seconds / prep_flat_.seconds, 2) << "x)\n";
+        else
+            md << "- prep's time with the hierarchy against without: not measured (the scene was made by a build "
+                  "that did not time `--hierarchy off`; remove it from the scenes folder to measure)\n";
         if (o_.grid > 0 && grid_flat_bytes_ > 0) {
             const std::string n = std::to_string(o_.grid);
             const double size_ratio = double(grid_h_bytes_) / double(grid_flat_bytes_);

@@ -95,8 +95,10 @@ Command addBenchCommand(CLI::App& app) {
                    "the raster's occluder triangles/s per core, false culls, peak memory of gen, prep and render.\n"
                    "With a hierarchy in the scene (prep's default) also the walk and the orbit with it, the\n"
                    "orbit's prefix against the full-detail picture flat and with it, a small plant's walk\n"
-                   "and orbit with it (growth), and the engine grid prepared without and with it.\n"
-                   "On 2 cores: about 5 minutes to make the 10^6-object scene, then about 12 minutes of runs,\n"
+                   "and orbit with it (growth), and the engine grid prepared without and with it; when it makes\n"
+                   "the plant, it also times prep with --hierarchy off (the flat file is not kept).\n"
+                   "On 2 cores: about 10 minutes to make the 10^6-object scene (4 more for the flat prep), then\n"
+                   "about 12 minutes of runs,\n"
                    "and with a hierarchy about 40 more, mostly the two reference runs, which draw the full-detail\n"
                    "plant every frame (docs/results.md).");
     massive->add_option("--out", mo->out, "results folder (created if missing)")->required();
