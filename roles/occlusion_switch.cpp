@@ -311,10 +311,14 @@ public:
         net.changed = d.changed.size();
         if (!culled_here) pipeline_.recordCulledElsewhere(f, std::move(next));
         const VisibleSet& shown = culled_here ? next : *pipeline_.culledSet(f);
-        try {
-            pipeline_.setVisible(shown);
-        } catch (const std::invalid_argument& e) {
-            throw RankError(from, "delta of frame " + std::to_string(f) + ": " + e.what());
+        // A rank that culled frame f itself (one rank) holds its visible set on the device
+        // already (the delta applied to f - 1's hashed to it); another's is uploaded.
+        if (!culled_here) {
+            try {
+                pipeline_.setVisible(shown);
+            } catch (const std::invalid_argument& e) {
+                throw RankError(from, "delta of frame " + std::to_string(f) + ": " + e.what());
+            }
         }
         const CameraPose pose = poses_.at(f);
         if (!culled_here) pipeline_.frustumPass(pose, stats, Pipeline::FrustumUse::Measure);
