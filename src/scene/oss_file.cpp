@@ -24,6 +24,7 @@
 #include <mutex>
 #include <optional>
 #include <stdexcept>
+#include <system_error>
 #include <thread>
 #include <utility>
 
@@ -246,9 +247,16 @@ public:
                 n -= uint64_t(c);
             }
         };
+        // A thread per range but the first; where no thread can be started, the rest run here.
         std::vector<std::thread> threads;
-        for (size_t i = 1; i < copies.size(); ++i) threads.emplace_back(run, i);
+        size_t here_from = copies.size();
+        try {
+            for (size_t i = 1; i < copies.size(); ++i) threads.emplace_back(run, i);
+        } catch (const std::system_error&) {
+            here_from = 1 + threads.size();
+        }
         if (!copies.empty()) run(0);
+        for (size_t i = here_from; i < copies.size(); ++i) run(i);
         for (std::thread& t : threads) t.join();
         for (const int e : failed)
             if (e) {
