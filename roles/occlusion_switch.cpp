@@ -311,17 +311,17 @@ public:
         net.changed = d.changed.size();
         if (!culled_here) pipeline_.recordCulledElsewhere(f, std::move(next));
         const VisibleSet& shown = culled_here ? next : *pipeline_.culledSet(f);
-        // A rank that culled frame f itself (one rank) holds its visible set on the device
-        // already (the delta applied to f - 1's hashed to it); another's is uploaded.
+        const CameraPose pose = poses_.at(f);
+        // A rank that culled frame f itself (one rank) holds its visible set and frustum on the
+        // device already (the delta applied to f - 1's hashed to it); another's set is uploaded.
         if (!culled_here) {
             try {
                 pipeline_.setVisible(shown);
             } catch (const std::invalid_argument& e) {
                 throw RankError(from, "delta of frame " + std::to_string(f) + ": " + e.what());
             }
+            pipeline_.frustumPass(pose, stats, Pipeline::FrustumUse::Measure);
         }
-        const CameraPose pose = poses_.at(f);
-        if (!culled_here) pipeline_.frustumPass(pose, stats, Pipeline::FrustumUse::Measure);
         stats.objects_in_frustum = pipeline_.frustumCount();
         stats.objects_occluded = stats.objects_in_frustum - std::min<uint64_t>(stats.objects_in_frustum, shown.size());
         pipeline_.streamPass(f, stats);

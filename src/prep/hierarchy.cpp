@@ -466,7 +466,6 @@ ObjectHierarchy writeWithHierarchy(const OssFile& file, const std::string& path,
     // The flat scene's meshes come first, as they are: the kernel copies their bytes from the
     // flat file when the writer finishes (they are hashed here, a chunk of pages at a time).
     writer.addMeshesOf(file);
-    file.releasePages();
     OssFile::HlodCounts c;  // every HLOD built is some inner node's mesh
     buildHlods(
         file, h, options,
