@@ -242,21 +242,80 @@ uint32_t levelWithTriangles(std::span<const uint32_t> map, uint32_t q, uint64_t 
 
 namespace {
 
-// A level of a built HLOD that its parent merges (world space).
-struct KeptLevel {
-    std::vector<glm::vec3> positions;
-    std::vector<uint32_t> triangles;
-    float error = 0;  // of the level against the subtree at full detail
+// What a built node hands its parent: its HLOD's progressive mesh in world space up to the
+// finest level the parent may take (`top`), with each level's error against the subtree at full
+// detail (the node's own error included). The parent chooses the level (chooseChildLevels).
+struct KeptMesh {
+    std::vector<glm::vec3> positions;  // the first `top`, world space
+    std::vector<int32_t> ecol;         // the first `top`
+    std::vector<uint32_t> triangles;   // the first map[top], corners walked below `top`
+    std::vector<uint32_t> map;         // top + 1 entries
+    std::vector<float> error;          // top + 1 entries: error[k] of the level with k vertices
+    uint32_t q = 0;
 };
 
-// The largest collapse error undone by the level with k vertices (0 at full detail).
-float levelError(std::span<const float> error, uint32_t k) {
+// errors[k] for k <= top: offset plus scale times the largest collapse error the level with k
+// vertices has undone (those of vertices k .. n - 1; 0 at full detail).
+std::vector<float> levelErrors(std::span<const float> error, uint32_t top, float offset, float scale) {
+    std::vector<float> out(size_t(top) + 1);
     float e = 0.0f;
-    for (size_t v = k; v < error.size(); ++v) e = std::max(e, error[v]);
-    return e;
+    for (size_t v = error.size(); v-- > top;) e = std::max(e, error[v]);
+    out[top] = offset + scale * e;
+    for (uint32_t k = top; k-- > 0;) {
+        e = std::max(e, error[k]);
+        out[k] = offset + scale * e;
+    }
+    return out;
 }
 
 }  // namespace
+
+ChildLevelChoice chooseChildLevels(std::span<const std::span<const float>> errors,
+                                   std::span<const std::span<const uint32_t>> maps, std::span<const uint32_t> q,
+                                   uint64_t budget) {
+    const size_t count = errors.size();
+    const auto within = [&](size_t c, float e) {
+        const uint32_t top = uint32_t(errors[c].size() - 1);
+        uint32_t lo = std::min(q[c], top), hi = top;
+        while (lo < hi) {
+            const uint32_t mid = lo + (hi - lo) / 2;
+            if (errors[c][mid] <= e) hi = mid;
+            else lo = mid + 1;
+        }
+        return lo;
+    };
+    const auto total = [&](float e) {
+        uint64_t t = 0;
+        for (size_t c = 0; c < count; ++c) t += maps[c][within(c, e)];
+        return t;
+    };
+    // Every error a child's level has is a candidate for E; the least whose levels fit wins,
+    // the largest (every child at its coarsest) where none fits.
+    std::vector<float> candidates;
+    float least = 0.0f;  // below it some child cannot go
+    for (size_t c = 0; c < count; ++c) {
+        const uint32_t top = uint32_t(errors[c].size() - 1);
+        least = std::max(least, errors[c][top]);
+        for (uint32_t k = std::min(q[c], top); k <= top; ++k) candidates.push_back(errors[c][k]);
+    }
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    candidates.erase(candidates.begin(), std::lower_bound(candidates.begin(), candidates.end(), least));
+    size_t lo = 0, hi = candidates.empty() ? 0 : candidates.size() - 1;
+    while (lo < hi) {
+        const size_t mid = lo + (hi - lo) / 2;
+        if (total(candidates[mid]) <= budget) hi = mid;
+        else lo = mid + 1;
+    }
+    const float e = candidates.empty() ? least : candidates[lo];
+    ChildLevelChoice choice;
+    for (size_t c = 0; c < count; ++c) choice.levels.push_back(within(c, e));
+    for (size_t c = 0; c < count; ++c) {
+        choice.error = std::max(choice.error, errors[c][choice.levels[c]]);
+        choice.triangles += maps[c][choice.levels[c]];
+    }
+    return choice;
+}
 
 void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& options,
                 const std::function<uint32_t(ProgressiveMesh&&)>& add_mesh, HlodProgress* progress) {
@@ -355,14 +414,29 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
 
     // What a built node hands its parent, until the parent is built. Entries are made before a
     // pass's parallel builds (which then write distinct entries) and erased after its parents'.
-    std::unordered_map<uint32_t, KeptLevel> kept;
-    // Node n hands its parent the level of p (placed by world) that the parent wants; its error
-    // is n's own plus what that level gives up (scaled with the placement).
+    std::unordered_map<uint32_t, KeptMesh> kept;
+    // The finest level child c may give node n: child_cap times its share.
+    const auto topLevel = [&](std::span<const uint32_t> map, uint32_t q, uint32_t n, uint32_t c) {
+        return levelWithTriangles(map, q, std::max<uint64_t>(1, options.child_cap) * wanted(n, c));
+    };
+    // Node n hands its parent its progressive mesh p (placed by world) up to the finest level the
+    // parent may take, each level's error n's own plus what the level gives up (scaled with the
+    // placement).
     const auto handUp = [&](uint32_t n, const ProgressiveMesh& p, const glm::mat4& world, float error, float scale) {
-        KeptLevel& k = kept.find(n)->second;
-        const uint32_t level = levelWithTriangles(p.map, p.q, wanted(parent[n], n));
-        appendLevel(p.positions, p.ecol, p.triangles, p.map, level, world, k.positions, k.triangles);
-        k.error = error + scale * levelError(p.error, level);
+        KeptMesh& k = kept.find(n)->second;
+        const uint32_t top = topLevel(p.map, p.q, parent[n], n);
+        k.positions.resize(top);
+        for (uint32_t v = 0; v < top; ++v) k.positions[v] = glm::vec3(world * glm::vec4(p.positions[v], 1.0f));
+        k.ecol.assign(p.ecol.begin(), p.ecol.begin() + top);
+        k.triangles.resize(3 * size_t(p.map[top]));
+        for (size_t i = 0; i < k.triangles.size(); ++i) {
+            uint32_t c = p.triangles[i];
+            while (c >= top) c = uint32_t(p.ecol[c]);
+            k.triangles[i] = c;
+        }
+        k.map.assign(p.map.begin(), p.map.begin() + top + 1);
+        k.error = levelErrors(p.error, top, error, scale);
+        k.q = std::min(p.q, top);
     };
     const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
     tbb::task_arena arena{int(threads)};
@@ -384,30 +458,56 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                 tbb::parallel_for(size_t(b), e, [&](size_t j) {
                     const uint32_t n = inner[j];
                     const SceneNode& node = h.nodes[n];
+                    // Each child's candidate levels: an object's own progressive mesh, an inner
+                    // child's what it handed up.
+                    const uint32_t children = node.child_count;
+                    std::vector<std::vector<float>> leaf_errors(children);
+                    std::vector<std::span<const float>> errors(children);
+                    std::vector<std::span<const uint32_t>> maps(children);
+                    std::vector<uint32_t> floors(children);
+                    uint64_t budget = 0;
+                    for (uint32_t i = 0; i < children; ++i) {
+                        const uint32_t c = node.first_child + i;
+                        const SceneNode& child = h.nodes[c];
+                        budget += wanted(n, c);
+                        if (child.child_count == 0) {
+                            const oss::ObjectDisk& o = objects[child.object];
+                            const OssFile::MeshView m = file.mesh(o.mesh);
+                            glm::mat4 world;
+                            std::memcpy(&world, o.world, sizeof world);
+                            const float scale = std::max({glm::length(glm::vec3(world[0])), glm::length(glm::vec3(world[1])),
+                                                          glm::length(glm::vec3(world[2]))});
+                            leaf_errors[i] = levelErrors(m.error, topLevel(m.map, m.q, n, c), 0.0f, scale);
+                            errors[i] = leaf_errors[i];
+                            maps[i] = m.map;
+                            floors[i] = m.q;
+                        } else {
+                            const KeptMesh& k = kept.find(c)->second;  // made by the child's pass
+                            errors[i] = k.error;
+                            maps[i] = k.map;
+                            floors[i] = k.q;
+                        }
+                    }
+                    const ChildLevelChoice choice = chooseChildLevels(errors, maps, floors, budget);
                     Mesh merged;
-                    float error = 0.0f;
-                    for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) {
+                    for (uint32_t i = 0; i < children; ++i) {
+                        const uint32_t c = node.first_child + i;
                         const SceneNode& child = h.nodes[c];
                         if (child.child_count == 0) {
                             const oss::ObjectDisk& o = objects[child.object];
                             const OssFile::MeshView m = file.mesh(o.mesh);
                             glm::mat4 world;
                             std::memcpy(&world, o.world, sizeof world);
-                            const uint32_t level = levelWithTriangles(m.map, m.q, wanted(n, c));
-                            appendLevel(m.positions, m.ecol, m.triangles, m.map, level, world, merged.positions,
+                            appendLevel(m.positions, m.ecol, m.triangles, m.map, choice.levels[i], world, merged.positions,
                                         merged.indices);
-                            const float scale = std::max({glm::length(glm::vec3(world[0])), glm::length(glm::vec3(world[1])),
-                                                          glm::length(glm::vec3(world[2]))});
-                            error = std::max(error, scale * levelError(m.error, level));
                         } else {
-                            KeptLevel& k = kept.find(c)->second;  // made by the child's pass
-                            error = std::max(error, k.error);
-                            const uint32_t base = uint32_t(merged.positions.size());
-                            merged.positions.insert(merged.positions.end(), k.positions.begin(), k.positions.end());
-                            for (uint32_t v : k.triangles) merged.indices.push_back(base + v);
-                            k = KeptLevel{};
+                            KeptMesh& k = kept.find(c)->second;
+                            appendLevel(k.positions, k.ecol, k.triangles, k.map, choice.levels[i], glm::mat4(1.0f),
+                                        merged.positions, merged.indices);
+                            k = KeptMesh{};
                         }
                     }
+                    const float error = choice.error;
                     ProgressiveMesh& p = built[j - b];
                     p = options.cluster ? buildClusteredProgressiveMesh(merged) : buildProgressiveMesh(merged, Collapser::Fast);
                     h.nodes[n].error = error;
