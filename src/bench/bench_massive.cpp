@@ -137,7 +137,8 @@ public:
         prep_ = scene.prep;
         prep_flat_ = scene.prep_flat;
         {
-            const OssFile file = OssFile::open(scene.oss.string());
+            // Pages released as validation goes: this process stays small (Runner::run).
+            const OssFile file = OssFile::open(scene.oss.string(), OssFile::Pages::Release);
             objects_ = file.objectCount();
             triangles_ = 0;
             for (const oss::ObjectDisk& d : file.objects()) triangles_ += file.meshRecords()[d.mesh].triangle_count;
