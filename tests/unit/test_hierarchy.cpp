@@ -348,7 +348,7 @@ TEST(Hierarchy, ATiledModelBuildsEachDistinctSubtreeOnceAndPlacesItsHlodOnTheCop
         // world positions, which can turn a collapse or two). Its triangles may differ more: the
         // children's levels are chosen for the least error that fits the node's budget, and copies
         // whose errors are equal (shared) move to a finer level together where copies whose
-        // errors differ by rounding (their own) move one by one; both stay within the budget.
+        // errors differ by rounding (their own) move one by one: alike over the tree.
         const float diagonal = glm::length(a.box.max - a.box.min);
         EXPECT_NEAR(a.error, b.error, 0.1f * b.error + 1e-3f * diagonal) << "node " << n;
         const OssFile::MeshView m = with.mesh(a.mesh);
