@@ -103,6 +103,31 @@ struct WriteChildren {
     }
 };
 
+// The leaves among a listed node's children (an inner node's; a leaf has none).
+struct CountLeafChildren {
+    const CutNode* nodes;
+    const uint32_t* ids;
+    OCC_HD uint32_t operator()(uint32_t j) const {
+        const CutNode node = nodes[ids[j]];
+        uint32_t leaves = 0;
+        for (uint32_t c = 0; c < node.child_count; ++c) leaves += nodes[node.first_child + c].child_count == 0;
+        return leaves;
+    }
+};
+
+struct WriteLeafChildren {
+    const CutNode* nodes;
+    const uint32_t* ids;
+    const uint64_t* offsets;
+    uint32_t* out;
+    OCC_HD void operator()(uint32_t j) const {
+        const CutNode node = nodes[ids[j]];
+        uint32_t* to = out + offsets[j];
+        for (uint32_t c = 0; c < node.child_count; ++c)
+            if (nodes[node.first_child + c].child_count == 0) *to++ = node.first_child + c;
+    }
+};
+
 struct CoarsenNode {
     const CutNode* nodes;
     const uint32_t* ids;
@@ -161,6 +186,19 @@ uint32_t cutChildren(DevicePtr<const CutNode> nodes, DevicePtr<const uint32_t> i
     });
     const uint64_t total = exclusiveScan(counts, count, offsets);
     forEachIndex(count, WriteChildren{raw(nodes), raw(ids), raw(level_state), raw(offsets), raw(out)});
+    return uint32_t(total);
+}
+
+uint32_t cutLeafChildren(DevicePtr<const CutNode> nodes, DevicePtr<const uint32_t> ids, uint32_t count,
+                         DevicePtr<uint32_t> counts, DevicePtr<uint64_t> offsets, DeviceArray<uint32_t>& out) {
+    if (count == 0) return 0;
+    const thrust::counting_iterator<uint32_t> first(0);
+    withPolicy(count, [&](auto policy) {
+        thrust::transform(policy, first, first + count, raw(counts), CountLeafChildren{raw(nodes), raw(ids)});
+    });
+    const uint64_t total = exclusiveScan(counts, count, offsets);
+    out.growTo(std::max<uint64_t>(1, total));
+    forEachIndex(count, WriteLeafChildren{raw(nodes), raw(ids), raw(offsets), raw(out.ptr())});
     return uint32_t(total);
 }
 

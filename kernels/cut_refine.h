@@ -58,6 +58,12 @@ void cutDecide(DevicePtr<const ObjectInfo> objects, DevicePtr<const CutNode> nod
 uint32_t cutChildren(DevicePtr<const CutNode> nodes, DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t> level_state,
                      uint32_t count, DevicePtr<uint32_t> counts, DevicePtr<uint64_t> offsets, DevicePtr<uint32_t> out);
 
+// The leaves among the children of the listed nodes, in list order, into out (grown to fit);
+// returns how many. With breadth-first ids and an ascending list they come out ascending.
+// counts / offsets: scratch of count entries.
+uint32_t cutLeafChildren(DevicePtr<const CutNode> nodes, DevicePtr<const uint32_t> ids, uint32_t count,
+                         DevicePtr<uint32_t> counts, DevicePtr<uint64_t> offsets, DeviceArray<uint32_t>& out);
+
 // The error rule's coarsening, one level bottom-up (the level below already done): a refined
 // node whose cost is at most its children's (those out of the frustum cost nothing) becomes
 // kCutMerged; otherwise its cost becomes its children's.

@@ -107,4 +107,11 @@ void CutStage::refine(const k::Camera& camera, const k::Frustum& frustum, k::Dev
     if (occlusion) share_count_ = k::unionAscending(cut_.ptr(), cut_count_, hidden_.ptr(), hidden_count_, share_.ptr());
 }
 
+uint32_t CutStage::withLeafChildren(k::DevicePtr<const uint32_t> ids, uint32_t count, k::DeviceArray<uint32_t>& out) {
+    const uint32_t leaves =
+        k::cutLeafChildren(nodes_.ptr(), ids, count, child_counts_.ptr(), child_offsets_.ptr(), leaf_children_);
+    out.growTo(std::max<uint32_t>(1, count + leaves));
+    return k::unionAscending(ids, count, leaf_children_.ptr(), leaves, out.ptr());
+}
+
 }  // namespace occ

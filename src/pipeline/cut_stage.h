@@ -42,6 +42,9 @@ public:
     k::DevicePtr<const uint32_t> fineCut() const { return fine_.ptr(); }
     uint32_t fineCutCount() const { return fine_count_; }
     uint64_t nodesTested() const { return nodes_tested_; }
+    // `ids` (ascending) and the leaves among their children, ascending, each once, into out:
+    // occluder candidates. An HLOD is no occluder; its leaf children may be.
+    uint32_t withLeafChildren(k::DevicePtr<const uint32_t> ids, uint32_t count, k::DeviceArray<uint32_t>& out);
 
 private:
     k::CutRule rule(const k::Camera& camera) const;
@@ -65,7 +68,7 @@ private:
     k::DeviceArray<uint64_t> child_offsets_;
     k::DeviceArray<uint8_t> occluded_, level_state_, flags_;
     k::DeviceArray<float> share_of_level_;
-    k::DeviceArray<uint32_t> cut_, fine_, hidden_, share_;
+    k::DeviceArray<uint32_t> cut_, fine_, hidden_, share_, leaf_children_;
     uint32_t cut_count_ = 0, fine_count_ = 0, hidden_count_ = 0, share_count_ = 0;
     uint64_t nodes_tested_ = 0;
 };

@@ -155,6 +155,12 @@ void OcclusionStage::buildHzm(const k::Camera& camera, FrustumStage& frustum, co
         source = candidates_.ptr();
     }
     StageClock clock(stats);
+    if (cut && source_count > 0) {
+        // The last frames' HLODs are no occluders, but their leaf children may be: the higher
+        // the cut stops (the better the HLODs), the fewer objects it holds.
+        source_count = cut->withLeafChildren(source, source_count, leaf_candidates_);
+        source = leaf_candidates_.ptr();
+    }
     // With the hierarchy only the candidates are tested against the frustum (their flags, and
     // the list: those in it).
     if (cut) frustum.cullIds(source, source_count);

@@ -109,8 +109,9 @@ private:
     k::DeviceArray<float> hzm_;
     // The first frames have no earlier PVS: the occluders then come from the frame culled once
     // with the AOS alone (bootstrap_pvs_), so that the first frame does not stream every item
-    // the AOS leaves visible. candidates_: the union of the sources.
-    k::DeviceArray<uint32_t> bootstrap_pvs_, candidates_;
+    // the AOS leaves visible. candidates_: the union of the sources; leaf_candidates_: with the
+    // hierarchy, that and the leaf children of its HLODs.
+    k::DeviceArray<uint32_t> bootstrap_pvs_, candidates_, leaf_candidates_;
 };
 
 }  // namespace occ

@@ -4,6 +4,8 @@
 #include "import/grid.h"
 #include "import/import.h"
 #include "import/plant.h"
+#include "pipeline/cut_stage.h"
+#include "pipeline/device_scene.h"
 #include "pipeline/pipeline.h"
 #include "prep/cluster_collapse.h"
 #include "prep/fast_collapser.h"
@@ -507,6 +509,40 @@ bool isCutOfFrustumNodes(const Pipeline& p, const std::vector<uint32_t>& cut) {
 // Issue 34: the cut is refined on the device, level by level, testing only the nodes it
 // reaches: no frame tests every item against the frustum. Its cut equals a host refinement's
 // over a whole-scene frustum pass, and a view of one corner reaches a small share of the nodes.
+// Occluder candidates with the hierarchy: the listed nodes and the leaves among their
+// children, ascending, each once (the list may hold a leaf and its parent: two frames' cuts).
+TEST(Hierarchy, OccluderCandidatesTakeTheLeafChildrenOfHlods) {
+    const HierarchyFixture& f = fixture();
+    const std::string path = (test::scratchDir() / "hierarchy_leaf_children.oss").string();
+    writeWithHierarchy(*f.file, path, 4, HlodOptions{});
+    const OssFile file = OssFile::open(path);
+    const DeviceScene scene = DeviceScene::upload(file, true);
+    PipelineOptions o;
+    o.hierarchy = true;
+    CutStage stage(scene, o, nullptr, nullptr);
+    std::mt19937 rng(3);
+    uint32_t added = 0;
+    for (int trial = 0; trial < 20; ++trial) {
+        std::vector<uint32_t> ids;
+        for (uint32_t n = 0; n < scene.item_count; ++n)
+            if (rng() % 4 == 0) ids.push_back(n);
+        std::set<uint32_t> expected(ids.begin(), ids.end());
+        for (const uint32_t n : ids) {
+            const DeviceScene::NodeLinks& node = scene.host_nodes[n];
+            for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c)
+                if (scene.host_nodes[c].child_count == 0) expected.insert(c);
+        }
+        k::DeviceArray<uint32_t> device_ids(std::max<size_t>(1, ids.size())), out;
+        k::copyToDevice(device_ids.ptr(), ids.data(), ids.size());
+        const uint32_t count = stage.withLeafChildren(device_ids.ptr(), uint32_t(ids.size()), out);
+        std::vector<uint32_t> got(count);
+        k::copyToHost(got.data(), out.ptr(), count);
+        EXPECT_EQ(got, std::vector<uint32_t>(expected.begin(), expected.end())) << "trial " << trial;
+        added += uint32_t(expected.size() - ids.size());
+    }
+    EXPECT_GT(added, 0u);
+}
+
 TEST(Hierarchy, TheDeviceCutEqualsAHostRefinementAndReachesOnlyWhatItRefines) {
     const HierarchyFixture& f = fixture();
     HlodOptions hlod;
