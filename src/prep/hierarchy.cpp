@@ -465,6 +465,15 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                     std::vector<std::span<const float>> errors(children);
                     std::vector<std::span<const uint32_t>> maps(children);
                     std::vector<uint32_t> floors(children);
+                    // Where each child's levels come from, for the merge once they are chosen.
+                    struct Source {
+                        std::span<const glm::vec3> positions;
+                        std::span<const int32_t> ecol;
+                        std::span<const uint32_t> triangles;
+                        glm::mat4 world{1.0f};
+                        KeptMesh* kept = nullptr;  // an inner child's, dropped once merged
+                    };
+                    std::vector<Source> sources(children);
                     uint64_t budget = 0;
                     for (uint32_t i = 0; i < children; ++i) {
                         const uint32_t c = node.first_child + i;
@@ -481,31 +490,22 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                             errors[i] = leaf_errors[i];
                             maps[i] = m.map;
                             floors[i] = m.q;
+                            sources[i] = {m.positions, m.ecol, m.triangles, world, nullptr};
                         } else {
-                            const KeptMesh& k = kept.find(c)->second;  // made by the child's pass
+                            KeptMesh& k = kept.find(c)->second;  // made by the child's pass
                             errors[i] = k.error;
                             maps[i] = k.map;
                             floors[i] = k.q;
+                            sources[i] = {k.positions, k.ecol, k.triangles, glm::mat4(1.0f), &k};
                         }
                     }
                     const ChildLevelChoice choice = chooseChildLevels(errors, maps, floors, budget);
                     Mesh merged;
                     for (uint32_t i = 0; i < children; ++i) {
-                        const uint32_t c = node.first_child + i;
-                        const SceneNode& child = h.nodes[c];
-                        if (child.child_count == 0) {
-                            const oss::ObjectDisk& o = objects[child.object];
-                            const OssFile::MeshView m = file.mesh(o.mesh);
-                            glm::mat4 world;
-                            std::memcpy(&world, o.world, sizeof world);
-                            appendLevel(m.positions, m.ecol, m.triangles, m.map, choice.levels[i], world, merged.positions,
-                                        merged.indices);
-                        } else {
-                            KeptMesh& k = kept.find(c)->second;
-                            appendLevel(k.positions, k.ecol, k.triangles, k.map, choice.levels[i], glm::mat4(1.0f),
-                                        merged.positions, merged.indices);
-                            k = KeptMesh{};
-                        }
+                        const Source& from = sources[i];
+                        appendLevel(from.positions, from.ecol, from.triangles, maps[i], choice.levels[i], from.world,
+                                    merged.positions, merged.indices);
+                        if (from.kept) *from.kept = KeptMesh{};
                     }
                     const float error = choice.error;
                     ProgressiveMesh& p = built[j - b];
