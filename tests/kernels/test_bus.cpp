@@ -6,7 +6,10 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <fstream>
 #include <numeric>
+#include <sstream>
+#include <string>
 #include <vector>
 
 namespace occ::k {
@@ -125,6 +128,40 @@ TEST_F(DeviceArrays, TemporariesAreLentAgainFromTheCache) {
     temporaryFree(again);
     EXPECT_GE(releaseTemporaries(), 3'000'013u);
     temporaryFree(nullptr);
+}
+
+// The CPU build's large device arrays ask for transparent huge pages: on a virtual machine a
+// first write into fresh memory costs one fault per 4 KiB page (16 MiB took 60-70 ms here),
+// and the active arrays are first written in the frame loop, as a walk's resident set grows.
+// Checked where it can be seen: the kernel's smaps entry for the array's mapping says whether
+// it may be backed by huge pages (THPeligible); where THP is off entirely, nothing to check.
+TEST_F(DeviceArrays, LargeArraysMayBeBackedByHugePagesInTheCpuBuild) {
+    if (std::string(deviceBackend()) != "cpu-tbb") GTEST_SKIP() << "GPU memory: the CUDA allocator's pages";
+    std::ifstream mode_file("/sys/kernel/mm/transparent_hugepage/enabled");
+    std::string mode;
+    std::getline(mode_file, mode);
+    if (mode.empty() || mode.find("[never]") != std::string::npos) GTEST_SKIP() << "THP off on this machine: " << mode;
+    void* const block = temporaryAlloc(6u << 20);  // deviceAlloc's memory, as every array's
+    const auto at = reinterpret_cast<uintptr_t>(block);
+    EXPECT_EQ(at % (2u << 20), 0u) << "aligned to a huge page";
+    std::ifstream smaps("/proc/self/smaps");
+    std::string line;
+    bool inside = false, found = false;
+    while (std::getline(smaps, line)) {
+        unsigned long lo = 0, hi = 0;
+        char dash = 0;
+        std::istringstream head(line);
+        if (line.find(':') > line.find(' ') && (head >> std::hex >> lo >> dash >> hi) && dash == '-') {
+            inside = lo <= at && at < hi;
+            continue;
+        }
+        if (inside && line.rfind("THPeligible:", 0) == 0) {
+            found = true;
+            EXPECT_NE(line.find('1'), std::string::npos) << line << " (THP mode " << mode << ")";
+        }
+    }
+    EXPECT_TRUE(found) << "no smaps entry with THPeligible for the array at 0x" << std::hex << at;
+    temporaryFree(block);
 }
 
 }  // namespace
