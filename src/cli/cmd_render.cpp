@@ -29,6 +29,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
+#if __has_include(<malloc.h>)
+#include <malloc.h>  // mallopt (glibc)
+#endif
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -471,6 +474,14 @@ void writeSummaryJson(const std::string& path, const RunReport& r) {
 }
 
 int runRender(const RenderOptions& options) {
+#if defined(M_TRIM_THRESHOLD)
+    // Memory freed in the frame loop (a stage's scratch that grew, a kernel's host-side table)
+    // stays with the process for the next frame instead of going back to the system: fresh
+    // memory costs a page fault per 4 KiB on first write (30-45 us each on a virtual machine),
+    // which made frames that grew a buffer several times slower than their neighbours.
+    mallopt(M_MMAP_THRESHOLD, 32 << 20);  // glibc's largest: bigger blocks are mapped as before
+    mallopt(M_TRIM_THRESHOLD, 1 << 30);
+#endif
     RenderConfig c = resolveRender(options);
     // Before anything touches the device: each rank on a node its own GPU.
     const k::DeviceInfo device = k::selectDevice(c.cli.device);
