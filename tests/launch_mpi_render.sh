@@ -13,9 +13,11 @@ export OCCSWITCH=$exe
 "$exe" prep "$dir/p.glb" -o "$dir/p.oss" 2>/dev/null || fail "prep"
 "$exe" path walk "$dir/p.oss" --frames 20 -o "$dir/w.cam" 2>/dev/null || fail "path"
 echo "localhost slots=3" >"$dir/hosts"
-out=$(timeout 120 "$root/launch/mpi-render" --hostfile "$dir/hosts" -- "$dir/p.oss" --path "$dir/w.cam" --no-display \
+mkdir "$dir/tmp"
+out=$(TMPDIR="$dir/tmp" timeout 120 "$root/launch/mpi-render" --hostfile "$dir/hosts" -- "$dir/p.oss" --path "$dir/w.cam" --no-display \
       --stats "$dir/s.csv" 2>"$dir/err") || fail "mpi-render: $(tail -5 "$dir/err")"
 echo "$out" | grep -q "20 frames at .* 3 ranks" || fail "summary: $out"
+[ -z "$(find "$dir/tmp" -name 'occswitch-rankfile.*')" ] || fail "the rankfile was left behind: $(ls "$dir/tmp")"
 [ "$(cut -d, -f1 "$dir/s.csv" | sort -u | tr '\n' ' ')" = "0 1 2 rank " ] || fail "ranks in the CSV: $(cut -d, -f1 "$dir/s.csv" | sort -u)"
 dry=$("$root/launch/mpi-render" --dry-run --hostfile "$root/launch/hostfile.example" --display-host render-node-2 -- x.oss)
 echo "$dry" | grep -q "rank 0=render-node-2" || fail "display host: $dry"

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <new>
 #include <stdexcept>
 #include <string>
@@ -22,7 +23,11 @@
 namespace {
 
 const std::string& scratchFile(const char* extension) {
-    static const std::string path = "/tmp/occ_fuzz_" + std::to_string(::getpid()) + extension;
+    static const std::string path = [&] {
+        // Removed when the fuzzer exits (its time is up, or the corpus ran): nothing left in /tmp.
+        std::atexit([] { std::remove(scratchFile("").c_str()); });
+        return "/tmp/occ_fuzz_" + std::to_string(::getpid()) + extension;
+    }();
     return path;
 }
 
