@@ -23,11 +23,11 @@
 namespace {
 
 const std::string& scratchFile(const char* extension) {
-    static const std::string path = [&] {
-        // Removed when the fuzzer exits (its time is up, or the corpus ran): nothing left in /tmp.
-        std::atexit([] { std::remove(scratchFile("").c_str()); });
-        return "/tmp/occ_fuzz_" + std::to_string(::getpid()) + extension;
-    }();
+    static const std::string path = "/tmp/occ_fuzz_" + std::to_string(::getpid()) + extension;
+    // Removed when the fuzzer exits (its time is up, or the corpus ran): nothing left in /tmp.
+    // Registered once path is made, so that it runs before path is destroyed.
+    static const bool removed_at_exit = std::atexit([] { std::remove(path.c_str()); }) == 0;
+    (void)removed_at_exit;
     return path;
 }
 
