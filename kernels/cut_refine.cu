@@ -80,53 +80,69 @@ struct DecideCutNode {
     }
 };
 
+// The children of listed node j that Take accepts: take.node(j) for the node as a whole, then
+// take.child(c) for each child c. Counted first, then written after the scan's offset, in order.
+template <class Take>
 struct CountChildren {
     const CutNode* nodes;
     const uint32_t* ids;
-    const uint8_t* level_state;
+    Take take;
     OCC_HD uint32_t operator()(uint32_t j) const {
-        return level_state[j] == kCutRefined ? nodes[ids[j]].child_count : 0u;
+        if (!take.node(j)) return 0u;
+        const CutNode node = nodes[ids[j]];
+        uint32_t n = 0;
+        for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) n += take.child(c) ? 1u : 0u;
+        return n;
     }
 };
 
+template <class Take>
 struct WriteChildren {
     const CutNode* nodes;
     const uint32_t* ids;
-    const uint8_t* level_state;
+    Take take;
     const uint64_t* offsets;
     uint32_t* out;
     OCC_HD void operator()(uint32_t j) const {
-        if (level_state[j] != kCutRefined) return;
-        const CutNode node = nodes[ids[j]];
-        uint32_t* const to = out + offsets[j];
-        for (uint32_t c = 0; c < node.child_count; ++c) to[c] = node.first_child + c;
-    }
-};
-
-// The leaves among a listed node's children (an inner node's; a leaf has none).
-struct CountLeafChildren {
-    const CutNode* nodes;
-    const uint32_t* ids;
-    OCC_HD uint32_t operator()(uint32_t j) const {
-        const CutNode node = nodes[ids[j]];
-        uint32_t leaves = 0;
-        for (uint32_t c = 0; c < node.child_count; ++c) leaves += nodes[node.first_child + c].child_count == 0;
-        return leaves;
-    }
-};
-
-struct WriteLeafChildren {
-    const CutNode* nodes;
-    const uint32_t* ids;
-    const uint64_t* offsets;
-    uint32_t* out;
-    OCC_HD void operator()(uint32_t j) const {
+        if (!take.node(j)) return;
         const CutNode node = nodes[ids[j]];
         uint32_t* to = out + offsets[j];
-        for (uint32_t c = 0; c < node.child_count; ++c)
-            if (nodes[node.first_child + c].child_count == 0) *to++ = node.first_child + c;
+        for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c)
+            if (take.child(c)) *to++ = c;
     }
 };
+
+// Every child of a node refined this level.
+struct RefinedNodes {
+    const uint8_t* level_state;
+    OCC_HD bool node(uint32_t j) const { return level_state[j] == kCutRefined; }
+    OCC_HD bool child(uint32_t) const { return true; }
+};
+
+// The leaves among any listed node's children (an inner node's; a leaf has none).
+struct LeafChildren {
+    const CutNode* nodes;
+    OCC_HD bool node(uint32_t) const { return true; }
+    OCC_HD bool child(uint32_t c) const { return nodes[c].child_count == 0; }
+};
+
+// The children Take accepts: counted into counts and scanned into offsets (returns the total),
+// then written after their node's offset.
+template <class Take>
+uint64_t countChildren(DevicePtr<const CutNode> nodes, DevicePtr<const uint32_t> ids, uint32_t count, const Take& take,
+                       DevicePtr<uint32_t> counts, DevicePtr<uint64_t> offsets) {
+    const thrust::counting_iterator<uint32_t> first(0);
+    withPolicy(count, [&](auto policy) {
+        thrust::transform(policy, first, first + count, raw(counts), CountChildren<Take>{raw(nodes), raw(ids), take});
+    });
+    return exclusiveScan(counts, count, offsets);
+}
+
+template <class Take>
+void writeChildren(DevicePtr<const CutNode> nodes, DevicePtr<const uint32_t> ids, uint32_t count, const Take& take,
+                   DevicePtr<const uint64_t> offsets, DevicePtr<uint32_t> out) {
+    forEachIndex(count, WriteChildren<Take>{raw(nodes), raw(ids), take, raw(offsets), raw(out)});
+}
 
 struct CoarsenNode {
     const CutNode* nodes;
@@ -180,25 +196,19 @@ void cutDecide(DevicePtr<const ObjectInfo> objects, DevicePtr<const CutNode> nod
 uint32_t cutChildren(DevicePtr<const CutNode> nodes, DevicePtr<const uint32_t> ids, DevicePtr<const uint8_t> level_state,
                      uint32_t count, DevicePtr<uint32_t> counts, DevicePtr<uint64_t> offsets, DevicePtr<uint32_t> out) {
     if (count == 0) return 0;
-    const thrust::counting_iterator<uint32_t> first(0);
-    withPolicy(count, [&](auto policy) {
-        thrust::transform(policy, first, first + count, raw(counts), CountChildren{raw(nodes), raw(ids), raw(level_state)});
-    });
-    const uint64_t total = exclusiveScan(counts, count, offsets);
-    forEachIndex(count, WriteChildren{raw(nodes), raw(ids), raw(level_state), raw(offsets), raw(out)});
+    const RefinedNodes take{raw(level_state)};
+    const uint64_t total = countChildren(nodes, ids, count, take, counts, offsets);
+    writeChildren(nodes, ids, count, take, offsets, out);
     return uint32_t(total);
 }
 
 uint32_t cutLeafChildren(DevicePtr<const CutNode> nodes, DevicePtr<const uint32_t> ids, uint32_t count,
                          DevicePtr<uint32_t> counts, DevicePtr<uint64_t> offsets, DeviceArray<uint32_t>& out) {
     if (count == 0) return 0;
-    const thrust::counting_iterator<uint32_t> first(0);
-    withPolicy(count, [&](auto policy) {
-        thrust::transform(policy, first, first + count, raw(counts), CountLeafChildren{raw(nodes), raw(ids)});
-    });
-    const uint64_t total = exclusiveScan(counts, count, offsets);
+    const LeafChildren take{raw(nodes)};
+    const uint64_t total = countChildren(nodes, ids, count, take, counts, offsets);
     out.growTo(std::max<uint64_t>(1, total));
-    forEachIndex(count, WriteLeafChildren{raw(nodes), raw(ids), raw(offsets), raw(out.ptr())});
+    writeChildren(nodes, ids, count, take, offsets, out.ptr());
     return uint32_t(total);
 }
 
