@@ -98,6 +98,41 @@ assert other == 0, '%d pixels neither grey nor background' % other
 assert len(greys) > 10, 'only %d greys' % len(greys)
 EOF
 
+# --colours model, the default: every lit pixel is a shade of one of the model's materials
+# (gen plant writes its colours as glTF baseColorFactor, linear): decoded from sRGB, a pixel is
+# its material's colour times the light (0.2 to 1). The id pastels of --colours object are not.
+render --headless --out "$dir/M" >/dev/null 2>"$dir/err" || fail "render (model colours): $(cat "$dir/err")"
+render --headless --colours object --out "$dir/O" >/dev/null 2>"$dir/err" || fail "render --colours object: $(cat "$dir/err")"
+python3 - "$dir/p.glb" "$dir/M/frame_000020.png" "$dir/O/frame_000020.png" <<'EOF' || fail "--colours model: $dir/M/frame_000020.png"
+import json, os, struct, sys
+sys.path.insert(0, os.environ['TESTS_DIR'])
+from png_rgb import read_png_rgb
+glb = open(sys.argv[1], 'rb').read()
+length, kind = struct.unpack('<I4s', glb[12:20])
+materials = [m['pbrMetallicRoughness']['baseColorFactor'][:3] for m in json.loads(glb[20:20 + length])['materials']]
+def linear(c):
+    c /= 255.0
+    return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
+def share_of_material_shades(path):
+    w, h, rows = read_png_rgb(path)
+    lit = matched = 0
+    for row in rows:
+        for i in range(0, len(row), 3):
+            p = [linear(v) for v in row[i:i + 3]]
+            if max(p) < 0.03: continue  # the background and the darkest shading
+            lit += 1
+            for m in materials:
+                s = sum(a * b for a, b in zip(p, m)) / sum(b * b for b in m)
+                if 0.15 <= s <= 1.05 and max(abs(a - s * b) for a, b in zip(p, m)) <= 0.02 + 0.03 * max(p):
+                    matched += 1
+                    break
+    return matched / max(1, lit)
+model, ids = share_of_material_shades(sys.argv[2]), share_of_material_shades(sys.argv[3])
+print('model %.3f object %.3f' % (model, ids))
+assert model >= 0.95, 'model colours: %.3f of the lit pixels are shades of a material' % model
+assert ids < 0.5, '--colours object: %.3f of the lit pixels are shades of a material' % ids
+EOF
+
 # Impossible options: exit 2, one error line, no stats file.
 : >"$dir/file"
 while read -r what options; do

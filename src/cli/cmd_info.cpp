@@ -143,6 +143,7 @@ int runInfo(const InfoOptions& o) {
     j["skipped"] = {{"points", scene.skipped.points},
                     {"lines", scene.skipped.lines},
                     {"degenerate_faces", scene.skipped.degenerate},
+                    {"unknown_materials", scene.skipped.unknown_materials},
                     {"repeated_corner_triangles", repeated},
                     {"repeated_corner_triangles_with_instances", repeated_instances}};
     j["triangles_kept"] = scene.triangleCount() - repeated_instances;

@@ -91,6 +91,7 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
     add(s.skipped.points, "points");
     add(s.skipped.lines, "lines");
     add(s.skipped.degenerate, "degenerate faces");
+    add(s.skipped.unknown_materials, "unknown materials (drawn grey)");
     std::fprintf(stderr,
                  "prep: %s -> %s: %llu objects, %llu progressive meshes (%llu triangles, %llu with instances; "
                  "%llu repeated-corner triangles dropped%s), |COS| = %llu at CT %.2f, %.2f s on %u threads "

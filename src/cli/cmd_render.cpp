@@ -7,6 +7,7 @@
 #include "net/process_transport.h"
 #include "net/transport.h"
 #include "pipeline/pipeline.h"
+#include "render/colour_mode.h"
 #include "roles/occlusion_switch.h"
 #include "cli/model_cache.h"
 #include "scene/atomic_file.h"
@@ -49,7 +50,7 @@ constexpr double kWindowOccluderMs = 10.0;
 // The command line as given (CLI11 fills it).
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto", budget = "auto";
-    std::string pace = "fast", lod = "budget", visibility_weighted = "off", hierarchy = "off", late_pass = "on", colours = "object";
+    std::string pace = "fast", lod = "budget", visibility_weighted = "off", hierarchy = "off", late_pass = "on", colours = "model";
     std::string raster = "exact";
     double path_fps = 60;
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
@@ -73,6 +74,7 @@ struct RenderConfig {
     bool draws = false;   // draws frames (not --no-display)
     bool window = false;  // in a window (drawing, not --headless)
     bool paced = false;   // --pace recorded
+    render::ColourMode colours = render::ColourMode::Model;  // --colours
     std::chrono::milliseconds rank_timeout{5000};
 };
 
@@ -114,6 +116,9 @@ RenderConfig resolveRender(const RenderOptions& o) {
         throw UsageError("--pace " + o.pace + ": expected fast (every pose, as fast as the frames go) or recorded "
                          "(the path in real time at --path-fps)");
     c.paced = o.pace == "recorded";
+    c.colours = o.colours == "uniform" ? render::ColourMode::Uniform
+                : o.colours == "object" ? render::ColourMode::Object
+                                        : render::ColourMode::Model;
     if (!(o.path_fps > 0 && o.path_fps <= 100000)) {
         char v[64];
         std::snprintf(v, sizeof v, "%g", o.path_fps);
@@ -258,7 +263,7 @@ public:
         : c_(c), debug_frames_(std::move(debug_frames)) {
         options_.exact = c.cli.exact;
         options_.reference = c.cli.reference;
-        options_.uniform_colour = c.cli.colours == "uniform";
+        options_.colours = c.colours;
         // Sort-last: every display rank draws its partition; the pictures are composited into rank 0's.
         const std::vector<int> display_ranks = layout.displayRanks();
         options_.items = display_ranks.size() > 1;
@@ -312,6 +317,7 @@ int runInWindow(const RenderConfig& c, const OssFile& file, Transport& transport
     w.path = c.cli.path;
     w.out = c.cli.out.empty() ? "." : c.cli.out;
     w.device = c.cli.device;
+    w.colours = c.colours;
     const bool rank0 = transport.rank() == 0;
     if (rank0 && !c.cli.out.empty()) makeOutputFolder(c.cli.out);
     roles::RunOptions run = runOptions(c);
@@ -330,6 +336,7 @@ int runInWindow(const RenderConfig& c, const OssFile& file, Transport& transport
                 run.draw = [&](Pipeline& pipeline, const CameraPose& pose, uint64_t, const FrameStats&) {
                     render::DisplayOptions d;
                     d.items = true;
+                    d.colours = c.colours;
                     if (!display) display = std::make_unique<render::FrameDisplay>(pipeline, w.width, w.height, d);
                     const DisplayStats drawn = display->display(pipeline, pose);
                     compositor->composite(*display);
@@ -688,9 +695,10 @@ Command addRenderCommand(CLI::App& app) {
                     "whose HLOD within --tau costs no more than its children within --tau (0: fewest triangles)")
         ->capture_default_str();
     sub->add_option("--colours", o->colours,
-                    "headless pictures: object (each object its colour, an HLOD its objects' mean) or uniform\n"
-                    "(every item grey: --reference then compares geometry and shading only)")
-        ->check(CLI::IsMember({"object", "uniform"}))
+                    "model: each object in its model's colours (glTF baseColorFactor, OBJ Kd, PLY vertex colours),\n"
+                    "an HLOD in its objects' area-weighted mean; object: a pastel per object id, so parts stand\n"
+                    "apart; uniform: every item grey (--reference then compares geometry and shading only)")
+        ->check(CLI::IsMember({"model", "object", "uniform"}))
         ->capture_default_str();
     sub->add_option("--lod-hysteresis", o->pipeline.lod_hysteresis,
                     "keep an object's last vertex count while Eq. 1's is within this fraction of it (0 = off)")

@@ -255,6 +255,27 @@ private:
             const std::vector<double>& f = model_.materials[size_t(prim.material)].pbrMetallicRoughness.baseColorFactor;
             if (f.size() == 4) mesh.color = glm::vec4(float(f[0]), float(f[1]), float(f[2]), float(f[3]));
         }
+        // COLOR_0 multiplies the base colour (glTF 2.0, 3.9.2); the .oss keeps one colour per
+        // object, so the primitive takes its vertices' mean. Draco-decoded primitives keep the
+        // material's colour.
+        if (const auto colour = prim.attributes.find("COLOR_0");
+            colour != prim.attributes.end() && draco == prim.extensions.end()) {
+            checkAccessorIndex(colour->second, where + "/attributes/COLOR_0");
+            const int type = model_.accessors[size_t(colour->second)].type == TINYGLTF_TYPE_VEC4 ? TINYGLTF_TYPE_VEC4
+                                                                                                 : TINYGLTF_TYPE_VEC3;
+            std::vector<float> c;
+            readFloats(colour->second, where + "/attributes/COLOR_0", type, c);
+            const size_t components = type == TINYGLTF_TYPE_VEC4 ? 4 : 3;
+            if (c.size() / components != mesh.positions.size())
+                throw InputError(path_, where + "/attributes/COLOR_0: " + std::to_string(c.size() / components) +
+                                            " colours for " + std::to_string(mesh.positions.size()) + " vertices");
+            if (!c.empty()) {
+                glm::dvec3 sum(0.0);
+                for (size_t i = 0; i < c.size(); i += components)
+                    sum += glm::clamp(glm::dvec3(c[i], c[i + 1], c[i + 2]), 0.0, 1.0);
+                mesh.color *= glm::vec4(glm::vec3(sum / double(c.size() / components)), 1.0f);
+            }
+        }
         const uint32_t id = uint32_t(scene_.meshes.size());
         scene_.meshes.push_back(std::move(mesh));
         mesh_ids_.emplace(key, id);

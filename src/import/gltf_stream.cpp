@@ -48,7 +48,7 @@ struct Buffer {
     uint64_t file_offset = 0, available = 0;  // where its bytes start in the file, and how many there are
 };
 struct Primitive {
-    int64_t position = -1, indices = -1, material = -1;
+    int64_t position = -1, indices = -1, material = -1, colour = -1;  // colour: COLOR_0
     int32_t mode = gltf::kTriangles;
 };
 struct MeshDef {
@@ -227,6 +227,7 @@ private:
             else if (d == 5 && keyAt(4) == "material") p.material = integer(v, "material");
             else if (d == 5 && keyAt(4) == "mode") p.mode = int32_t(integer(v, "mode"));
             else if (d == 6 && keyAt(4) == "attributes" && keyAt(5) == "POSITION") p.position = integer(v, "POSITION");
+            else if (d == 6 && keyAt(4) == "attributes" && keyAt(5) == "COLOR_0") p.colour = integer(v, "COLOR_0");
         } else if (t == "accessors" && d == 3) {
             Accessor& a = doc_.accessors.back();
             const std::string& k = keyAt(2);
@@ -343,9 +344,9 @@ private:
 
 class GltfStreamSource final : public SceneSource {
 public:
-    GltfStreamSource(std::string path, Document doc, int scene) : path_(std::move(path)), doc_(std::move(doc)) {
-        flatten(scene);
-    }
+    // Made in two steps, openBuffers then flatten (which reads COLOR_0 accessors' bytes), so that
+    // the source owns its file descriptors before anything can throw.
+    GltfStreamSource(std::string path, Document doc) : path_(std::move(path)), doc_(std::move(doc)) {}
     ~GltfStreamSource() override {
         for (const int fd : fds_) ::close(fd);
     }
@@ -440,6 +441,64 @@ public:
         }
     }
 
+    // The node forest walked as the whole-file importer walks it (gltf::walkNodeForest):
+    // one object per (node, triangle primitive), meshes numbered as first met.
+    void flatten(int scene_option) {
+        for (const std::string& ext : doc_.required)
+            if (!gltf::isSupportedExtension(ext))
+                throw InputError(path_, "extensionsRequired: unsupported required extension " + ext);
+        mesh_of_primitive_.resize(doc_.primitives.size());
+        for (uint32_t m = 0; m < doc_.meshes.size(); ++m)
+            for (uint32_t p = 0; p < doc_.meshes[m].count; ++p) mesh_of_primitive_[doc_.meshes[m].first + p] = m;
+
+        const std::vector<int64_t> roots = gltf::sceneRoots(
+            path_, scene_option, doc_.scene, doc_.scenes.size(), doc_.nodes.size(),
+            [&](size_t scene) -> const std::vector<int64_t>& { return doc_.scenes[scene]; },
+            [&](const auto& f) {
+                for (int64_t c : doc_.children) f(c);
+            });
+        std::vector<uint32_t> id_of_primitive(doc_.primitives.size(), UINT32_MAX);
+        gltf::walkNodeForest(
+            path_, doc_.nodes.size(), roots, [&](int64_t node) { return doc_.nodes[size_t(node)].child_count; },
+            [&](int64_t node, size_t i) { return doc_.children[doc_.nodes[size_t(node)].first_child + i]; },
+            [&](int64_t node) -> const glm::mat4& { return doc_.nodes[size_t(node)].local; },
+            [&](int64_t node, const glm::mat4& world) { emit(node, world, id_of_primitive); });
+        // The tree is not needed any more; the tables meshes are read through are.
+        doc_.nodes = {};
+        doc_.children = {};
+        doc_.scenes = {};
+    }
+
+    void emit(int64_t node_index, const glm::mat4& world, std::vector<uint32_t>& id_of_primitive) {
+        const NodeDef& node = doc_.nodes[size_t(node_index)];
+        if (node.mesh < 0) return;
+        if (uint64_t(node.mesh) >= doc_.meshes.size())
+            throw InputError(path_, "/nodes/" + std::to_string(node_index) + "/mesh: mesh index " +
+                                        std::to_string(node.mesh) + " out of range (" +
+                                        std::to_string(doc_.meshes.size()) + " meshes)");
+        const MeshDef& m = doc_.meshes[size_t(node.mesh)];
+        for (uint32_t p = m.first; p < m.first + m.count; ++p) {
+            const Primitive& prim = doc_.primitives[p];
+            if (prim.mode == gltf::kPoints) {
+                ++skipped_.points;
+                continue;
+            }
+            if (prim.mode == gltf::kLines || prim.mode == gltf::kLineLoop || prim.mode == gltf::kLineStrip) {
+                ++skipped_.lines;
+                continue;
+            }
+            const std::string where = "/meshes/" + std::to_string(node.mesh) + "/primitives/" + std::to_string(p - m.first);
+            if (prim.position < 0) throw InputError(path_, where + ": primitive has no POSITION attribute");
+            accessor(prim.position, where + "/attributes/POSITION");
+            if (prim.indices >= 0) accessor(prim.indices, where + "/indices");
+            if (id_of_primitive[p] == UINT32_MAX) {
+                id_of_primitive[p] = uint32_t(mesh_keys_.size());
+                mesh_keys_.push_back(p);
+            }
+            objects_.push_back(Object{id_of_primitive[p], world, colour(prim, where, true)});
+        }
+    }
+
 private:
     static std::string decodeUri(const std::string& uri) {
         std::string out;
@@ -496,74 +555,43 @@ private:
         return bytes;
     }
 
-    glm::vec4 colour(const Primitive& p, const std::string& where) const {
-        if (p.material < 0) return Mesh{}.color;
-        if (uint64_t(p.material) >= doc_.materials.size())
-            throw InputError(path_, where + "/material: material index " + std::to_string(p.material) + " out of range");
-        return doc_.materials[size_t(p.material)];
-    }
-
-    // The node forest walked as the whole-file importer walks it (gltf::walkNodeForest):
-    // one object per (node, triangle primitive), meshes numbered as first met.
-    void flatten(int scene_option) {
-        for (const std::string& ext : doc_.required)
-            if (!gltf::isSupportedExtension(ext))
-                throw InputError(path_, "extensionsRequired: unsupported required extension " + ext);
-        mesh_of_primitive_.resize(doc_.primitives.size());
-        for (uint32_t m = 0; m < doc_.meshes.size(); ++m)
-            for (uint32_t p = 0; p < doc_.meshes[m].count; ++p) mesh_of_primitive_[doc_.meshes[m].first + p] = m;
-
-        const std::vector<int64_t> roots = gltf::sceneRoots(
-            path_, scene_option, doc_.scene, doc_.scenes.size(), doc_.nodes.size(),
-            [&](size_t scene) -> const std::vector<int64_t>& { return doc_.scenes[scene]; },
-            [&](const auto& f) {
-                for (int64_t c : doc_.children) f(c);
-            });
-        std::vector<uint32_t> id_of_primitive(doc_.primitives.size(), UINT32_MAX);
-        gltf::walkNodeForest(
-            path_, doc_.nodes.size(), roots, [&](int64_t node) { return doc_.nodes[size_t(node)].child_count; },
-            [&](int64_t node, size_t i) { return doc_.children[doc_.nodes[size_t(node)].first_child + i]; },
-            [&](int64_t node) -> const glm::mat4& { return doc_.nodes[size_t(node)].local; },
-            [&](int64_t node, const glm::mat4& world) { emit(node, world, id_of_primitive); });
-        // The tree is not needed any more; the tables meshes are read through are.
-        doc_.nodes = {};
-        doc_.children = {};
-        doc_.scenes = {};
-    }
-
-    void emit(int64_t node_index, const glm::mat4& world, std::vector<uint32_t>& id_of_primitive) {
-        const NodeDef& node = doc_.nodes[size_t(node_index)];
-        if (node.mesh < 0) return;
-        if (uint64_t(node.mesh) >= doc_.meshes.size())
-            throw InputError(path_, "/nodes/" + std::to_string(node_index) + "/mesh: mesh index " +
-                                        std::to_string(node.mesh) + " out of range (" +
-                                        std::to_string(doc_.meshes.size()) + " meshes)");
-        const MeshDef& m = doc_.meshes[size_t(node.mesh)];
-        for (uint32_t p = m.first; p < m.first + m.count; ++p) {
-            const Primitive& prim = doc_.primitives[p];
-            if (prim.mode == gltf::kPoints) {
-                ++skipped_.points;
-                continue;
-            }
-            if (prim.mode == gltf::kLines || prim.mode == gltf::kLineLoop || prim.mode == gltf::kLineStrip) {
-                ++skipped_.lines;
-                continue;
-            }
-            const std::string where = "/meshes/" + std::to_string(node.mesh) + "/primitives/" + std::to_string(p - m.first);
-            if (prim.position < 0) throw InputError(path_, where + ": primitive has no POSITION attribute");
-            accessor(prim.position, where + "/attributes/POSITION");
-            if (prim.indices >= 0) accessor(prim.indices, where + "/indices");
-            if (id_of_primitive[p] == UINT32_MAX) {
-                id_of_primitive[p] = uint32_t(mesh_keys_.size());
-                mesh_keys_.push_back(p);
-            }
-            objects_.push_back(Object{id_of_primitive[p], world, colour(prim, where)});
+    // The material's base colour times the mean of COLOR_0 where the primitive has vertex colours
+    // (glTF 2.0, 3.9.2: they multiply; the .oss keeps one colour per object). flatten (one
+    // thread) remembers each accessor's mean, as every instance asks again; mesh(), which may
+    // run on several threads, only reads what it remembered.
+    glm::vec4 colour(const Primitive& p, const std::string& where, bool remember = false) const {
+        glm::vec4 c = Mesh{}.color;
+        if (p.material >= 0) {
+            if (uint64_t(p.material) >= doc_.materials.size())
+                throw InputError(path_, where + "/material: material index " + std::to_string(p.material) + " out of range");
+            c = doc_.materials[size_t(p.material)];
         }
+        if (p.colour < 0) return c;
+        const auto cached = vertex_colour_mean_.find(p.colour);
+        if (cached != vertex_colour_mean_.end()) return c * cached->second;
+        const Accessor& a = accessor(p.colour, where + "/attributes/COLOR_0");
+        const size_t csize = gltf::componentSize(a.component);
+        if ((a.components != 3 && a.components != 4) || csize == 0 || a.component == gltf::kUnsignedInt)
+            throw InputError(path_, "/accessors/" + std::to_string(p.colour) +
+                                        ": unsupported accessor type for COLOR_0 (must be VEC3 or VEC4 of floats or of "
+                                        "normalized 8- or 16-bit integers)");
+        size_t stride = 0;
+        const std::vector<unsigned char> bytes = read(a, p.colour, a.components * csize, stride);
+        glm::dvec3 sum(0.0);
+        for (size_t i = 0; i < a.count; ++i)
+            for (int k = 0; k < 3; ++k) {
+                const float v = gltf::componentValue(bytes.data() + i * stride + size_t(k) * csize, a.component, a.normalized);
+                sum[k] += std::isfinite(v) ? std::clamp(double(v), 0.0, 1.0) : 0.0;
+            }
+        const glm::vec4 mean = a.count ? glm::vec4(glm::vec3(sum / double(a.count)), 1.0f) : glm::vec4(1.0f);
+        if (remember) vertex_colour_mean_.emplace(p.colour, mean);
+        return c * mean;
     }
 
     std::string path_;
     Document doc_;
     std::vector<int> fds_;
+    mutable std::map<int64_t, glm::vec4> vertex_colour_mean_;  // per COLOR_0 accessor: its mean colour
     std::vector<Object> objects_;
     std::vector<uint32_t> mesh_keys_;          // mesh id -> primitive
     std::vector<uint32_t> mesh_of_primitive_;  // primitive -> glTF mesh
@@ -632,9 +660,10 @@ std::unique_ptr<SceneSource> streamGltf(const std::string& path, const ImportOpt
         if (why) *why = doc.unstreamable;
         return nullptr;
     }
-    auto source = std::make_unique<GltfStreamSource>(path, std::move(doc), options.scene);
+    auto source = std::make_unique<GltfStreamSource>(path, std::move(doc));
     const int fd = binary ? ::dup(::fileno(raw)) : -1;
     source->openBuffers(fd, bin_offset, bin_length);
+    source->flatten(options.scene);
     return source;
 }
 

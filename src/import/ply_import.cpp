@@ -1,15 +1,19 @@
 // SPDX-License-Identifier: MIT
 // PLY (Stanford polygon files), ASCII and binary of either byte order. The header declares
 // elements, each a count of records of scalar and list properties; this reader takes the
-// "vertex" element's x, y, z (any numeric type) and the "face" element's "vertex_indices" (or
-// "vertex_index") list, and reads past every other element and property. Every read is checked
+// "vertex" element's x, y, z (any numeric type) and red, green, blue where it has all three
+// (8-bit sRGB as scanners write them when integer, [0, 1] when float; the object's colour is
+// their mean), the "face" element's "vertex_indices" (or "vertex_index") list, and reads past
+// every other element and property. Every read is checked
 // against the file: counts that promise more than the file holds, indices out of range,
 // non-numbers and non-finite positions are errors with their line or byte offset.
 #include "import/import.h"
 
 #include "import/triangulate.h"
+#include "scene/colour.h"
 #include "scene/errors.h"
 
+#include <algorithm>
 #include <bit>
 #include <cerrno>
 #include <cmath>
@@ -227,11 +231,15 @@ Scene importPly(const std::string& path) {
     std::vector<uint32_t> face;
     for (const Element& e : elements) {
         const bool vertex = e.name == "vertex", faces = e.name == "face";
-        int xyz[3] = {-1, -1, -1};
+        int xyz[3] = {-1, -1, -1}, rgb[3] = {-1, -1, -1};
         int indices = -1;
         for (size_t k = 0; k < e.properties.size(); ++k) {
             const Property& p = e.properties[k];
             if (vertex && !p.list && (p.name == "x" || p.name == "y" || p.name == "z")) xyz[p.name[0] - 'x'] = int(k);
+            if (vertex && !p.list) {
+                const int channel = p.name == "red" ? 0 : p.name == "green" ? 1 : p.name == "blue" ? 2 : -1;
+                if (channel >= 0) rgb[channel] = int(k);
+            }
             if (faces && p.list && (p.name == "vertex_indices" || p.name == "vertex_index") && isInteger(p.type))
                 indices = int(k);
         }
@@ -244,16 +252,23 @@ Scene importPly(const std::string& path) {
         if (e.count > reader.room(Type::Uint8))
             throw InputError(path, "element " + e.name + ": " + std::to_string(e.count) +
                                        " records do not fit in the rest of the file");
+        const bool coloured = vertex && rgb[0] >= 0 && rgb[1] >= 0 && rgb[2] >= 0;
         if (vertex) soup.positions.reserve(size_t(e.count));
+        if (coloured) soup.vertex_colours.reserve(size_t(e.count));
         for (uint64_t r = 0; r < e.count; ++r) {
-            double c[3] = {0, 0, 0};
+            double c[3] = {0, 0, 0}, colour[3] = {0, 0, 0};
             face.clear();
             for (size_t k = 0; k < e.properties.size(); ++k) {
                 const Property& p = e.properties[k];
                 if (!p.list) {
                     const double v = reader.read(p.type);
-                    for (int a = 0; a < 3; ++a)
+                    for (int a = 0; a < 3; ++a) {
                         if (xyz[a] == int(k)) c[a] = v;
+                        if (rgb[a] == int(k)) {
+                            const double full = isInteger(p.type) ? (p.type == Type::Uint16 ? 65535.0 : 255.0) : 1.0;
+                            colour[a] = std::isfinite(v) ? std::clamp(v / full, 0.0, 1.0) : 0.0;
+                        }
+                    }
                     continue;
                 }
                 const std::string where = reader.where();
@@ -275,6 +290,9 @@ Scene importPly(const std::string& path) {
                 if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
                     throw InputError(path, "vertex " + std::to_string(soup.positions.size()) + " is not finite (nan or inf)");
                 soup.positions.push_back(p);
+                if (coloured)
+                    soup.vertex_colours.emplace_back(srgbToLinear(float(colour[0])), srgbToLinear(float(colour[1])),
+                                                     srgbToLinear(float(colour[2])));
             } else if (faces) {
                 if (face.size() == 1) {
                     ++scene.skipped.points;

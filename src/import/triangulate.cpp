@@ -171,6 +171,7 @@ void addPolygonObjects(const PolygonSoup& soup, const std::string& path, Scene& 
         Mesh mesh;
         mesh.name = soup.face_group.empty() ? name : soup.group_names[g];
         std::fill(remap.begin(), remap.end(), UINT32_MAX);
+        glm::dvec3 colour_sum(0.0);
         for (size_t f = 0; f < soup.faceCount(); ++f) {
             if (!soup.face_group.empty() && soup.face_group[f] != g) continue;
             triangles.clear();
@@ -185,11 +186,16 @@ void addPolygonObjects(const PolygonSoup& soup, const std::string& path, Scene& 
                 if (remap[v] == UINT32_MAX) {
                     remap[v] = uint32_t(mesh.positions.size());
                     mesh.positions.push_back(soup.positions[v]);
+                    if (!soup.vertex_colours.empty()) colour_sum += glm::dvec3(soup.vertex_colours[v]);
                 }
                 mesh.indices.push_back(remap[v]);
             }
         }
         if (mesh.indices.empty()) continue;
+        if (g < soup.group_colours.size() && soup.group_coloured[g])
+            mesh.color = soup.group_colours[g];
+        else if (!soup.vertex_colours.empty())
+            mesh.color = glm::vec4(glm::vec3(colour_sum / double(mesh.positions.size())), 1.0f);
         Object object;
         object.mesh = uint32_t(scene.meshes.size());
         object.color = mesh.color;

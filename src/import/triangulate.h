@@ -23,13 +23,19 @@ bool triangulatePolygon(const std::vector<glm::vec3>& positions, std::vector<uin
                         std::vector<uint32_t>& triangles);
 
 // Polygons as OBJ, OFF, PLY and STL readers collect them: shared positions, faces as runs of
-// corners, and optionally a group per face (OBJ's g / o).
+// corners, and optionally a group per face (OBJ's g / o, one per group and material) with its
+// material's colour, and a colour per position (PLY's red / green / blue, OBJ's "v x y z r g b").
+// Colours are linear RGB in [0, 1], as Mesh::color.
 struct PolygonSoup {
     std::vector<glm::vec3> positions;
+    std::vector<glm::vec3> vertex_colours;  // empty, or one per position
     std::vector<uint32_t> face_offsets{0};  // face f is corners[face_offsets[f], face_offsets[f + 1])
     std::vector<uint32_t> corners;          // each < positions.size()
     std::vector<uint32_t> face_group;       // empty, or one entry per face into group_names
     std::vector<std::string> group_names;
+    std::vector<glm::vec4> group_colours;   // empty, or one per group name (a material's colour);
+                                            // without face_group, entry 0 colours the whole soup
+    std::vector<bool> group_coloured;       // with group_colours: whether that group's colour was given
 
     size_t faceCount() const { return face_offsets.size() - 1; }
     void addFace(const std::vector<uint32_t>& face) {
@@ -50,7 +56,9 @@ std::string readTextModelFile(const std::string& path);
 std::vector<std::string> lineWords(std::string_view line);
 
 // Appends to `scene` one mesh and object per group that has triangles (one for the whole soup,
-// named after the file `path`, when it has no groups), each holding only the vertices it uses;
+// named after the file `path`, when it has no groups), each holding only the vertices it uses,
+// coloured by its group's material where it has one, else by the mean of its vertices' colours
+// where the soup has them (the .oss keeps a colour per object, not per vertex), else Mesh's grey;
 // faces are triangulated by triangulatePolygon, and the degenerate ones counted in scene.skipped.
 // Vertices without any face, point or line (a point cloud) are InputError(path, ...).
 void addPolygonObjects(const PolygonSoup& soup, const std::string& path, Scene& scene);

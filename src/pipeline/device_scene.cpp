@@ -65,9 +65,6 @@ DeviceScene DeviceScene::upload(const OssFile& file, bool hierarchy) {
         const std::span<const oss::Node> nodes = file.nodes();
         d.host_nodes.resize(d.item_count);
         item_of_object.resize(file.objectCount());
-        // Bottom-up (children come after their parent): an HLOD shows the colour of its
-        // subtree's object with the most triangles.
-        std::vector<uint64_t> colour_triangles(d.item_count, 0);
         for (uint32_t i = d.item_count; i-- > 0;) {
             const oss::Node& n = nodes[i];
             NodeLinks& links = d.host_nodes[i];
@@ -76,13 +73,9 @@ DeviceScene DeviceScene::upload(const OssFile& file, bool hierarchy) {
             links.error = n.error;
             if (n.child_count == 0) {
                 links.object = n.object;
-                colour_triangles[i] = meshes[objects[n.object].mesh].triangle_count;
                 item_of_object[n.object] = i;
                 continue;
             }
-            for (uint32_t c = n.first_child; c < n.first_child + n.child_count; ++c)
-                if (c == n.first_child || colour_triangles[c] > colour_triangles[i])
-                    colour_triangles[i] = colour_triangles[c], links.object = d.host_nodes[c].object;
             const oss::MeshRecord& m = meshes[n.mesh];
             k::ObjectInfo& info = d.host_objects[i];
             info.aabb.min = glm::make_vec3(n.box_min);

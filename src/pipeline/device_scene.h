@@ -29,12 +29,11 @@ struct DeviceScene {
     std::vector<k::ObjectInfo> host_objects;      // per item
     std::vector<glm::mat4> host_world;            // per item, local -> world
     // Per item, with nodes: the node's children (child_count 0: a leaf), its error
-    // (SceneNode::error) and the object it is (a leaf) or whose colour it shows (an HLOD: its
-    // subtree's object of most triangles). Without nodes: empty.
+    // (SceneNode::error) and the object it is (a leaf; UINT32_MAX for an HLOD). Without nodes: empty.
     struct NodeLinks {
         uint32_t first_child = 0, child_count = 0;
         float error = 0.0f;
-        uint32_t object = 0;
+        uint32_t object = UINT32_MAX;
     };
     std::vector<NodeLinks> host_nodes;
     std::vector<uint64_t> host_vertex_first;      // per mesh, into the file's positions and ecol
@@ -71,9 +70,6 @@ struct DeviceScene {
     // Triangles of mesh `mesh`'s LOD with `vertices` vertices (maps[vertices]; 0 for 0),
     // from the mapped file.
     uint32_t lodTriangles(uint32_t mesh, uint32_t vertices) const;
-
-    // The object an item shows (its colour): itself without nodes.
-    uint32_t colourObject(uint32_t item) const { return nodes ? host_nodes[item].object : item; }
 
     // file must outlive the DeviceScene. Throws std::bad_alloc when the device has no room.
     // hierarchy: items are the file's nodes (the file must have them).

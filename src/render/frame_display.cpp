@@ -72,7 +72,7 @@ double changedPixelPercent(const uint8_t* a, const uint8_t* b, uint64_t pixels, 
 }
 
 FrameDisplay::FrameDisplay(Pipeline& pipeline, uint32_t width, uint32_t height, const DisplayOptions& options)
-    : options_(options), width_(width), height_(height), renderer_(pipeline.scene(), options.uniform_colour), frame_(width, height) {
+    : options_(options), width_(width), height_(height), renderer_(pipeline.scene(), options.colours), frame_(width, height) {
     renderer_.attach(pipeline);
     if (options.exact || options.reference) full_ = std::make_unique<FrameTarget>(width, height);
 }

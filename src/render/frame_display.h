@@ -23,10 +23,10 @@ struct DisplayOptions {
     // sort-last compositing breaks depth ties by it, as one display's draw order (ascending
     // ids, GL_LESS: the first drawn wins) does.
     bool items = false;
-    // Every item in one grey instead of its object's colour: pictures then differ only in
-    // geometry and shading, the part of a comparison a simplification is answerable for (an
-    // HLOD has one colour for the many objects it stands for).
-    bool uniform_colour = false;
+    // How items are coloured: the model's colours by default; ColourMode::Uniform (every item
+    // grey) makes pictures differ only in geometry and shading, the part of a comparison a
+    // simplification is answerable for.
+    ColourMode colours = ColourMode::Model;
 };
 
 // What DisplayOptions measures, as the stats CSV's columns.

@@ -3,10 +3,13 @@
 
 #include "render/gl_check.h"
 #include "render/shaders.h"
+#include "scene/colour.h"
 #include "scene/splitmix.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
+#include <span>
 
 namespace occ::render {
 
@@ -47,6 +50,42 @@ glm::vec3 objectColour(uint32_t id) {
     // Pastels: every channel in [0.35, 0.95].
     return {0.35f + 0.6f * float(r & 0xff) / 255.0f, 0.35f + 0.6f * float((r >> 8) & 0xff) / 255.0f,
             0.35f + 0.6f * float((r >> 16) & 0xff) / 255.0f};
+}
+
+std::vector<glm::vec4> itemColours(const DeviceScene& scene, ColourMode mode) {
+    const uint32_t n = scene.item_count;
+    const auto linear = [](glm::vec3 srgb) {
+        return glm::vec4(srgbToLinear(srgb.r), srgbToLinear(srgb.g), srgbToLinear(srgb.b), 1.0f);
+    };
+    // The grey of --colours uniform (sRGB 0.65).
+    std::vector<glm::vec4> colours(n, linear(glm::vec3(0.65f)));
+    if (mode == ColourMode::Uniform) return colours;
+    const std::span<const oss::ObjectDisk> objects =
+        scene.file ? scene.file->objects() : std::span<const oss::ObjectDisk>{};
+    const auto colourOf = [&](uint32_t object) {
+        if (mode == ColourMode::Object) return linear(objectColour(object));
+        if (object >= objects.size()) return colours[0];
+        const float* c = objects[object].color;
+        return glm::vec4(glm::clamp(glm::vec3(c[0], c[1], c[2]), 0.0f, 1.0f), 1.0f);
+    };
+    if (!scene.nodes) {
+        for (uint32_t i = 0; i < n; ++i) colours[i] = colourOf(i);
+        return colours;
+    }
+    std::vector<glm::dvec4> sum(n, glm::dvec4(0.0));  // rgb x area, area
+    for (uint32_t i = n; i-- > 0;) {  // children come after their parent
+        const DeviceScene::NodeLinks& node = scene.host_nodes[i];
+        if (node.child_count == 0) {
+            colours[i] = colourOf(node.object);
+            const glm::vec3 e = scene.host_objects[i].aabb.max - scene.host_objects[i].aabb.min;
+            const double area = std::max(1e-12, 2.0 * (double(e.x) * e.y + double(e.y) * e.z + double(e.z) * e.x));
+            sum[i] = glm::dvec4(glm::dvec3(colours[i]) * area, area);
+            continue;
+        }
+        for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) sum[i] += sum[c];
+        if (sum[i].w > 0) colours[i] = glm::vec4(glm::vec3(glm::dvec3(sum[i]) / sum[i].w), 1.0f);
+    }
+    return colours;
 }
 
 FrameTarget::FrameTarget(uint32_t width, uint32_t height) : width_(width), height_(height) {
@@ -112,7 +151,7 @@ void FrameTarget::readDepth(std::vector<float>& depth) const {
         glReadPixels(0, 0, GLsizei(width_), GLsizei(height_), GL_DEPTH_COMPONENT, GL_FLOAT, depth.data()));
 }
 
-SceneRenderer::SceneRenderer(const DeviceScene& scene, bool uniform_colour) : scene_(scene) {
+SceneRenderer::SceneRenderer(const DeviceScene& scene, ColourMode colour_mode) : scene_(scene) {
     shaded_program_ = compileProgram("shaded", shaders::kShadedVert, shaders::kShadedFrag);
     box_program_ = compileProgram("box", shaders::kBoxVert, shaders::kBoxFrag);
 
@@ -120,26 +159,7 @@ SceneRenderer::SceneRenderer(const DeviceScene& scene, bool uniform_colour) : sc
     world_buffer_ = makeBuffer();
     colour_buffer_ = makeBuffer();
     box_buffer_ = makeBuffer();
-    std::vector<glm::vec4> colours(n);
-    // Per item: an object's colour; a hierarchy's leaf shows its object's, an HLOD (one colour
-    // for all it stands for) the mean of its subtree's objects' colours weighted by their boxes'
-    // surface areas, the single colour closest in squared error to the mix of objects it covers.
-    for (uint32_t i = 0; i < n; ++i) colours[i] = glm::vec4(objectColour(scene.colourObject(i)), 1.0f);
-    if (scene.nodes) {
-        std::vector<glm::dvec4> sum(n, glm::dvec4(0.0));  // rgb x area, area
-        for (uint32_t i = n; i-- > 0;) {
-            const DeviceScene::NodeLinks& node = scene.host_nodes[i];
-            if (node.child_count == 0) {
-                const glm::vec3 e = scene.host_objects[i].aabb.max - scene.host_objects[i].aabb.min;
-                const double area = std::max(1e-12, 2.0 * (double(e.x) * e.y + double(e.y) * e.z + double(e.z) * e.x));
-                sum[i] = glm::dvec4(glm::dvec3(colours[i]) * area, area);
-                continue;
-            }
-            for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) sum[i] += sum[c];
-            if (sum[i].w > 0) colours[i] = glm::vec4(glm::vec3(glm::dvec3(sum[i]) / sum[i].w), 1.0f);
-        }
-    }
-    if (uniform_colour) std::fill(colours.begin(), colours.end(), glm::vec4(0.65f, 0.65f, 0.65f, 1.0f));
+    const std::vector<glm::vec4> colours = itemColours(scene, colour_mode);
     OCC_GL_CHECK(glNamedBufferStorage(world_buffer_, GLsizeiptr(std::max<size_t>(1, n) * sizeof(glm::mat4)),
                                       n ? scene.host_world.data() : nullptr, n ? 0 : GL_DYNAMIC_STORAGE_BIT));
     OCC_GL_CHECK(glNamedBufferStorage(colour_buffer_, GLsizeiptr(std::max<size_t>(1, n) * sizeof(glm::vec4)),

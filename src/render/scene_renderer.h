@@ -4,6 +4,7 @@
 #include "draw_commands.h"
 #include "kernel_types.h"
 #include "pipeline/pipeline.h"
+#include "render/colour_mode.h"
 
 #include <epoxy/gl.h>
 
@@ -13,8 +14,16 @@
 
 namespace occ::render {
 
-// Colour of object `id` in every picture: a fixed pastel per object, so that neighbours differ.
+// Colour of object `id` in ColourMode::Object: a fixed pastel per object (sRGB), so that
+// neighbours differ.
 glm::vec3 objectColour(uint32_t id);
+
+// Per item of `scene`, the linear RGB colour `mode` gives it (alpha 1; scene/colour.h: the shader
+// lights linear colours and writes sRGB). With a hierarchy an
+// HLOD, which has one colour for all it stands for, takes the mean of its subtree's objects'
+// colours weighted by their boxes' surface areas: the single colour closest in squared error to
+// the mix of objects it covers.
+std::vector<glm::vec4> itemColours(const DeviceScene& scene, ColourMode mode);
 
 // An offscreen W x H target: RGBA8 colour, R32UI item buffer (object id + 1 per pixel, 0 =
 // background) and 32-bit float depth, window depth in [0, 1] as the kernels use it.
@@ -63,8 +72,8 @@ struct DrawCounts {
 // CUDA-OpenGL interop, mapped for the device's writes.
 class SceneRenderer : public k::BufferProvider {
 public:
-    // uniform_colour: every item grey (DisplayOptions::uniform_colour).
-    explicit SceneRenderer(const DeviceScene& scene, bool uniform_colour = false);
+    // Items coloured as `colours` says (itemColours).
+    explicit SceneRenderer(const DeviceScene& scene, ColourMode colours = ColourMode::Model);
     ~SceneRenderer() override;
     SceneRenderer(const SceneRenderer&) = delete;
     SceneRenderer& operator=(const SceneRenderer&) = delete;

@@ -320,6 +320,7 @@ std::vector<FrameRecord> runWindow(Transport& transport, const OssFile& file, co
     std::unique_ptr<SortLastCompositor> compositor;
     const std::vector<uint8_t>* composite = nullptr;
     DisplayOptions display_options;
+    display_options.colours = wo.colours;
     if (layout.displays() > 1) {
         compositor = std::make_unique<SortLastCompositor>(transport, layout.displayRanks(), run.timeout);
         display_options.items = true;

@@ -5,6 +5,7 @@
 #include "pipeline/pipeline.h"
 #include "roles/occlusion_switch.h"
 #include "scene/errors.h"
+#include "render/scene_renderer.h"
 #include "scene/oss_file.h"
 
 #include <string>
@@ -22,6 +23,7 @@ struct WindowOptions {
     std::string path;                    // camera path played first (empty: start outside the scene)
     std::string out = ".";               // folder for screenshots (P) and recorded paths (R)
     int device = -1;                     // --device as given (-1: none): the GL context's GPU must be it
+    ColourMode colours = ColourMode::Model;  // --colours
 };
 
 // Opens a GLFW window (OpenGL 4.5 core) on rank 0 and flies through `file` with the frame loop

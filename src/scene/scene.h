@@ -34,7 +34,7 @@ struct Mesh {
     std::string name;
     std::vector<glm::vec3> positions;
     std::vector<uint32_t> indices;  // triangle list; every index < positions.size()
-    glm::vec4 color{0.8f, 0.8f, 0.8f, 1.0f};  // base colour of the primitive's material
+    glm::vec4 color{0.8f, 0.8f, 0.8f, 1.0f};  // base colour of the primitive's material, linear RGB (scene/colour.h)
 
     size_t triangleCount() const { return indices.size() / 3; }
 };
@@ -51,6 +51,7 @@ struct SkippedPrimitives {
     uint64_t points = 0;      // point primitives (glTF mode POINTS)
     uint64_t lines = 0;       // line primitives (LINES, LINE_LOOP, LINE_STRIP)
     uint64_t degenerate = 0;  // faces with fewer than three distinct vertices
+    uint64_t unknown_materials = 0;  // OBJ materials no readable library defines: drawn in Mesh's grey
 };
 
 struct Scene {

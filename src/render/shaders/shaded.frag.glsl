@@ -1,6 +1,8 @@
 #version 450 core
 // Headlight shading from the face normal (screen-space derivatives of the world position, so
-// no normals are stored or streamed), both sides lit: CAD meshes are often open.
+// no normals are stored or streamed), both sides lit: CAD meshes are often open. base_colour is
+// linear (glTF's baseColorFactor is); lighting happens in linear light and the result is written
+// sRGB-encoded, as a glTF viewer shows it.
 in vec3 world_position;
 flat in vec3 base_colour;
 flat in uint item;
@@ -17,11 +19,15 @@ layout(depth_greater) out float gl_FragDepth;
 layout(location = 0) out vec4 frag_colour;
 layout(location = 1) out uint frag_item;
 
+vec3 linearToSrgb(vec3 c) {
+    return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
+}
+
 void main() {
     vec3 n = normalize(cross(dFdx(world_position), dFdy(world_position)));
     vec3 to_eye = normalize(eye - world_position);
     float lambert = abs(dot(n, to_eye));
-    frag_colour = vec4(base_colour * (0.2 + 0.8 * lambert), 1.0);
+    frag_colour = vec4(linearToSrgb(base_colour * (0.2 + 0.8 * lambert)), 1.0);
     frag_item = item;
     gl_FragDepth = max(gl_FragCoord.z, depth_floor);
 }
