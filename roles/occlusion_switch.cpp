@@ -3,6 +3,7 @@
 
 #include "net/messages.h"
 #include "net/rank_error.h"
+#include "render/picture_metrics.h"
 #include "scene/errors.h"
 #include "util/config.h"
 
@@ -492,6 +493,11 @@ std::string rankStatsRows(const std::vector<FrameRecord>& records, const RankLay
     return text;
 }
 
+double RunSummary::pooledPsnrDb() const {
+    // Frames are the same size, so the run's squared error per byte is the mean of theirs.
+    return frames ? render::psnrFromSquaredError(mse, frames) : 100.0;
+}
+
 RunSummary summarize(const std::vector<FrameRecord>& records, const RankLayout& layout) {
     RunSummary sum;
     sum.displays = layout.displays();
@@ -542,6 +548,12 @@ RunSummary summarize(const std::vector<FrameRecord>& records, const RankLayout& 
         sum.psnr_db += d.psnr_db;
         sum.min_psnr_db = std::min(sum.min_psnr_db, d.psnr_db);
         sum.changed_pixel_share += d.changed_pixel_share;
+        sum.mse += d.mse;
+        sum.perceptible_share += d.perceptible_share;
+        sum.ssim += d.ssim;
+        sum.max_bound_p99_px = std::max(sum.max_bound_p99_px, d.bound_p99_px);
+        sum.bound_pixels += d.bound_pixels;
+        sum.bound_beyond_tau += d.bound_beyond_tau;
     }
     for (size_t p = 0; p < frames.size(); ++p)
         if (frames[p] > 0) sum.partition_triangles[p] = active[p] / frames[p];

@@ -126,6 +126,10 @@ struct RunSummary {
     // the lowest PSNR.
     double ms_draw = 0, false_culls = 0, exact_occluded = 0, culling_accuracy = 0, exact_churn = 0;
     double psnr_db = 0, min_psnr_db = 0, changed_pixel_share = 0;
+    double mse = 0, perceptible_share = 0, ssim = 0, max_bound_p99_px = 0;
+    uint64_t bound_pixels = 0, bound_beyond_tau = 0;
+    // The run's pictures pooled as one long picture: PSNR from the mean squared error.
+    double pooledPsnrDb() const;
 };
 
 // The run's summary from every rank's records (runRanks' on rank 0).

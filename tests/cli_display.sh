@@ -33,7 +33,7 @@ render --headless --exact --reference --budget 20000 --out "$dir/F" --debug-view
 [ "$(wc -l <"$dir/s.csv")" -eq 41 ] || fail "CSV has $(wc -l <"$dir/s.csv") lines, not 41"
 header=$(head -1 "$dir/s.csv")
 for c in ms_draw uploaded_bytes draw_calls ms_exact exact_visible false_culls exact_occluded culling_accuracy \
-         psnr_db changed_pixel_share; do
+         psnr_db changed_pixel_share mse perceptible_share ssim bound_p99_px bound_pixels bound_beyond_tau; do
   echo "$header" | tr ',' '\n' | grep -qx "$c" || fail "CSV lacks column $c"
 done
 column "$dir/s.csv" false_culls | awk '$1 != 0 { bad = 1 } END { exit bad }' || fail "false culls: $(column "$dir/s.csv" false_culls | tr '\n' ' ')"
@@ -74,6 +74,17 @@ render --headless --mode full --exact --reference --stats "$dir/full.csv" >/dev/
 column "$dir/full.csv" psnr_db | awk '$1 != 100 { bad = 1 } END { exit bad }' || fail "--mode full: PSNR is not 100"
 column "$dir/full.csv" changed_pixel_share | awk '$1 != 0 { bad = 1 } END { exit bad }' || fail "--mode full: pixels changed"
 column "$dir/full.csv" false_culls | awk '$1 != 0 { bad = 1 } END { exit bad }' || fail "--mode full: false culls"
+for c in mse perceptible_share bound_pixels bound_beyond_tau; do
+  column "$dir/full.csv" $c | awk '$1 != 0 { bad = 1 } END { exit bad }' || fail "--mode full: $c is not 0"
+done
+column "$dir/full.csv" ssim | awk '$1 != 1 { bad = 1 } END { exit bad }' || fail "--mode full: SSIM is not 1"
+# The budgeted walk's pictures: the summary pools them; a pixel a simplified LOD moved is
+# measured to its item, so changed pixels have distances and the bound's columns agree.
+grep -q "^reference: PSNR [0-9.]* dB pooled .* perceptibly (CIEDE2000 > 2); SSIM 0\.[0-9]* (mean); bound: " "$dir/out" ||
+  fail "summary: $(grep reference "$dir/out")"
+paste -d, <(column "$dir/s.csv" changed_pixel_share) <(column "$dir/s.csv" bound_pixels) <(column "$dir/s.csv" bound_beyond_tau) |
+  awk -F, '($1 > 0) != ($2 > 0) || $3 > $2 { bad = 1 } END { exit bad }' || fail "bound_pixels does not follow the changed pixels"
+column "$dir/s.csv" ssim | awk '!($1 > 0.5 && $1 <= 1) { bad = 1 } END { exit bad }' || fail "SSIM out of (0.5, 1]"
 
 # --colours uniform: every item the same grey, so a frame's pixels are greys or the background
 # (0.08, 0.09, 0.11), and many shades of grey (the shading is unchanged); 100 dB against its own

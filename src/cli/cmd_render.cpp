@@ -264,6 +264,7 @@ public:
         options_.exact = c.cli.exact;
         options_.reference = c.cli.reference;
         options_.colours = c.colours;
+        options_.tau = c.pipeline.tau;
         // Sort-last: every display rank draws its partition; the pictures are composited into rank 0's.
         const std::vector<int> display_ranks = layout.displayRanks();
         options_.items = display_ranks.size() > 1;
@@ -440,9 +441,15 @@ void printRunSummary(const RunReport& r) {
                     "%.1f, of the exact visible set %.1f\n",
                     sum.false_culls, sum.exact_occluded / frames, sum.culling_accuracy / frames, sum.pvs_churn / later,
                     sum.exact_churn / later);
-    if (o.reference)
-        std::printf("reference: PSNR %.2f dB mean, %.2f dB lowest; %.3f%% of pixels changed (mean)\n",
-                    sum.psnr_db / frames, sum.min_psnr_db, sum.changed_pixel_share / frames);
+    if (o.reference) {
+        const double beyond = sum.bound_pixels ? 100.0 * double(sum.bound_beyond_tau) / double(sum.bound_pixels) : 0.0;
+        std::printf("reference: PSNR %.2f dB pooled (%.2f mean, %.2f lowest); %.3f%% of pixels changed, %.3f%% "
+                    "perceptibly (CIEDE2000 > 2); SSIM %.4f (mean); bound: %.2f%% of changed pixels lie farther "
+                    "than tau = %g px from their item (99th percentile within tau: %s; worst frame's p99 %.2f px)\n",
+                    sum.pooledPsnrDb(), sum.psnr_db / frames, sum.min_psnr_db, sum.changed_pixel_share / frames,
+                    sum.perceptible_share / frames, sum.ssim / frames, beyond, double(r.config.pipeline.tau),
+                    beyond <= 1.0 ? "yes" : "no", sum.max_bound_p99_px);
+    }
     if (!o.out.empty()) std::printf("frames: %s/frame_*.png\n", o.out.c_str());
     if (!o.debug_views.empty()) std::printf("debug views: %s/\n", o.debug_views.c_str());
 }
@@ -471,7 +478,14 @@ void writeSummaryJson(const std::string& path, const RunReport& r) {
         j["false_culls"] = sum.false_culls;
         j["culling_accuracy"] = sum.culling_accuracy / frames;
     }
-    if (r.config.cli.reference) j["min_psnr_db"] = sum.min_psnr_db;
+    if (r.config.cli.reference) {
+        j["min_psnr_db"] = sum.min_psnr_db;
+        j["psnr_db"] = sum.pooledPsnrDb();
+        j["perceptible_share"] = sum.perceptible_share / frames;
+        j["ssim"] = sum.ssim / frames;
+        j["bound_beyond_tau_share"] =
+            sum.bound_pixels ? 100.0 * double(sum.bound_beyond_tau) / double(sum.bound_pixels) : 0.0;
+    }
     if (r.pacer)
         j["pace"] = {{"poses", r.pacer->framesShown() + r.pacer->posesSkipped()},
                      {"frames_shown", r.pacer->framesShown()},
@@ -619,7 +633,9 @@ Command addRenderCommand(CLI::App& app) {
                   "also draw the full-detail model into an item buffer and depth buffer every frame and add the\n"
                   "columns exact_visible, false_culls, exact_occluded, culling_accuracy");
     sub->add_flag("--reference", o->reference,
-                  "also draw the full-detail unculled frame and add the columns psnr_db, changed_pixel_share");
+                  "also draw the full-detail unculled frame and compare: the columns psnr_db, changed_pixel_share,\n"
+                  "mse, perceptible_share (CIEDE2000 > 2), ssim, bound_p99_px, bound_pixels and bound_beyond_tau\n"
+                  "(changed pixels farther than --tau from their item in the reference); pooled in the summary");
     sub->add_option("--debug-views", o->debug_views,
                     "write the occluders' depth, the HZM levels and the culling view of chosen frames into DIR");
     sub->add_option("--debug-frames", o->debug_frames, "frames for --debug-views (default: first, middle, last)")

@@ -33,7 +33,8 @@ std::string displayStatsHeader(const DisplayColumns& columns) {
     std::string h = ",ms_draw,uploaded_bytes,draw_calls";
     if (columns.exact || columns.reference) h += ",ms_exact";
     if (columns.exact) h += ",exact_visible,false_culls,exact_occluded,culling_accuracy,exact_added,exact_removed";
-    if (columns.reference) h += ",psnr_db,changed_pixel_share";
+    if (columns.reference)
+        h += ",psnr_db,changed_pixel_share,mse,perceptible_share,ssim,bound_p99_px,bound_pixels,bound_beyond_tau";
     return h;
 }
 
@@ -59,6 +60,12 @@ std::string displayStatsRow(const DisplayStats& s, const DisplayColumns& columns
     if (columns.reference) {
         add(fixed(s.psnr_db, 2));
         add(fixed(s.changed_pixel_share, 3));
+        add(fixed(s.mse, 6));
+        add(fixed(s.perceptible_share, 3));
+        add(fixed(s.ssim, 6));
+        add(fixed(s.bound_p99_px, 2));
+        add(std::to_string(s.bound_pixels));
+        add(std::to_string(s.bound_beyond_tau));
     }
     return r;
 }

@@ -43,9 +43,15 @@ struct DisplayStats {
     // pvs_removed: the least any PVS must change).
     uint64_t exact_added = 0;
     uint64_t exact_removed = 0;
-    // With DisplayColumns::reference:
+    // With DisplayColumns::reference (src/render/picture_metrics.h says what each measures):
     double psnr_db = 0;               // RGB, against the full-detail picture; 100 for identical pictures
     double changed_pixel_share = 0;   // percent of pixels that differ in any channel
+    double mse = 0;                   // mean squared error per byte: runs pool PSNR from its mean
+    double perceptible_share = 0;     // percent of pixels changed by a CIEDE2000 above 2
+    double ssim = 1;                  // scikit-image's structural_similarity of the RGB pictures
+    double bound_p99_px = 0;          // 99th percentile of the changed pixels' distance to their item
+    uint64_t bound_pixels = 0;        // changed pixels measured by the bound check
+    uint64_t bound_beyond_tau = 0;    // of those, farther than tau from their item in the reference
 };
 
 // Which display columns a run's CSV has (a run that draws): the drawing's always, the exact
@@ -105,6 +111,12 @@ void visitRecordFields(Record& r, Visit&& visit) {
     visit(d.exact_removed);
     visit(d.psnr_db);
     visit(d.changed_pixel_share);
+    visit(d.mse);
+    visit(d.perceptible_share);
+    visit(d.ssim);
+    visit(d.bound_p99_px);
+    visit(d.bound_pixels);
+    visit(d.bound_beyond_tau);
 }
 
 // The CSV columns, each with a leading comma: the messages' (after frameStatsHeader()) and the

@@ -54,13 +54,7 @@ uint64_t markSeenObjects(const uint32_t* items, uint64_t pixels, uint32_t object
 }
 
 double psnrDb(const uint8_t* a, const uint8_t* b, uint64_t bytes) {
-    double sum = 0;
-    for (uint64_t i = 0; i < bytes; ++i) {
-        const double d = double(a[i]) - double(b[i]);
-        sum += d * d;
-    }
-    if (sum == 0 || bytes == 0) return 100.0;
-    return std::min(100.0, 10.0 * std::log10(255.0 * 255.0 / (sum / double(bytes))));
+    return psnrFromSquaredError(squaredError(a, b, bytes), bytes);
 }
 
 double changedPixelPercent(const uint8_t* a, const uint8_t* b, uint64_t pixels, int channels) {
@@ -87,7 +81,8 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
     DisplayStats s;
     const k::Camera camera = toKernelCamera(pose, width_, height_);
     Clock::time_point start = Clock::now();
-    frame_.begin(options_.items);
+    // The reference's bound check reads which item drew each pixel.
+    frame_.begin(options_.items || options_.reference);
     const DrawCounts counts = renderer_.drawFrame(pipeline, camera);
     glFinish();
     s.ms_draw = msSince(start);
@@ -152,11 +147,51 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
     if (options_.reference) {
         full_->readColour(full_picture_);
         const std::vector<uint8_t>& ours = picture();
-        s.psnr_db = psnrDb(ours.data(), full_picture_.data(), ours.size());
         s.changed_pixel_share = changedPixelPercent(ours.data(), full_picture_.data(), pixels, 3);
+        // The bound check in one id space: a reference pixel (a leaf) counts as the item drawn
+        // for it, the leaf or the node above it in this frame's cut; not drawn: matches nothing.
+        frame_.readItems(our_items_);
+        full_->readItems(items_);
+        mapToDrawnItems(pipeline, items_);
+        const PictureDifference d = comparePictures(ours.data(), full_picture_.data(), our_items_.data(), items_.data(),
+                                                    width_, height_, options_.tau);
+        s.psnr_db = d.psnr_db;
+        s.mse = d.mse;
+        s.perceptible_share = d.perceptible_percent;
+        // Below 7 x 7 pixels no SSIM window fits: identical pictures then score 1, others 0
+        // (records carry finite numbers only).
+        s.ssim = std::isfinite(d.ssim) ? d.ssim : d.psnr_db >= 100.0 ? 1.0 : 0.0;
+        s.bound_p99_px = d.bound_p99_px;
+        s.bound_pixels = d.bound_pixels;
+        s.bound_beyond_tau = d.bound_beyond_tau;
     }
     s.ms_exact = msSince(start);
     return s;
+}
+
+void FrameDisplay::mapToDrawnItems(const Pipeline& pipeline, std::vector<uint32_t>& items) {
+    const DeviceScene& scene = pipeline.scene();
+    const uint32_t n = scene.item_count;
+    drawn_of_.assign(size_t(n) + 1, UINT32_MAX);  // by item + 1, as the buffer holds them
+    drawn_of_[0] = 0;                             // the background is the background
+    in_pvs_.assign(n, 0);
+    for (uint32_t id : pipeline.visibleObjects()) in_pvs_[id] = 1;
+    if (scene.nodes && parent_.size() != n) {
+        parent_.assign(n, UINT32_MAX);
+        for (uint32_t i = 0; i < n; ++i)
+            for (uint32_t c = scene.host_nodes[i].first_child; c < scene.host_nodes[i].first_child + scene.host_nodes[i].child_count; ++c)
+                parent_[c] = i;
+    }
+    for (uint32_t& item : items) {
+        if (item == 0 || item > n) continue;
+        uint32_t& drawn = drawn_of_[item];
+        if (drawn == UINT32_MAX) {
+            uint32_t i = item - 1;
+            while (!in_pvs_[i] && scene.nodes && parent_[i] != UINT32_MAX) i = parent_[i];
+            drawn = in_pvs_[i] ? i + 1 : UINT32_MAX - 1;  // culled: no pixel of ours can match it
+        }
+        item = drawn;
+    }
 }
 
 void FrameDisplay::drawCullingView(const Pipeline& pipeline, const k::Camera& camera) {

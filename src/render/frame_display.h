@@ -4,6 +4,7 @@
 #include "device_memory.h"
 #include "pipeline/frame_record.h"
 #include "pipeline/pipeline.h"
+#include "render/picture_metrics.h"
 #include "render/scene_renderer.h"
 
 #include <cstdint>
@@ -27,6 +28,8 @@ struct DisplayOptions {
     // grey) makes pictures differ only in geometry and shading, the part of a comparison a
     // simplification is answerable for.
     ColourMode colours = ColourMode::Model;
+    // The pixel error bound the reference's bound check counts against (PipelineOptions::tau).
+    float tau = 1.0f;
 };
 
 // What DisplayOptions measures, as the stats CSV's columns.
@@ -70,6 +73,10 @@ public:
                          const std::string& name);
 
 private:
+    // Replaces each reference item id + 1 in `items` by the id + 1 of the item this frame drew
+    // for it (itself, or with a hierarchy the node above it in the cut); 0 stays 0.
+    void mapToDrawnItems(const Pipeline& pipeline, std::vector<uint32_t>& items);
+
     const DisplayOptions options_;
     uint32_t width_, height_;
     SceneRenderer renderer_;
@@ -78,7 +85,8 @@ private:
     std::vector<uint8_t> picture_, full_picture_, in_pvs_, seen_;
     std::vector<uint32_t> exact_before_, exact_now_;  // the exact visible set of the last frame and this one
     bool picture_read_ = false;
-    std::vector<uint32_t> items_, candidates_;
+    std::vector<uint32_t> items_, candidates_, our_items_, drawn_of_;
+    std::vector<uint32_t> parent_;  // with a hierarchy: each node's parent (UINT32_MAX at the root)
     k::DeviceArray<float> full_hzm_;
     k::DeviceArray<uint8_t> occluded_;
 };
