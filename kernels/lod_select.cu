@@ -204,6 +204,7 @@ struct ErrorLevel {
     const uint32_t* maps;
     uint32_t* vertex_count;
     uint32_t* triangle_count;
+    bool raise;  // lodRaiseToErrorBound: keep a finer level already chosen
 
     OCC_HD uint32_t operator()(uint32_t j) const {
         const uint32_t id = ids[j];
@@ -224,6 +225,7 @@ struct ErrorLevel {
                 k = levelWithinError(lod_error + map_first[o.mesh], o.q, o.vertex_count, allowed);
             }
         }
+        if (raise && vertex_count[j] >= k) return vertex_count[j];
         vertex_count[j] = k;
         triangle_count[j] = k > 0 ? maps[map_first[o.mesh] + k] : 0u;
         return k;
@@ -247,7 +249,24 @@ uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const u
     const uint64_t sum = thrust::transform_reduce(
         onDevice(), first, first + count,
         ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first), raw(lod_error), raw(scale), raw(error_offset), raw(maps),
-                   raw(vertex_count), raw(triangle_count)},
+                   raw(vertex_count), raw(triangle_count), false},
+        uint64_t(0), Plus());
+    countReadback(sizeof sum);
+    return sum;
+}
+
+uint64_t lodRaiseToErrorBound(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
+                              const Camera& camera, float tau, float pet, DevicePtr<const float> visible_share,
+                              DevicePtr<const uint64_t> map_first, DevicePtr<const float> lod_error,
+                              DevicePtr<const float> scale, DevicePtr<const float> error_offset,
+                              DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
+                              DevicePtr<uint32_t> triangle_count) {
+    if (count == 0) return 0;
+    const thrust::counting_iterator<uint32_t> first(0);
+    const uint64_t sum = thrust::transform_reduce(
+        onDevice(), first, first + count,
+        ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first), raw(lod_error), raw(scale), raw(error_offset), raw(maps),
+                   raw(vertex_count), raw(triangle_count), true},
         uint64_t(0), Plus());
     countReadback(sizeof sum);
     return sum;

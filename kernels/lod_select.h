@@ -58,4 +58,17 @@ uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const u
                           DevicePtr<const float> error_offset, DevicePtr<const uint32_t> maps,
                           DevicePtr<uint32_t> vertex_count, DevicePtr<uint32_t> triangle_count);
 
+// The error bound as a floor under a level already chosen (the budget rule with a hierarchy,
+// issue 49: the budget may draw finer than tau allows, never coarser): for each listed object
+// the level lodSelectByError would choose, where it is finer than vertex_count[j] (which then
+// takes it, and triangle_count[j] its triangles); levels at least as fine stay. A level of 0
+// (not drawn: A_i < pet) is raised only where the bound draws the object. Same arguments as
+// lodSelectByError; returns the new sum of vc_i.
+uint64_t lodRaiseToErrorBound(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
+                              const Camera& camera, float tau, float pet, DevicePtr<const float> visible_share,
+                              DevicePtr<const uint64_t> map_first, DevicePtr<const float> lod_error,
+                              DevicePtr<const float> scale, DevicePtr<const float> error_offset,
+                              DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
+                              DevicePtr<uint32_t> triangle_count);
+
 }  // namespace occ::k

@@ -32,7 +32,9 @@ void VisibleItems::reserve(uint32_t items) {
 
 LodStage::LodStage(const OssFile& file, const DeviceScene& scene, const PipelineOptions& options)
     : scene_(scene), options_(options) {
-    if (options.lod == LodRule::Error) {
+    // The error tables serve the error rule, and with a hierarchy the budget rule's floor: an
+    // item is never drawn coarser than tau allows (issue 49).
+    if (options.lod == LodRule::Error || (scene.nodes && options.mode != CullMode::Full)) {
         // The error of the level with k vertices is the largest error of the collapses it has
         // undone, those of vertices k .. n - 1: a suffix maximum, 0 at full detail.
         std::vector<float> lod_error(std::max<size_t>(1, file.allMaps().size()), 0.0f);
@@ -94,7 +96,8 @@ void LodStage::select(const k::Camera& camera, VisibleItems& visible,
                             visible.device_triangles.ptr());
         k::copyToHost(visible.vertices.data(), visible.device_vertices.ptr(), count);
     } else {
-        const k::LodParams params{float(budget_), options_.alpha, options_.pet, shares()};
+        const k::DevicePtr<const float> share = shares();
+        const k::LodParams params{float(budget_), options_.alpha, options_.pet, share};
         k::lodSelect(scene_.objects.ptr(), ids, count, camera, params, scene_.map_first.ptr(), scene_.maps,
                      visible.device_vertices.ptr(), visible.device_triangles.ptr(), lod_shares_);
         if (options_.lod_hysteresis > 0 && !previous.empty()) {
@@ -106,6 +109,12 @@ void LodStage::select(const k::Camera& camera, VisibleItems& visible,
                                budget_, scene_.objects.ptr(), scene_.map_first.ptr(), scene_.maps,
                                visible.device_vertices.ptr(), visible.device_triangles.ptr(), hysteresis_scratch_);
         }
+        // With a hierarchy the cut stopped where a node's own error is within tau; its level may
+        // then be finer than the budget gives, never coarser (the bound covers input + level).
+        if (scene_.nodes)
+            k::lodRaiseToErrorBound(scene_.objects.ptr(), ids, count, camera, options_.tau, options_.pet, share,
+                                    scene_.map_first.ptr(), lod_error_.ptr(), object_scale_.ptr(), item_error_.ptr(),
+                                    scene_.maps, visible.device_vertices.ptr(), visible.device_triangles.ptr());
         k::copyToHost(visible.vertices.data(), visible.device_vertices.ptr(), count);
     }
 }

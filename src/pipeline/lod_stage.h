@@ -32,8 +32,9 @@ struct VisibleItems {
 };
 
 // LOD selection: each visible item's level under the vertex budget N (Eq. 1, Peng & Cao, with
-// the LOD hysteresis against the last frame's set) or within tau pixels of error (the error
-// rule); mode full takes every item whole.
+// the LOD hysteresis against the last frame's set; with a hierarchy never coarser than the error
+// rule's level, so that an item's whole error, its node's and its level's, stays within tau) or
+// within tau pixels of error (the error rule); mode full takes every item whole.
 class LodStage {
 public:
     // options must outlive the stage. The budget N follows the options (PipelineOptions::budget).
@@ -46,8 +47,9 @@ public:
                 std::span<const std::pair<uint32_t, uint32_t>> previous, const k::HzmLevels* hzm);
 
     double budget() const { return budget_; }
-    // The error rule: per mesh the largest collapse error of each level (laid out as the maps),
-    // per item its world scale, on the device (the cut's costs read them too); null otherwise.
+    // The error rule, and the budget rule with a hierarchy: per mesh the largest collapse error
+    // of each level (laid out as the maps), per item its world scale, on the device (the cut's
+    // costs read them too); null otherwise.
     k::DevicePtr<const float> lodErrors() const { return lod_error_.ptr(); }
     k::DevicePtr<const float> itemScales() const { return object_scale_.ptr(); }
 
