@@ -49,7 +49,7 @@ constexpr SectionKind kKinds[kSectionCount] = {
     {"MESHES", sizeof(MeshRecord)}, {"POSITIONS", 3 * sizeof(float)}, {"ECOL", sizeof(int32_t)},
     {"ERROR", sizeof(float)},        {"TRIANGLES", 3 * sizeof(uint32_t)}, {"MAP", sizeof(uint32_t)},
     {"OBJECTS", sizeof(ObjectDisk)}, {"COS", sizeof(uint32_t)},          {"NODES", sizeof(NodeLink)},
-    {"INNER", sizeof(InnerDisk)},
+    {"INNER", sizeof(InnerDisk)},    {"COLOURS", sizeof(uint32_t)},
 };
 
 }  // namespace
@@ -420,22 +420,25 @@ void requireMeshLayout(const ProgressiveMesh& m, uint64_t index) {
     if (m.ecol.size() != n) bad("ecol has " + str(uint64_t(m.ecol.size())) + " entries, expected " + str(n));
     if (m.error.size() != n) bad("error has " + str(uint64_t(m.error.size())) + " entries, expected " + str(n));
     if (m.map.size() != n + 1) bad("map has " + str(uint64_t(m.map.size())) + " entries, expected " + str(n + 1));
+    if (!m.colours.empty() && m.colours.size() != n)
+        bad("colours has " + str(uint64_t(m.colours.size())) + " entries, expected 0 or " + str(n));
 }
 
 }  // namespace
 
 struct OssStreamWriter::Impl {
     explicit Impl(const std::string& p)
-        : path(p), file(p), positions(p), ecol(p), error(p), triangles(p), map(p) {}
+        : path(p), file(p), positions(p), ecol(p), error(p), triangles(p), map(p), colours(p) {}
     std::string path;
     TempFileWriter file;
-    SectionSpool positions, ecol, error, triangles, map;
+    SectionSpool positions, ecol, error, triangles, map, colours;
     std::vector<MeshRecord> records;
     uint64_t vertex_count = 0, triangle_count = 0;
     bool durable = true;
-    // addMeshesOf: the flat file the five sections start with, and each one's range in it.
+    // addMeshesOf: the flat file the six per-mesh sections start with, and each one's range in
+    // it (POSITIONS .. MAP, then COLOURS).
     int prefix_fd = -1;
-    uint64_t prefix_offset[5] = {}, prefix_size[5] = {};
+    uint64_t prefix_offset[6] = {}, prefix_size[6] = {};
     ~Impl() {
         if (prefix_fd >= 0) ::close(prefix_fd);
     }
@@ -458,6 +461,13 @@ uint32_t OssStreamWriter::addMesh(const ProgressiveMesh& m) {
     w.error.put(m.error.data(), m.error.size() * sizeof(float));
     w.triangles.put(m.triangles.data(), m.triangles.size() * sizeof(uint32_t));
     w.map.put(m.map.data(), m.map.size() * sizeof(uint32_t));
+    if (m.colours.empty()) {
+        static const std::vector<uint32_t> kWhites(4096, kWhite);
+        for (uint64_t done = 0; done < m.positions.size(); done += kWhites.size())
+            w.colours.put(kWhites.data(), std::min<uint64_t>(kWhites.size(), m.positions.size() - done) * sizeof(uint32_t));
+    } else {
+        w.colours.put(m.colours.data(), m.colours.size() * sizeof(uint32_t));
+    }
     return uint32_t(i);
 }
 
@@ -472,11 +482,12 @@ void OssStreamWriter::addMeshesOf(const OssFile& flat) {
     w.records.assign(records.begin(), records.end());
     w.vertex_count = flat.vertexCount();
     w.triangle_count = flat.triangleCount();
-    SectionSpool* spools[] = {&w.positions, &w.ecol, &w.error, &w.triangles, &w.map};
+    SectionSpool* spools[] = {&w.positions, &w.ecol, &w.error, &w.triangles, &w.map, &w.colours};
     const std::vector<OssFile::SectionInfo> sections = flat.sections();  // [0] is the header, [id] section id
-    tbb::parallel_for(0, 5, [&](int k) {
-        const std::span<const std::byte> bytes = flat.sectionBytes(uint32_t(k + 2));
-        w.prefix_offset[k] = sections[size_t(k + 2)].offset;
+    tbb::parallel_for(0, 6, [&](int k) {
+        const uint32_t id = k < 5 ? uint32_t(k + 2) : uint32_t(SectionId::colours);
+        const std::span<const std::byte> bytes = flat.sectionBytes(id);
+        w.prefix_offset[k] = sections[size_t(id)].offset;
         w.prefix_size[k] = bytes.size();
         for (uint64_t at = 0; at < bytes.size(); at += OssFile::kReleaseBytes) {
             spools[k]->hashPrefix(bytes.data() + at, std::min<uint64_t>(OssFile::kReleaseBytes, bytes.size() - at));
@@ -551,6 +562,18 @@ void OssStreamWriter::finish(std::span<const ObjectRecord> objects, std::span<co
         w.put(&d, sizeof d);
     }
     h.sections[9] = w.endSection(SectionId::inner);
+    // COLOURS, last in the file, copied as the five above are.
+    {
+        s.colours.flush();
+        const uint64_t from = alignUp(w.position()), size = s.prefix_size[5] + s.colours.size();
+        std::vector<TempFileWriter::Copy> colour_copies;
+        if (s.prefix_size[5] > 0) colour_copies.push_back({s.prefix_fd, s.prefix_offset[5], s.prefix_size[5], from});
+        if (s.colours.size() > 0) colour_copies.push_back({s.colours.fd(), 0, s.colours.size(), from + s.prefix_size[5]});
+        w.padToAlignment();
+        w.copyRanges(colour_copies, from + size);
+        h.sections[10] = {uint32_t(SectionId::colours), kKinds[uint32_t(SectionId::colours) - 1].element_size, from, size,
+                          s.colours.digest()};
+    }
     w.padToAlignment();
 
     std::memcpy(h.magic, kMagic, sizeof h.magic);
@@ -707,7 +730,7 @@ void OssFile::validate() const {
         fail("HEADER", offsetof(Header, vertex_count), "vertex count " + str(h.vertex_count) + " overflows");
     const uint64_t counts[kSectionCount] = {h.mesh_count, h.vertex_count, h.vertex_count,  h.vertex_count,
                                             h.triangle_count, map_count,  h.object_count, h.cos_count,
-                                            h.node_count, h.inner_count};
+                                            h.node_count, h.inner_count, h.vertex_count};
     auto requireZeros = [&](const char* section, uint64_t from, uint64_t to, const char* where) {
         for (uint64_t o = from; o < to; ++o)
             if (base_[o] != std::byte{0})
@@ -1053,6 +1076,7 @@ OssFile::MeshView OssFile::mesh(uint32_t i) const {
     m.error = {sectionData<float>(SectionId::error) + r.vertex_first, r.vertex_count};
     m.triangles = {sectionData<uint32_t>(SectionId::triangles) + r.triangle_first * 3, size_t(r.triangle_count) * 3};
     m.map = {sectionData<uint32_t>(SectionId::map) + r.map_first, size_t(r.vertex_count) + 1};
+    m.colours = {sectionData<uint32_t>(SectionId::colours) + r.vertex_first, r.vertex_count};
     m.q = r.q;
     m.refused_faces = r.refused_faces;
     m.source_vertices = r.source_vertices;
@@ -1084,6 +1108,10 @@ std::span<const uint32_t> OssFile::allTriangles() const {
 }
 std::span<const uint32_t> OssFile::allMaps() const {
     return {sectionData<uint32_t>(SectionId::map), size_t(vertexCount() + meshCount())};
+}
+
+std::span<const uint32_t> OssFile::allColours() const {
+    return {sectionData<uint32_t>(SectionId::colours), size_t(vertexCount())};
 }
 
 std::span<const uint32_t> OssFile::cos() const { return {sectionData<uint32_t>(SectionId::cos), header().cos_count}; }
@@ -1141,6 +1169,9 @@ ProgressiveMesh OssFile::progressiveMesh(uint32_t i) const {
     m.error.assign(v.error.begin(), v.error.end());
     m.triangles.assign(v.triangles.begin(), v.triangles.end());
     m.map.assign(v.map.begin(), v.map.end());
+    // All white reads back as none of its own, as it was written.
+    if (std::any_of(v.colours.begin(), v.colours.end(), [](uint32_t c) { return c != kWhite; }))
+        m.colours.assign(v.colours.begin(), v.colours.end());
     m.q = v.q;
     m.refused_faces = v.refused_faces;
     m.source_vertices = v.source_vertices;

@@ -17,6 +17,9 @@ struct ProgressiveMesh {
     std::vector<float> error;          // error of the collapse that removes v; 0 for v < q
     std::vector<uint32_t> triangles;   // 3 corners per triangle, full-detail, re-arranged numbering
     std::vector<uint32_t> map;         // vertexCount() + 1 entries, non-decreasing, map[n] = triangleCount()
+    // Per vertex, its colour (oss::kWhite layout: RGBA8, sRGB), multiplied into its object's;
+    // empty: every vertex white. HLODs carry the colours of the objects they stand for.
+    std::vector<uint32_t> colours;
     uint32_t q = 0;                    // vertices never collapsed (locked: non-manifold, where borders meet)
     uint32_t refused_faces = 0;        // faces the collapser could not take (kept, never removed)
     uint32_t source_vertices = 0;      // vertex count of the input, before welding

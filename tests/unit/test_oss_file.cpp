@@ -314,7 +314,7 @@ TEST(OssFile, SectionsAreAlignedInOrderAndCoverTheFile) {
     const OssFile f = OssFile::open(path);
     const std::vector<OssFile::SectionInfo> s = f.sections();
     const std::vector<std::string> names = {"HEADER",    "MESHES", "POSITIONS", "ECOL",  "ERROR", "TRIANGLES",
-                                            "MAP",       "OBJECTS", "COS",      "NODES", "INNER"};
+                                            "MAP",       "OBJECTS", "COS",      "NODES", "INNER", "COLOURS"};
     ASSERT_EQ(s.size(), names.size());
     for (size_t i = 0; i < s.size(); ++i) {
         EXPECT_EQ(s[i].name, names[i]);
@@ -415,12 +415,12 @@ TEST(OssFile, FutureVersionIsNamed) {
     const std::string good = scratch("version_source.oss"), path = scratch("version.oss");
     writeOss(good, smallScene());
     std::vector<char> bytes = readBytes(good);
-    bytes[8] = 5;
+    bytes[8] = 6;
     writeBytes(path, bytes, bytes.size());
-    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 5, this build reads version 4");
-    bytes[8] = 3;  // a file of an older build: prepared again
+    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 6, this build reads version 5");
+    bytes[8] = 4;  // a file of an older build (no COLOURS): prepared again
     writeBytes(path, bytes, bytes.size());
-    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 3, this build reads version 4 "
+    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 4, this build reads version 5 "
                                       "(prepare the model again: occswitch prep)");
     bytes[0] = 'X';
     writeBytes(path, bytes, bytes.size());
@@ -605,9 +605,9 @@ TEST(OssFile, AnInnerCountThatDisagreesIsRejected) {
         return openError(path);
     };
     EXPECT_EQ(withInnerCount(2), "");  // the file as written: the root and node 1
-    EXPECT_EQ(withInnerCount(0), path + ": section HEADER at offset 384: 0 inner nodes for 5 nodes (none without a "
+    EXPECT_EQ(withInnerCount(0), path + ": section HEADER at offset 416: 0 inner nodes for 5 nodes (none without a "
                                         "hierarchy; else at least the root, and fewer than the nodes)");
-    EXPECT_EQ(withInnerCount(5), path + ": section HEADER at offset 384: 5 inner nodes for 5 nodes (none without a "
+    EXPECT_EQ(withInnerCount(5), path + ": section HEADER at offset 416: 5 inner nodes for 5 nodes (none without a "
                                         "hierarchy; else at least the root, and fewer than the nodes)");
     EXPECT_NE(withInnerCount(1).find("section INNER at offset "), std::string::npos) << withInnerCount(1);
     EXPECT_NE(withInnerCount(1).find("size 208 bytes, expected 1 elements * 104 bytes = 104"), std::string::npos);
@@ -792,6 +792,34 @@ TEST(OssFile, WriteRejectsArraysThatDoNotFitTheLayout) {
     scene.meshes[0].triangles.pop_back();
     EXPECT_THROW(writeOss((dir / "scene.oss").string(), scene), std::invalid_argument);
     EXPECT_TRUE(filesIn(dir).empty());
+}
+
+}  // namespace
+}  // namespace occ
+
+namespace occ {
+namespace {
+
+// Version 5's COLOURS: a mesh's vertex colours come back as written; a mesh written without
+// them is white in the file (the object's colour alone) and reads back without them.
+TEST(OssFile, VertexColoursRoundTripAndAMeshWithoutThemIsWhite) {
+    PreparedScene scene = smallScene();
+    ASSERT_GE(scene.meshes.size(), 2u);
+    ProgressiveMesh& coloured = scene.meshes[0];
+    coloured.colours.resize(coloured.positions.size());
+    for (size_t v = 0; v < coloured.colours.size(); ++v) coloured.colours[v] = 0xFF000000u | uint32_t(v * 7919);
+    scene.meshes[1].colours.clear();
+    const std::string path = scratch("colours.oss");
+    writeOss(path, scene);
+    const OssFile f = OssFile::open(path);
+    EXPECT_EQ(f.progressiveMesh(0).colours, coloured.colours);
+    EXPECT_TRUE(f.progressiveMesh(1).colours.empty());
+    const OssFile::MeshView second = f.mesh(1);
+    ASSERT_EQ(second.colours.size(), second.positions.size());
+    for (uint32_t c : second.colours) EXPECT_EQ(c, oss::kWhite);
+    EXPECT_EQ(f.allColours().size(), f.vertexCount());
+    scene.meshes[0].colours.pop_back();
+    EXPECT_THROW(writeOss(scratch("colours_short.oss"), scene), std::invalid_argument);
 }
 
 }  // namespace
