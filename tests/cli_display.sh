@@ -114,7 +114,16 @@ EOF
 # its material's colour times the light (0.2 to 1). The id pastels of --colours object are not.
 render --headless --out "$dir/M" >/dev/null 2>"$dir/err" || fail "render (model colours): $(cat "$dir/err")"
 render --headless --colours object --out "$dir/O" >/dev/null 2>"$dir/err" || fail "render --colours object: $(cat "$dir/err")"
-python3 - "$dir/p.glb" "$dir/M/frame_000020.png" "$dir/O/frame_000020.png" <<'EOF' || fail "--colours model: $dir/M/frame_000020.png"
+# With the hierarchy, from outside (an orbit: HLODs), the HLODs' vertices carry their objects'
+# colours (issue 49): the same holds, and few pixels change perceptibly against full detail.
+"$exe" path orbit "$dir/p.oss" --frames 40 -o "$dir/orbit.cam" 2>/dev/null || fail "path orbit"
+"$exe" render "$dir/p.oss" --path "$dir/orbit.cam" --size 256x192 --headless --hierarchy on --reference --out "$dir/H" \
+  --stats "$dir/h.csv" >"$dir/hout" 2>"$dir/err" || fail "render --hierarchy on: $(cat "$dir/err")"
+column "$dir/h.csv" objects_drawn | awk '$1 > 0 && $1 < 400 { n++ } END { exit !(n >= 30) }' ||
+  fail "the orbit with the hierarchy does not draw HLODs: $(column "$dir/h.csv" objects_drawn | tr '\n' ' ')"
+column "$dir/h.csv" perceptible_share | awk '{ s += $1 } END { exit !(s / NR < 2) }' ||
+  fail "with the hierarchy, perceptibly changed pixels: $(column "$dir/h.csv" perceptible_share | tr '\n' ' ')"
+python3 - "$dir/p.glb" "$dir/M/frame_000020.png" "$dir/O/frame_000020.png" "$dir/H/frame_000020.png" <<'EOF' || fail "--colours model: $dir/M/frame_000020.png"
 import json, os, struct, sys
 sys.path.insert(0, os.environ['TESTS_DIR'])
 from png_rgb import read_png_rgb
@@ -138,10 +147,11 @@ def share_of_material_shades(path):
                     matched += 1
                     break
     return matched / max(1, lit)
-model, ids = share_of_material_shades(sys.argv[2]), share_of_material_shades(sys.argv[3])
-print('model %.3f object %.3f' % (model, ids))
+model, ids, hlods = [share_of_material_shades(p) for p in sys.argv[2:5]]
+print('model %.3f object %.3f hierarchy %.3f' % (model, ids, hlods))
 assert model >= 0.95, 'model colours: %.3f of the lit pixels are shades of a material' % model
 assert ids < 0.5, '--colours object: %.3f of the lit pixels are shades of a material' % ids
+assert hlods >= 0.95, 'model colours with the hierarchy: %.3f of the lit pixels are shades of a material' % hlods
 EOF
 
 # Impossible options: exit 2, one error line, no stats file.

@@ -2,13 +2,17 @@
 #include "prep/hierarchy.h"
 
 #include "prep/prepare.h"
+#include "scene/colour.h"
 
 #include <glm/gtc/type_ptr.hpp>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <bit>
+#include <cmath>
 #include <cstring>
+#include <map>
 #include <numeric>
 #include <stdexcept>
 #include <thread>
@@ -140,7 +144,7 @@ void appendLevel(std::span<const glm::vec3> positions, std::span<const int32_t> 
     }
 }
 
-SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<const uint32_t> object_mesh,
+SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<const uint32_t> object_class,
                                     std::span<const glm::mat4> object_world, std::span<const uint32_t> order) {
     const uint32_t count = uint32_t(nodes.size());
     std::vector<uint32_t> descending;  // the default order: inner nodes from the last
@@ -151,7 +155,7 @@ SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<
     }
     SubtreeRepeats r;
     r.index.assign(count, UINT32_MAX);
-    // Per node: its first leaf's object and a class; leaves' classes are their meshes, inner
+    // Per node: its first leaf's object and a class; leaves' classes are their objects', inner
     // nodes' come after. (16 bytes a node and a bucket entry per inner node: prep's memory bound.)
     std::vector<uint32_t> first(count);
     std::vector<uint64_t> cls(count);
@@ -189,7 +193,7 @@ SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<
         return true;
     };
     for (uint32_t n = 0; n < count; ++n)
-        if (nodes[n].child_count == 0) first[n] = nodes[n].object, cls[n] = object_mesh[nodes[n].object];
+        if (nodes[n].child_count == 0) first[n] = nodes[n].object, cls[n] = object_class[nodes[n].object];
     for (const uint32_t n : order) {
         const SceneNode& node = nodes[n];
         first[n] = first[node.first_child];
@@ -247,12 +251,45 @@ namespace {
 // detail (the node's own error included). The parent chooses the level (chooseChildLevels).
 struct KeptMesh {
     std::vector<glm::vec3> positions;  // the first `top`, world space
+    std::vector<uint32_t> colours;     // the first `top` (oss::kWhite layout)
     std::vector<int32_t> ecol;         // the first `top`
     std::vector<uint32_t> triangles;   // the first map[top], corners walked below `top`
     std::vector<uint32_t> map;         // top + 1 entries
     std::vector<float> error;          // top + 1 entries: error[k] of the level with k vertices
     uint32_t q = 0;
 };
+
+// A vertex colour (oss::kWhite layout, sRGB) times a linear tint, as the display multiplies them.
+uint32_t tintedColour(const glm::vec4& tint, uint32_t colour) {
+    uint32_t out = colour & 0xFF000000u;
+    for (int c = 0; c < 3; ++c) {
+        const float linear = srgbToLinear(float((colour >> (8 * c)) & 0xFFu) / 255.0f) * glm::clamp(tint[c], 0.0f, 1.0f);
+        out |= uint32_t(std::lround(255.0f * linearToSrgb(linear))) << (8 * c);
+    }
+    return out;
+}
+
+// The progressive mesh's vertices are vertices of its input (welded where they coincide; edge
+// collapses and clustering keep positions), so each takes the colour of the input vertex at its
+// position (of coinciding ones, the first).
+void colourByPosition(const std::vector<glm::vec3>& input, const std::vector<uint32_t>& input_colours, ProgressiveMesh& p) {
+    struct Key {
+        uint32_t x, y, z;
+        bool operator==(const Key&) const = default;
+    };
+    struct Hash {
+        size_t operator()(const Key& k) const { return (uint64_t(k.x) * 0x9E3779B1u) ^ (uint64_t(k.y) * 0x85EBCA77u) ^ (uint64_t(k.z) * 0xC2B2AE3Du); }
+    };
+    const auto key = [](const glm::vec3& v) { return Key{std::bit_cast<uint32_t>(v.x), std::bit_cast<uint32_t>(v.y), std::bit_cast<uint32_t>(v.z)}; };
+    std::unordered_map<Key, uint32_t, Hash> at;
+    at.reserve(input.size());
+    for (size_t v = 0; v < input.size(); ++v) at.emplace(key(input[v]), input_colours[v]);
+    p.colours.resize(p.positions.size());
+    for (size_t v = 0; v < p.positions.size(); ++v) {
+        const auto found = at.find(key(p.positions[v]));
+        p.colours[v] = found != at.end() ? found->second : oss::kWhite;
+    }
+}
 
 // errors[k] for k <= top: offset plus scale times the largest collapse error the level with k
 // vertices has undone (those of vertices k .. n - 1; 0 at full detail).
@@ -395,13 +432,17 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
     // repeat's parent merges from keep it until the last such parent is built.
     SubtreeRepeats repeats;
     if (options.share_repeats) {
-        std::vector<uint32_t> object_mesh(objects.size());
+        // A leaf's class is its mesh in its colour: an HLOD carries its objects' colours, so
+        // copies in other colours are not repeats.
+        std::vector<uint32_t> object_class(objects.size());
         std::vector<glm::mat4> object_world(objects.size());
+        std::map<std::tuple<uint32_t, float, float, float, float>, uint32_t> classes;
         for (size_t o = 0; o < objects.size(); ++o) {
-            object_mesh[o] = objects[o].mesh;
+            const float* c = objects[o].color;
+            object_class[o] = classes.try_emplace({objects[o].mesh, c[0], c[1], c[2], c[3]}, uint32_t(classes.size())).first->second;
             std::memcpy(&object_world[o], objects[o].world, sizeof(glm::mat4));
         }
-        repeats = findRepeatedSubtrees(h.nodes, object_mesh, object_world, order);
+        repeats = findRepeatedSubtrees(h.nodes, object_class, object_world, order);
     } else {
         repeats.index.assign(count, UINT32_MAX);
     }
@@ -427,6 +468,8 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
         const uint32_t top = topLevel(p.map, p.q, parent[n], n);
         k.positions.resize(top);
         for (uint32_t v = 0; v < top; ++v) k.positions[v] = glm::vec3(world * glm::vec4(p.positions[v], 1.0f));
+        if (p.colours.empty()) k.colours.assign(top, oss::kWhite);
+        else k.colours.assign(p.colours.begin(), p.colours.begin() + top);
         k.ecol.assign(p.ecol.begin(), p.ecol.begin() + top);
         k.triangles.resize(3 * size_t(p.map[top]));
         for (size_t i = 0; i < k.triangles.size(); ++i) {
@@ -468,6 +511,8 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                     // Where each child's levels come from, for the merge once they are chosen.
                     struct Source {
                         std::span<const glm::vec3> positions;
+                        std::span<const uint32_t> colours;  // per vertex, times the tint
+                        glm::vec4 tint{1.0f};               // a leaf's object colour (linear)
                         std::span<const int32_t> ecol;
                         std::span<const uint32_t> triangles;
                         glm::mat4 world{1.0f};
@@ -490,26 +535,31 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                             errors[i] = leaf_errors[i];
                             maps[i] = m.map;
                             floors[i] = m.q;
-                            sources[i] = {m.positions, m.ecol, m.triangles, world, nullptr};
+                            sources[i] = {m.positions, m.colours, glm::make_vec4(o.color), m.ecol, m.triangles, world, nullptr};
                         } else {
                             KeptMesh& k = kept.find(c)->second;  // made by the child's pass
                             errors[i] = k.error;
                             maps[i] = k.map;
                             floors[i] = k.q;
-                            sources[i] = {k.positions, k.ecol, k.triangles, glm::mat4(1.0f), &k};
+                            sources[i] = {k.positions, k.colours, glm::vec4(1.0f), k.ecol, k.triangles, glm::mat4(1.0f), &k};
                         }
                     }
                     const ChildLevelChoice choice = chooseChildLevels(errors, maps, floors, budget);
                     Mesh merged;
+                    std::vector<uint32_t> merged_colours;  // per merged vertex: what it shows
                     for (uint32_t i = 0; i < children; ++i) {
                         const Source& from = sources[i];
                         appendLevel(from.positions, from.ecol, from.triangles, maps[i], choice.levels[i], from.world,
                                     merged.positions, merged.indices);
+                        // The level's vertices are the first choice.levels[i] of the child's.
+                        for (uint32_t v = 0; v < choice.levels[i]; ++v)
+                            merged_colours.push_back(tintedColour(from.tint, from.colours[v]));
                         if (from.kept) *from.kept = KeptMesh{};
                     }
                     const float error = choice.error;
                     ProgressiveMesh& p = built[j - b];
                     p = options.cluster ? buildClusteredProgressiveMesh(merged) : buildProgressiveMesh(merged, Collapser::Fast);
+                    colourByPosition(merged.positions, merged_colours, p);
                     h.nodes[n].error = error;
                     if (parent[n] != UINT32_MAX) handUp(n, p, glm::mat4(1.0f), error, 1.0f);
                     if (progress) ++progress->done;

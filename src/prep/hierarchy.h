@@ -40,7 +40,8 @@ ObjectHierarchy buildObjectHierarchy(std::span<const k::Aabb> boxes, std::span<c
                                      uint32_t fanout);
 
 // Subtrees that repeat (issue 34, item 3): node n repeats node r when their subtrees are the same
-// tree of the same meshes and each of n's children sits where r's does relative to the first
+// tree of the same object classes (object_class: equal for objects of the same mesh in the same
+// colour, < 2^32) and each of n's children sits where r's does relative to the first
 // leaf (the linear parts' entries within 1e-5; translations within 1e-5 of the diagonal plus
 // 1e-6 of the largest coordinate, about what float coordinates can tell apart), so that n's
 // geometry is r's moved by the motion (n's first leaf's world) x (r's)^-1, a similarity without
@@ -62,7 +63,7 @@ struct SubtreeRepeats {
 };
 // `order`: the inner nodes, children before parents, in the order their HLODs are built (the
 // first of a class in it is its representative); empty: from the last node to the first.
-SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<const uint32_t> object_mesh,
+SubtreeRepeats findRepeatedSubtrees(std::span<const SceneNode> nodes, std::span<const uint32_t> object_class,
                                     std::span<const glm::mat4> object_world, std::span<const uint32_t> order = {});
 
 // The level of detail with k vertices of a progressive mesh (the first k positions, the first
@@ -124,7 +125,8 @@ struct HlodOptions {
 // picks: only each child's progressive mesh up to child_cap times its share is kept for it (and
 // the progressive meshes of representatives whose repeats a parent still has to merge), so
 // memory stays a batch of HLODs plus small meshes per node of the level below. The objects' meshes
-// come from `file`, whose objects the hierarchy was built for. `done` (if given) counts inner
+// come from `file`, whose objects the hierarchy was built for. Each HLOD vertex carries the colour
+// of what it stands for (ProgressiveMesh::colours): its object's colour times the vertex's own. `done` (if given) counts inner
 // nodes built or shared.
 struct HlodProgress {
     std::atomic<uint64_t> done{0};

@@ -10,13 +10,15 @@
 #include <cmath>
 #include <cstddef>
 #include <span>
+#include <unordered_map>
 
 namespace occ::render {
 
 namespace {
 
 constexpr float kBackground[4] = {0.08f, 0.09f, 0.11f, 1.0f};
-constexpr GLuint kWorldBinding = 0, kColourBinding = 1, kBoxBinding = 2;
+constexpr GLuint kWorldBinding = 0, kColourBinding = 1, kBoxBinding = 2, kItemVertexColourBinding = 3,
+                 kVertexColourBinding = 4;
 constexpr GLint kViewProjLocation = 0, kEyeLocation = 1;
 
 GLuint makeBuffer() {
@@ -70,6 +72,12 @@ std::vector<glm::vec4> itemColours(const DeviceScene& scene, ColourMode mode) {
     };
     if (!scene.nodes) {
         for (uint32_t i = 0; i < n; ++i) colours[i] = colourOf(i);
+        return colours;
+    }
+    if (mode == ColourMode::Model) {
+        // An HLOD's vertices carry its objects' colours (the .oss's COLOURS): its own is white.
+        for (uint32_t i = 0; i < n; ++i)
+            colours[i] = scene.host_nodes[i].child_count == 0 ? colourOf(scene.host_nodes[i].object) : glm::vec4(1.0f);
         return colours;
     }
     std::vector<glm::dvec4> sum(n, glm::dvec4(0.0));  // rgb x area, area
@@ -164,6 +172,33 @@ SceneRenderer::SceneRenderer(const DeviceScene& scene, ColourMode colour_mode) :
                                       n ? scene.host_world.data() : nullptr, n ? 0 : GL_DYNAMIC_STORAGE_BIT));
     OCC_GL_CHECK(glNamedBufferStorage(colour_buffer_, GLsizeiptr(std::max<size_t>(1, n) * sizeof(glm::vec4)),
                                       n ? colours.data() : nullptr, n ? 0 : GL_DYNAMIC_STORAGE_BIT));
+    // The HLODs' vertex colours (ColourMode::Model): each HLOD mesh's COLOURS once, and per item
+    // where its mesh's start among them (UINT32_MAX: none, the item's colour alone). The shader
+    // reads a vertex's colour at the draw's first plus gl_VertexID - gl_BaseVertex: a drawn LOD
+    // is a prefix of its mesh's vertices. Resident, not streamed, as the full-detail occluder
+    // meshes are.
+    std::vector<uint32_t> first(std::max<uint32_t>(1, n), UINT32_MAX), vertex_colours;
+    if (colour_mode == ColourMode::Model && scene.nodes && scene.file) {
+        std::unordered_map<uint32_t, uint32_t> first_of_mesh;
+        for (uint32_t i = 0; i < n; ++i) {
+            if (scene.host_nodes[i].child_count == 0) continue;
+            const uint32_t mesh = scene.host_objects[i].mesh;
+            const auto [at, added] = first_of_mesh.try_emplace(mesh, uint32_t(vertex_colours.size()));
+            if (added) {
+                const std::span<const uint32_t> c = scene.file->mesh(mesh).colours;
+                if (vertex_colours.size() + c.size() >= UINT32_MAX)
+                    throw SystemError("OpenGL: the HLODs' vertex colours do not fit 32-bit offsets");
+                vertex_colours.insert(vertex_colours.end(), c.begin(), c.end());
+            }
+            first[i] = at->second;
+        }
+    }
+    item_vertex_colours_ = makeBuffer();
+    vertex_colours_ = makeBuffer();
+    OCC_GL_CHECK(glNamedBufferStorage(item_vertex_colours_, GLsizeiptr(first.size() * sizeof(uint32_t)), first.data(), 0));
+    if (vertex_colours.empty()) vertex_colours.push_back(oss::kWhite);
+    OCC_GL_CHECK(glNamedBufferStorage(vertex_colours_, GLsizeiptr(vertex_colours.size() * sizeof(uint32_t)),
+                                      vertex_colours.data(), 0));
     glCreateVertexArrays(1, &empty_vao_);
     glCreateVertexArrays(1, &lod_vao_);
     for (uint32_t slot = 0; slot < kSlotCount; ++slot) reserve(slot, 4096);
@@ -184,7 +219,7 @@ SceneRenderer::~SceneRenderer() {
         glDeleteBuffers(1, &slot.buffer);
     }
     const GLuint buffers[] = {world_buffer_, colour_buffer_, box_buffer_, full_vertices_, full_indices_,
-                              full_attributes_, full_commands_};
+                              full_attributes_, full_commands_, item_vertex_colours_, vertex_colours_};
     glDeleteBuffers(GLsizei(std::size(buffers)), buffers);
     const GLuint arrays[] = {empty_vao_, lod_vao_, full_vao_};
     glDeleteVertexArrays(GLsizei(std::size(arrays)), arrays);
@@ -285,6 +320,8 @@ void SceneRenderer::multiDraw(GLuint vao, uint32_t draws, const k::Camera& camer
     setCamera(shaded_program_, camera);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kWorldBinding, world_buffer_);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kColourBinding, colour_buffer_);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kItemVertexColourBinding, item_vertex_colours_);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kVertexColourBinding, vertex_colours_);
     glBindVertexArray(vao);
     glMultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr, GLsizei(draws), 0);
 }

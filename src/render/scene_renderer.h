@@ -19,10 +19,10 @@ namespace occ::render {
 glm::vec3 objectColour(uint32_t id);
 
 // Per item of `scene`, the linear RGB colour `mode` gives it (alpha 1; scene/colour.h: the shader
-// lights linear colours and writes sRGB). With a hierarchy an
-// HLOD, which has one colour for all it stands for, takes the mean of its subtree's objects'
-// colours weighted by their boxes' surface areas: the single colour closest in squared error to
-// the mix of objects it covers.
+// lights linear colours and writes sRGB). With a hierarchy an HLOD is white in ColourMode::Model
+// (its vertices carry its objects' colours); with ColourMode::Object it takes the mean of its
+// subtree's objects' colours weighted by their boxes' surface areas: the single colour closest in
+// squared error to the mix of objects it covers.
 std::vector<glm::vec4> itemColours(const DeviceScene& scene, ColourMode mode);
 
 // An offscreen W x H target: RGBA8 colour, R32UI item buffer (object id + 1 per pixel, 0 =
@@ -121,6 +121,7 @@ private:
     const Pipeline* attached_ = nullptr;
     GLuint shaded_program_ = 0, box_program_ = 0;
     GLuint world_buffer_ = 0, colour_buffer_ = 0, box_buffer_ = 0, empty_vao_ = 0;
+    GLuint item_vertex_colours_ = 0, vertex_colours_ = 0;  // HLODs' vertex colours (ColourMode::Model)
     GlSlot slots_[kSlotCount];
     GLsync drawn_ = nullptr;  // after the last frame's draw: the device may write again
     bool writing_ = false;    // between beginDeviceWrites and endDeviceWrites

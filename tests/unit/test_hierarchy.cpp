@@ -17,6 +17,8 @@
 #include "view/camera.h"
 
 #include <glm/gtc/matrix_transform.hpp>
+#include "scene/colour.h"
+
 #include <glm/gtc/type_ptr.hpp>
 #include <gtest/gtest.h>
 
@@ -144,6 +146,60 @@ TEST(Hierarchy, HlodsAreProgressiveMeshesOfTheirSubtrees) {
         EXPECT_GE(glm::length(b.max - b.min), 0.5f * glm::length(node.box.max - node.box.min)) << "node " << n;
     }
     EXPECT_GT(inner, 8u);
+}
+
+// Issue 49: an HLOD's vertices carry the colours of the objects they stand for. Each vertex of
+// an HLOD is a vertex of an object of its subtree, so its colour is that object's (the plant's
+// meshes are white), sRGB-encoded: one of the subtree's object colours, of an object whose box
+// holds the vertex.
+TEST(Hierarchy, HlodVerticesCarryTheColoursOfTheObjectsTheyStandFor) {
+    const HierarchyFixture& f = fixture();
+    ObjectHierarchy h = buildObjectHierarchy(f.boxes, f.triangles, 8);
+    HlodOptions options;
+    options.node_triangles = 600;
+    std::vector<ProgressiveMesh> made;
+    buildHlods(*f.file, h, options, [&](ProgressiveMesh&& p) {
+        made.push_back(std::move(p));
+        return uint32_t(made.size() - 1);
+    });
+    const auto encoded = [](const float* linear) {
+        uint32_t c = 0xFF000000u;
+        for (int k = 0; k < 3; ++k) c |= uint32_t(std::lround(255.0f * linearToSrgb(linear[k]))) << (8 * k);
+        return c;
+    };
+    const std::span<const oss::ObjectDisk> objects = f.file->objects();
+    size_t checked = 0, multicoloured = 0;
+    for (size_t n = 0; n < h.nodes.size(); ++n) {
+        if (h.nodes[n].child_count == 0) continue;
+        // The subtree's objects.
+        std::vector<uint32_t> subtree, stack{uint32_t(n)};
+        while (!stack.empty()) {
+            const SceneNode& s = h.nodes[stack.back()];
+            stack.pop_back();
+            if (s.child_count == 0) subtree.push_back(s.object);
+            for (uint32_t c = s.first_child; c < s.first_child + s.child_count; ++c) stack.push_back(c);
+        }
+        const ProgressiveMesh& p = made[h.nodes[n].mesh];
+        ASSERT_EQ(p.colours.size(), p.positions.size()) << "node " << n;
+        std::set<uint32_t> seen;
+        for (size_t v = 0; v < p.positions.size(); ++v) {
+            bool found = false;
+            for (uint32_t o : subtree) {
+                const oss::ObjectDisk& d = objects[o];
+                const glm::vec3 lo = glm::make_vec3(d.aabb_min), hi = glm::make_vec3(d.aabb_max);
+                const glm::vec3 slack = 1e-4f * (hi - lo) + glm::vec3(1e-4f);
+                if (encoded(d.color) == p.colours[v] && glm::all(glm::lessThanEqual(lo - slack, p.positions[v])) &&
+                    glm::all(glm::lessThanEqual(p.positions[v], hi + slack)))
+                    found = true;
+            }
+            EXPECT_TRUE(found) << "node " << n << " vertex " << v << " colour " << std::hex << p.colours[v];
+            seen.insert(p.colours[v]);
+            ++checked;
+        }
+        multicoloured += seen.size() > 1;
+    }
+    EXPECT_GT(checked, 1000u);
+    EXPECT_GT(multicoloured, 4u);
 }
 
 // A cloud of 512 small closed tetrahedra: edge collapses cannot go below the 4 triangles each

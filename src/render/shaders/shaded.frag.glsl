@@ -4,7 +4,7 @@
 // linear (glTF's baseColorFactor is); lighting happens in linear light and the result is written
 // sRGB-encoded, as a glTF viewer shows it.
 in vec3 world_position;
-flat in vec3 base_colour;
+in vec3 base_colour;
 flat in uint item;
 // The window depth of the object's box's nearest point (0 when the box reaches the near
 // plane). No surface of the object is nearer, but a rasteriser interpolating depth at a pixel

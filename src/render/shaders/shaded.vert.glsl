@@ -1,4 +1,5 @@
 #version 450 core
+#extension GL_ARB_shader_draw_parameters : require
 // One vertex of an object's mesh, in the mesh's own coordinates; the object and its depth
 // floor come from per-draw attributes (divisor 1, read at the draw's base instance), so one
 // multi-draw call draws many objects.
@@ -8,18 +9,29 @@ layout(location = 2) in float object_depth_floor;
 
 layout(std430, binding = 0) readonly buffer ObjectWorld { mat4 world[]; };
 layout(std430, binding = 1) readonly buffer ObjectColour { vec4 colour[]; };
+// Per object, where its mesh's vertex colours start in VertexColour (0xFFFFFFFF: none); a drawn
+// LOD is a prefix of its mesh's vertices, so vertex gl_VertexID - gl_BaseVertexARB of the draw is
+// the mesh's vertex of that number. Colours are RGBA8, sRGB.
+layout(std430, binding = 3) readonly buffer ItemVertexColour { uint colour_first[]; };
+layout(std430, binding = 4) readonly buffer VertexColour { uint vertex_colour[]; };
 
 layout(location = 0) uniform mat4 view_proj;
 
 out vec3 world_position;
-flat out vec3 base_colour;
+out vec3 base_colour;
 flat out uint item;
 flat out float depth_floor;
 
 void main() {
     vec4 p = world[object_id] * vec4(position, 1.0);
     world_position = p.xyz;
-    base_colour = colour[object_id].rgb;
+    vec3 c = colour[object_id].rgb;
+    const uint first = colour_first[object_id];
+    if (first != 0xFFFFFFFFu) {
+        const vec3 v = unpackUnorm4x8(vertex_colour[first + uint(gl_VertexID - gl_BaseVertexARB)]).rgb;
+        c *= mix(v / 12.92, pow((v + 0.055) / 1.055, vec3(2.4)), step(vec3(0.04045), v));
+    }
+    base_colour = c;
     item = object_id + 1u;  // 0 = background in the item buffer
     depth_floor = object_depth_floor;
     gl_Position = view_proj * p;
