@@ -17,6 +17,14 @@ struct BenchMassiveOptions {
     // objects walked and orbited with the hierarchy for the growth (none when not below objects).
     uint32_t reference_frames = 30;
     uint32_t growth_objects = 10000;
+    // With a hierarchy and reference frames, the picture stage (issue 49): the walk's and the
+    // orbit's prefixes of the plant, of a plant of picture_objects objects (none when 0 or not
+    // below objects) and, with village, of the KIT house tiled 10 x 1 x 10 (made with assimp
+    // from assimp-testmodels' IFC; skipped, with the reason in the report, where either is
+    // missing), each drawn against full detail in model and uniform colours, flat and with the
+    // hierarchy.
+    uint32_t picture_objects = 100000;
+    bool village = true;
     // With a hierarchy: the engine tiled grid x grid x grid times (gen grid) prepared without and
     // with it, for the time and size of sharing HLODs among repeated subtrees (0: none).
     uint32_t grid = 10;
@@ -34,7 +42,13 @@ struct BenchMassiveOptions {
 // DIR/logs; prints the summary's path on stdout. With a hierarchy in the scene, also the walk
 // and the orbit with it (items drawn, triangles, cut churn), the orbit's prefix against the
 // full-detail picture flat and with it (PSNR), the growth from a small plant, and the engine grid
-// prepared without and with the hierarchy (time, peak, size; issue 34).
+// prepared without and with the hierarchy (time, peak, size; issue 34). With a hierarchy and
+// --reference-frames, the picture stage (issue 49): for the plant, the picture plant and the
+// KIT village, the walk's and the orbit's prefixes in model and uniform colours, each drawn
+// flat and with the hierarchy against full detail; a row each (pooled PSNR, perceptibly changed
+// share, SSIM, the bound's beyond-tau share, the three targets' verdicts with their margins) in
+// massive.md's section "Pictures against full detail" and in DIR/pictures.csv. massive.csv's
+// rows are the same with or without it. Throws UsageError for impossible options.
 int runBenchMassive(const BenchMassiveOptions& options);
 
 }  // namespace occ::bench

@@ -96,11 +96,18 @@ Command addBenchCommand(CLI::App& app) {
                    "With a hierarchy in the scene (prep's default) also the walk and the orbit with it, the\n"
                    "orbit's prefix against the full-detail picture flat and with it, a small plant's walk\n"
                    "and orbit with it (growth), and the engine grid prepared without and with it; when it makes\n"
-                   "the plant, it also times prep with --hierarchy off (the flat file is not kept).\n"
+                   "the plant, it also times prep with --hierarchy off (the flat file is not kept). With a\n"
+                   "hierarchy and --reference-frames, the picture stage (issue 49): the walk's and the orbit's\n"
+                   "prefixes of the plant, of a --picture-objects plant and of the KIT village (assimp-testmodels'\n"
+                   "KIT house exported by assimp, then gen grid 10x1x10; skipped, with the reason, without them),\n"
+                   "each in --colours model and uniform, drawn flat and with the hierarchy against full detail:\n"
+                   "pooled PSNR, perceptibly changed share, SSIM, the bound's share beyond tau and the targets'\n"
+                   "verdicts, in massive.md's section \"Pictures against full detail\" and in pictures.csv.\n"
                    "On 2 cores: about 10 minutes to make the 10^6-object scene (4 more for the flat prep), then\n"
                    "about 12 minutes of runs,\n"
                    "and with a hierarchy about 40 more, mostly the two reference runs, which draw the full-detail\n"
-                   "plant every frame (docs/results.md).");
+                   "plant every frame (docs/results.md); the picture stage adds 22 such runs, 6 of them on the\n"
+                   "plant itself (2 orbits), the rest on scenes a tenth of its size or less.");
     massive->add_option("--out", mo->out, "results folder (created if missing)")->required();
     massive->add_option("--scenes", mo->scenes, "where the plant is made once and reused (default: OUT/scenes)");
     massive->add_option("--objects", mo->objects, "objects of the plant")->check(CLI::Range(1000u, 10000000u))->capture_default_str();
@@ -109,7 +116,19 @@ Command addBenchCommand(CLI::App& app) {
         ->capture_default_str();
     massive->add_option("--reference-frames", mo->reference_frames,
                         "with a hierarchy: frames of the orbit's prefix drawn against the full-detail picture, flat "
-                        "and with the hierarchy (PSNR)")
+                        "and with the hierarchy (PSNR), and of each path of the picture stage (0: neither)")
+        ->capture_default_str();
+    massive->add_option("--picture-objects", mo->picture_objects,
+                        "with a hierarchy and reference frames: a plant of this many objects in the picture stage "
+                        "(0, or not below --objects: none)")
+        ->check(CLI::Range(0u, 10000000u))
+        ->capture_default_str();
+    auto village = std::make_shared<std::string>("on");
+    massive->add_option("--village", *village,
+                        "with a hierarchy and reference frames: the KIT village in the picture stage (on needs "
+                        "`assimp`, Debian's assimp-utils, and assimp-testmodels' IFC; skipped, with the reason, "
+                        "without them)")
+        ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
     massive->add_option("--growth-objects", mo->growth_objects,
                         "with a hierarchy: a plant of this many objects also walked and orbited with it, for the "
@@ -166,12 +185,15 @@ Command addBenchCommand(CLI::App& app) {
     links->add_option("--size", lo->size, "render --size WxH")->capture_default_str();
     links->add_option("--run-timeout", lo->run_timeout_s, "seconds after which a run is stopped and reported")
         ->capture_default_str();
-    return {bench, [o, prep, po, size, pvs, ao, all, mo, massive, ro, ranks, lo, links] {
+    return {bench, [o, prep, po, size, pvs, ao, all, mo, massive, village, ro, ranks, lo, links] {
                 if (links->parsed()) return runBenchLinks(*lo);
                 if (ranks->parsed()) return runBenchRanks(*ro);
                 if (prep->parsed()) return runBenchPrep(*o);
                 if (all->parsed()) return runBenchAll(*ao);
-                if (massive->parsed()) return runBenchMassive(*mo);
+                if (massive->parsed()) {
+                    mo->village = *village == "on";
+                    return runBenchMassive(*mo);
+                }
                 parseViewportSize("--size", *size, po->width, po->height);
                 po->pvs_occluder_triangles = parseOccluderTriangles(*pvs);
                 return runPipelineBench(*po);
