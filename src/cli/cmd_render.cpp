@@ -8,6 +8,7 @@
 #include "net/transport.h"
 #include "pipeline/pipeline.h"
 #include "render/colour_mode.h"
+#include "render/picture_metrics.h"
 #include "roles/occlusion_switch.h"
 #include "cli/model_cache.h"
 #include "scene/atomic_file.h"
@@ -445,9 +446,10 @@ void printRunSummary(const RunReport& r) {
         const double beyond = sum.bound_pixels ? 100.0 * double(sum.bound_beyond_tau) / double(sum.bound_pixels) : 0.0;
         std::printf("reference: PSNR %.2f dB pooled (%.2f mean, %.2f lowest); %.3f%% of pixels changed, %.3f%% "
                     "perceptibly (CIEDE2000 > 2); SSIM %.4f (mean); bound: %.2f%% of changed pixels lie farther "
-                    "than tau = %g px from their item (99th percentile within tau: %s; worst frame's p99 %.2f px)\n",
+                    "than %g px (tau, at least a pixel) from their item (99th percentile within it: %s; worst frame's "
+                    "p99 %.2f px)\n",
                     sum.pooledPsnrDb(), sum.psnr_db / frames, sum.min_psnr_db, sum.changed_pixel_share / frames,
-                    sum.perceptible_share / frames, sum.ssim / frames, beyond, double(r.config.pipeline.tau),
+                    sum.perceptible_share / frames, sum.ssim / frames, beyond, double(render::boundCheckPixels(r.config.pipeline.tau)),
                     beyond <= 1.0 ? "yes" : "no", sum.max_bound_p99_px);
     }
     if (!o.out.empty()) std::printf("frames: %s/frame_*.png\n", o.out.c_str());
@@ -635,7 +637,8 @@ Command addRenderCommand(CLI::App& app) {
     sub->add_flag("--reference", o->reference,
                   "also draw the full-detail unculled frame and compare: the columns psnr_db, changed_pixel_share,\n"
                   "mse, perceptible_share (CIEDE2000 > 2), ssim, bound_p99_px, bound_pixels and bound_beyond_tau\n"
-                  "(changed pixels farther than --tau from their item in the reference); pooled in the summary");
+                  "(changed pixels farther than --tau, at least a pixel, from their item in the reference); pooled\n"
+                  "in the summary");
     sub->add_option("--debug-views", o->debug_views,
                     "write the occluders' depth, the HZM levels and the culling view of chosen frames into DIR");
     sub->add_option("--debug-frames", o->debug_frames, "frames for --debug-views (default: first, middle, last)")

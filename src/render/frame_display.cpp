@@ -154,7 +154,7 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
         full_->readItems(items_);
         mapToDrawnItems(pipeline, items_);
         const PictureDifference d = comparePictures(ours.data(), full_picture_.data(), our_items_.data(), items_.data(),
-                                                    width_, height_, options_.tau);
+                                                    width_, height_, boundCheckPixels(options_.tau));
         s.psnr_db = d.psnr_db;
         s.mse = d.mse;
         s.perceptible_share = d.perceptible_percent;

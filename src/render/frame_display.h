@@ -28,7 +28,8 @@ struct DisplayOptions {
     // grey) makes pictures differ only in geometry and shading, the part of a comparison a
     // simplification is answerable for.
     ColourMode colours = ColourMode::Model;
-    // The pixel error bound the reference's bound check counts against (PipelineOptions::tau).
+    // The pixel error bound the reference's bound check counts against (PipelineOptions::tau),
+    // at least one pixel (boundCheckPixels).
     float tau = 1.0f;
 };
 

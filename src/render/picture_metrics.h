@@ -79,6 +79,12 @@ double percentile(std::vector<float>& values, double p);
 // while bounding the cost of a pixel whose item vanished to 33 x 33 lookups.
 inline constexpr uint32_t kBoundSearchRadiusPx = 16;
 
+// The distance the bound check allows a changed pixel from its item: tau, but at least one pixel.
+// Distances between pixel centres are whole pixels or longer, and an edge that moves by any
+// fraction of a pixel flips the pixels it crosses, so one pixel is the finest bound the raster
+// can show; a sub-pixel tau is held to it.
+inline float boundCheckPixels(float tau) { return tau > 1.0f ? tau : 1.0f; }
+
 // Sum of the squared differences of two byte strings of `bytes` bytes (exact: integers).
 double squaredError(const uint8_t* a, const uint8_t* b, uint64_t bytes);
 
