@@ -32,20 +32,13 @@ namespace {
 void readMaterialLibrary(const std::string& path, std::map<std::string, glm::vec4>& colours) {
     const std::string text = readTextModelFile(path);
     std::string material;
-    size_t line_no = 0, start = 0;
-    while (start < text.size()) {
-        size_t end = text.find('\n', start);
-        if (end == std::string::npos) end = text.size();
-        ++line_no;
-        const std::vector<std::string> w = lineWords(std::string_view(text).substr(start, end - start));
-        start = end + 1;
-        if (w.empty()) continue;
+    forEachLineWords(text, [&](size_t line_no, const std::vector<std::string>& w) {
         if (w[0] == "newmtl") {
             material.clear();
             for (size_t k = 1; k < w.size(); ++k) material += (k > 1 ? " " : "") + w[k];
             colours.emplace(material, glm::vec4(0.8f, 0.8f, 0.8f, 1.0f));
         } else if (w[0] == "Kd") {
-            if (w.size() < 2 || w[1] == "spectral" || w[1] == "xyz") continue;  // not an RGB colour: Mesh's grey
+            if (w.size() < 2 || w[1] == "spectral" || w[1] == "xyz") return;  // not an RGB colour: Mesh's grey
             glm::vec4 kd(0, 0, 0, 1);
             for (size_t k = 0; k < 3; ++k) {
                 // "Kd r" alone means r g b all r.
@@ -58,7 +51,7 @@ void readMaterialLibrary(const std::string& path, std::map<std::string, glm::vec
             }
             if (!material.empty()) colours[material] = kd;
         }
-    }
+    });
 }
 
 }  // namespace
@@ -91,16 +84,8 @@ Scene importObj(const std::string& path) {
         if (colour == material_colours.end() && !material.empty() && unknown_materials.insert(material).second)
             ++scene.skipped.unknown_materials;
     };
-    std::vector<std::string> w;
     std::vector<uint32_t> face;
-    size_t line_no = 0, start = 0;
-    while (start < text.size()) {
-        size_t end = text.find('\n', start);
-        if (end == std::string::npos) end = text.size();
-        ++line_no;
-        w = lineWords(std::string_view(text).substr(start, end - start));
-        start = end + 1;
-        if (w.empty()) continue;
+    forEachLineWords(text, [&](size_t line_no, const std::vector<std::string>& w) {
         const auto bad = [&](const std::string& what) {
             throw InputError(path, "line " + std::to_string(line_no) + ": " + what);
         };
@@ -170,7 +155,7 @@ Scene importObj(const std::string& path) {
         } else if (key == "l") {
             ++scene.skipped.lines;
         }
-    }
+    });
     // One object for the file when at most one group has faces.
     if (std::count(group_has_faces.begin(), group_has_faces.end(), true) <= 1) {
         soup.face_group.clear();

@@ -44,17 +44,11 @@ struct Corners {
 };
 
 void readAscii(const std::string& path, const std::string& text, Corners& corners) {
-    size_t line_no = 0, start = 0, facet_line = 0, in_loop = 0;
+    size_t facet_line = 0, in_loop = 0;
     uint32_t facet[3];
     int count = 0;
     bool in_facet = false, in_solid = false;
-    while (start < text.size()) {
-        size_t end = text.find('\n', start);
-        if (end == std::string::npos) end = text.size();
-        ++line_no;
-        const std::vector<std::string> w = lineWords(std::string_view(text).substr(start, end - start));
-        start = end + 1;
-        if (w.empty()) continue;
+    forEachLineWords(text, [&](size_t line_no, const std::vector<std::string>& w) {
         const auto bad = [&](size_t line, const std::string& what) {
             throw InputError(path, "line " + std::to_string(line) + ": " + what);
         };
@@ -98,7 +92,7 @@ void readAscii(const std::string& path, const std::string& text, Corners& corner
         } else {
             bad(line_no, "unknown keyword '" + key + "'");
         }
-    }
+    });
     if (in_facet) throw InputError(path, "truncated: the facet of line " + std::to_string(facet_line) + " has no endfacet");
     if (in_solid) throw InputError(path, "truncated: no endsolid");
 }

@@ -55,6 +55,21 @@ std::string readTextModelFile(const std::string& path);
 // The whitespace-separated words of one line, up to a '#' comment.
 std::vector<std::string> lineWords(std::string_view line);
 
+// Calls visit(line_number, words) for every line of `text` that has words (lineWords; line
+// numbers from 1, as messages name them).
+template <class Visit>
+void forEachLineWords(std::string_view text, Visit&& visit) {
+    size_t line_no = 0, start = 0;
+    while (start < text.size()) {
+        size_t end = text.find('\n', start);
+        if (end == std::string_view::npos) end = text.size();
+        ++line_no;
+        const std::vector<std::string> words = lineWords(text.substr(start, end - start));
+        start = end + 1;
+        if (!words.empty()) visit(line_no, words);
+    }
+}
+
 // Appends to `scene` one mesh and object per group that has triangles (one for the whole soup,
 // named after the file `path`, when it has no groups), each holding only the vertices it uses,
 // coloured by its group's material where it has one, else by the mean of its vertices' colours
