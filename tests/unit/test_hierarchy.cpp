@@ -103,17 +103,30 @@ TEST(Hierarchy, EveryObjectIsOneLeafAndNodesBoundTheirChildrenBreadthFirst) {
 
 // Every inner node's HLOD is a valid progressive mesh in world space, inside its node's box,
 // covering most of it, from a merged input of about twice node_triangles.
-TEST(Hierarchy, HlodsAreProgressiveMeshesOfTheirSubtrees) {
-    const HierarchyFixture& f = fixture();
-    ObjectHierarchy h = buildObjectHierarchy(f.boxes, f.triangles, 8);
+// The fixture plant's hierarchy (fanout 8) with its HLODs of about 600 triangles, kept in memory:
+// node n's HLOD is made[h.nodes[n].mesh].
+struct BuiltHlods {
+    ObjectHierarchy h;
     HlodOptions options;
-    options.node_triangles = 600;
     std::vector<ProgressiveMesh> made;
     HlodProgress progress;
-    buildHlods(*f.file, h, options, [&](ProgressiveMesh&& p) {
-        made.push_back(std::move(p));
-        return uint32_t(made.size() - 1);
-    }, &progress);
+    BuiltHlods() {
+        const HierarchyFixture& f = fixture();
+        h = buildObjectHierarchy(f.boxes, f.triangles, 8);
+        options.node_triangles = 600;
+        buildHlods(*f.file, h, options, [&](ProgressiveMesh&& p) {
+            made.push_back(std::move(p));
+            return uint32_t(made.size() - 1);
+        }, &progress);
+    }
+};
+
+TEST(Hierarchy, HlodsAreProgressiveMeshesOfTheirSubtrees) {
+    const BuiltHlods built;
+    const ObjectHierarchy& h = built.h;
+    const HlodOptions& options = built.options;
+    const std::vector<ProgressiveMesh>& made = built.made;
+    const HlodProgress& progress = built.progress;
     EXPECT_EQ(progress.done, progress.total);
     std::vector<ProgressiveMesh> hlods(h.nodes.size());
     for (size_t n = 0; n < h.nodes.size(); ++n)
@@ -154,14 +167,9 @@ TEST(Hierarchy, HlodsAreProgressiveMeshesOfTheirSubtrees) {
 // holds the vertex.
 TEST(Hierarchy, HlodVerticesCarryTheColoursOfTheObjectsTheyStandFor) {
     const HierarchyFixture& f = fixture();
-    ObjectHierarchy h = buildObjectHierarchy(f.boxes, f.triangles, 8);
-    HlodOptions options;
-    options.node_triangles = 600;
-    std::vector<ProgressiveMesh> made;
-    buildHlods(*f.file, h, options, [&](ProgressiveMesh&& p) {
-        made.push_back(std::move(p));
-        return uint32_t(made.size() - 1);
-    });
+    const BuiltHlods built;
+    const ObjectHierarchy& h = built.h;
+    const std::vector<ProgressiveMesh>& made = built.made;
     const auto encoded = [](const float* linear) {
         uint32_t c = 0xFF000000u;
         for (int k = 0; k < 3; ++k) c |= uint32_t(std::lround(255.0f * linearToSrgb(linear[k]))) << (8 * k);
