@@ -715,8 +715,9 @@ Command addRenderCommand(CLI::App& app) {
         ->capture_default_str();
     sub->add_option("--colours", o->colours,
                     "model: each object in its model's colours (glTF baseColorFactor, OBJ Kd, PLY vertex colours),\n"
-                    "an HLOD in its objects' area-weighted mean; object: a pastel per object id, so parts stand\n"
-                    "apart; uniform: every item grey (--reference then compares geometry and shading only)")
+                    "an HLOD's vertices in those of the objects they stand for; object: a pastel per object id, so\n"
+                    "parts stand apart (an HLOD: its objects' area-weighted mean); uniform: every item grey\n"
+                    "(--reference then compares geometry and shading only)")
         ->check(CLI::IsMember({"model", "object", "uniform"}))
         ->capture_default_str();
     sub->add_option("--lod-hysteresis", o->pipeline.lod_hysteresis,
