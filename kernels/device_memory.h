@@ -13,7 +13,7 @@
 #include <utility>
 #include <vector>
 
-// The three kinds of memory of a frame (DESIGN.md, "Memory and the bus"), kept apart by type:
+// The three kinds of memory of a frame (docs/architecture.md, "Memory and the bus"), kept apart by type:
 //   DeviceArray<T> / DevicePtr<T>  device memory the kernels work on: cudaMalloc under CUDA,
 //                                  64-byte-aligned host memory in the CPU build, which stands for
 //                                  it. Host code can hold, offset and pass a DevicePtr, but not
@@ -322,8 +322,8 @@ public:
 };
 
 // Memory someone else owns and lends the kernels: the display's OpenGL buffers, which hold the
-// active arrays themselves so that nothing is mirrored and re-uploaded (DESIGN.md, "Memory and
-// the bus"). Slots are the lender's names for its buffers.
+// active arrays themselves so that nothing is mirrored and re-uploaded (docs/architecture.md,
+// "Memory and the bus"). Slots are the lender's names for its buffers.
 class BufferProvider {
 public:
     virtual ~BufferProvider() = default;

@@ -119,12 +119,12 @@ struct PvsOccluderKey {
         const glm::vec3 nearest = glm::clamp(eye, o.aabb.min, o.aabb.max);
         const float length = glm::length(nearest - eye);
         const float distance = length > near_plane ? length : near_plane;
-        // Screen per rastered triangle. Stop 31 also weighed it by (near / D)^2, so that of two
+        // Screen per rastered triangle. An earlier version also weighed it by (near / D)^2, so that of two
         // occluders as large on screen the nearer one came first (it raised a 10^5 plant orbit's
         // culling then). Measured again with issue 32's late pass and kept objects, that factor
         // paid nowhere and cost the 10^8-triangle grid walk a fifth of its culling: 8 547
         // objects culled a frame with it, 10 616 without; the 10^5 plant orbit 88 882 and 91 365
-        // (docs/results.md, stop 40).
+        // (docs/results.md, "Where issue 32 ends").
         const float size = glm::length(o.aabb.max - o.aabb.min) / distance;
         const float triangles = float(o.triangle_count > 1 ? o.triangle_count : 1u);
         const float score = size * size * o.compactness / triangles;

@@ -14,7 +14,7 @@
 
 namespace occ::roles {
 
-// Who does what, from the number of ranks (DESIGN.md, "Roles and ranks"; docs/scaling.md):
+// Who does what, from the number of ranks (docs/architecture.md, "Roles and ranks"; docs/scaling.md):
 //   1 rank:  rank 0 does OR, HC and RVG of every frame, in that order;
 //   2 ranks: rank 0 is RVG; rank 1 does OR then HC of every frame;
 //   3 ranks: rank 0 is RVG; ranks 1 and 2 form the occlusion switch (Govindaraju et al. 2003):

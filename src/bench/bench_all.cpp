@@ -62,7 +62,7 @@ const SizeConfig kSizes[] = {
     {"full", {10, 10, 10}, 20000, 100, {{1, 1, 1}, {2, 2, 2}, {4, 4, 4}, {6, 6, 6}, {10, 10, 10}}, 300, 100, 14400},
 };
 
-// The papers' figures set beside ours (../shared/DESIGN.md, "their headline figures").
+// The papers' headline figures set beside ours (as README.md's headline table gives them).
 constexpr double kPeng2014Accuracy = 58.3;            // % of what exact culling culls
 constexpr double kPeng2014TrianglesPerSecond = 110e6;  // on a GPU
 constexpr double kPengCaoStreamedShare = 0.04;        // % of active triangles streamed per frame

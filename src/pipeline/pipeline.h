@@ -140,7 +140,7 @@ struct PipelineOptions {
 
 LodRule parseLodRule(const std::string& s);  // "budget" or "error"; OptionError("lod") otherwise
 
-// The one-rank pipeline: every stage of a frame over the kernels (DESIGN.md, "One frame").
+// The one-rank pipeline: every stage of a frame over the kernels (docs/architecture.md, "One frame").
 // Keeps the previous frame's active set and layout for coherent streaming.
 //
 // Where the data lives: every per-object stage works on device arrays (frustum culling and its
