@@ -236,6 +236,16 @@ struct Plus {
     OCC_HD uint64_t operator()(uint64_t a, uint64_t b) const { return a + b; }
 };
 
+// Each listed object's error-bounded level (ErrorLevel, replacing or raising), summed; one
+// readback of the sum.
+uint64_t errorLevels(const ErrorLevel& level, uint32_t count) {
+    if (count == 0) return 0;
+    const thrust::counting_iterator<uint32_t> first(0);
+    const uint64_t sum = thrust::transform_reduce(onDevice(), first, first + count, level, uint64_t(0), Plus());
+    countReadback(sizeof sum);
+    return sum;
+}
+
 }  // namespace
 
 uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
@@ -244,15 +254,10 @@ uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const u
                           DevicePtr<const float> lod_error, DevicePtr<const float> scale,
                           DevicePtr<const float> error_offset, DevicePtr<const uint32_t> maps,
                           DevicePtr<uint32_t> vertex_count, DevicePtr<uint32_t> triangle_count) {
-    if (count == 0) return 0;
-    const thrust::counting_iterator<uint32_t> first(0);
-    const uint64_t sum = thrust::transform_reduce(
-        onDevice(), first, first + count,
-        ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first), raw(lod_error), raw(scale), raw(error_offset), raw(maps),
-                   raw(vertex_count), raw(triangle_count), false},
-        uint64_t(0), Plus());
-    countReadback(sizeof sum);
-    return sum;
+    return errorLevels(ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first),
+                                  raw(lod_error), raw(scale), raw(error_offset), raw(maps), raw(vertex_count),
+                                  raw(triangle_count), false},
+                       count);
 }
 
 uint64_t lodRaiseToErrorBound(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
@@ -261,15 +266,10 @@ uint64_t lodRaiseToErrorBound(DevicePtr<const ObjectInfo> objects, DevicePtr<con
                               DevicePtr<const float> scale, DevicePtr<const float> error_offset,
                               DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
                               DevicePtr<uint32_t> triangle_count) {
-    if (count == 0) return 0;
-    const thrust::counting_iterator<uint32_t> first(0);
-    const uint64_t sum = thrust::transform_reduce(
-        onDevice(), first, first + count,
-        ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first), raw(lod_error), raw(scale), raw(error_offset), raw(maps),
-                   raw(vertex_count), raw(triangle_count), true},
-        uint64_t(0), Plus());
-    countReadback(sizeof sum);
-    return sum;
+    return errorLevels(ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first),
+                                  raw(lod_error), raw(scale), raw(error_offset), raw(maps), raw(vertex_count),
+                                  raw(triangle_count), true},
+                       count);
 }
 
 uint64_t lodSelect(DevicePtr<const ObjectInfo> object_memory, DevicePtr<const uint32_t> id_memory, uint32_t count,
