@@ -58,6 +58,8 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
         hlod.node_triangles = prep.node_triangles;
         hlod.reduction = prep.hlod_reduction;
         hlod.cluster = prep.hlod_cluster;
+        hlod.place = prep.hlod_place;
+        hlod.colour_borders = prep.hlod_colour_borders;
         hlod.share_repeats = prep.hlod_share;
         hlod.threads = prep.threads;
         ObjectHierarchy h;
@@ -113,6 +115,8 @@ struct PrepCommandOptions {
     std::string hierarchy = "on";
     std::string hlod_cluster = "on";
     std::string hlod_share = "on";
+    std::string hlod_place = "on";
+    std::string hlod_colour_borders = "off";
     ImportOptions import;
 };
 
@@ -128,6 +132,8 @@ int runPrep(PrepCommandOptions o) {
     o.prep.hierarchy = o.hierarchy == "on";
     o.prep.hlod_cluster = o.hlod_cluster == "on";
     o.prep.hlod_share = o.hlod_share == "on";
+    o.prep.hlod_place = o.hlod_place == "on";
+    o.prep.hlod_colour_borders = o.hlod_colour_borders == "on";
     if (o.prep.fanout < 2 || o.prep.fanout > 64)
         throw UsageError("--fanout " + std::to_string(o.prep.fanout) + ": must be in [2, 64]");
     if (o.prep.node_triangles < 16)
@@ -193,6 +199,17 @@ Command addPrepCommand(CLI::App& app) {
                     "hierarchy: on: an HLOD's edge collapses go on as vertex clustering (a grid whose cell\n"
                     "doubles), so small objects vanish and neighbours join; off: edge collapses only, which\n"
                     "keep every object's floor")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
+    sub->add_option("--hlod-place", o->hlod_place,
+                    "hierarchy: on: a cluster's vertices move onto a new vertex where the squared distances to\n"
+                    "the planes they stand for are least (Lindstrom 2000), so flat parts stay flat; off: onto\n"
+                    "the member nearest the cluster's centre")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
+    sub->add_option("--hlod-colour-borders", o->hlod_colour_borders,
+                    "hierarchy: on: clustering never joins vertices of different colours (a cell keeps one\n"
+                    "cluster per colour); off: a cluster mixes its members' colours")
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
     sub->add_option("--hlod-share", o->hlod_share,

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "prep/cluster_collapse.h"
 
+#include "scene/colour.h"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -8,10 +10,67 @@
 
 namespace occ {
 
-CollapseSequence clusterAfterCollapses(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& triangles,
-                                       CollapseSequence sequence, const ClusterOptions& options) {
+namespace {
+
+// The planes of a vertex's triangles as one quadric: sum of area x (n.p + d)^2, kept as
+// A = sum area n n^T, b = sum area d n (the constant is not needed to find the minimum).
+struct PlaneSum {
+    glm::dmat3 a{0.0};
+    glm::dvec3 b{0.0};
+    double area = 0.0;
+    void add(const PlaneSum& o) {
+        a += o.a;
+        b += o.b;
+        area += o.area;
+    }
+};
+
+// Eigenvalues and eigenvectors (columns of `vectors`) of a symmetric 3x3 matrix, cyclic Jacobi.
+void symmetricEigen(glm::dmat3 m, glm::dvec3& values, glm::dmat3& vectors) {
+    vectors = glm::dmat3(1.0);
+    for (int sweep = 0; sweep < 16; ++sweep) {
+        const double off = m[0][1] * m[0][1] + m[0][2] * m[0][2] + m[1][2] * m[1][2];
+        const double scale = m[0][0] * m[0][0] + m[1][1] * m[1][1] + m[2][2] * m[2][2];
+        if (off <= 1e-24 * scale || off == 0.0) break;
+        for (int p = 0; p < 2; ++p)
+            for (int q = p + 1; q < 3; ++q) {
+                if (m[p][q] == 0.0) continue;
+                const double theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
+                const double t = (theta >= 0 ? 1.0 : -1.0) / (std::abs(theta) + std::sqrt(theta * theta + 1.0));
+                const double c = 1.0 / std::sqrt(t * t + 1.0), s = t * c;
+                glm::dmat3 r(1.0);
+                r[p][p] = c, r[q][q] = c, r[q][p] = s, r[p][q] = -s;  // column-major: r[col][row]
+                m = glm::transpose(r) * m * r;
+                vectors = vectors * r;
+            }
+    }
+    values = {m[0][0], m[1][1], m[2][2]};
+}
+
+// The point of least squared distance to the planes, nearest `centre` along the directions the
+// planes leave free (eigenvalues under 1e-3 of the largest: Lindstrom's truncated inverse).
+glm::dvec3 leastSquaresPoint(const PlaneSum& q, const glm::dvec3& centre) {
+    glm::dvec3 values;
+    glm::dmat3 vectors;
+    symmetricEigen(q.a, values, vectors);
+    const double largest = std::max({values.x, values.y, values.z});
+    if (!(largest > 0.0)) return centre;
+    const glm::dvec3 residual = -(q.a * centre + q.b);
+    glm::dvec3 x = centre;
+    for (int i = 0; i < 3; ++i)
+        if (values[i] > 1e-3 * largest) x += vectors[i] * (glm::dot(vectors[i], residual) / values[i]);
+    return x;
+}
+
+}  // namespace
+
+CollapseSequence clusterAfterCollapses(std::vector<glm::vec3>& positions, std::vector<uint32_t>* colours,
+                                       const std::vector<uint32_t>& triangles, CollapseSequence sequence,
+                                       const ClusterOptions& options) {
     if (!(options.first_cell > 0.0f && options.first_cell <= options.last_cell))
         throw std::invalid_argument("clusterAfterCollapses: need 0 < first_cell <= last_cell");
+    if (colours && colours->size() != positions.size())
+        throw std::invalid_argument("clusterAfterCollapses: one colour per position expected");
     const uint32_t n = uint32_t(positions.size());
     const uint32_t tc = uint32_t(triangles.size() / 3);
     if (n == 0 || tc == 0) return sequence;
@@ -35,6 +94,25 @@ CollapseSequence clusterAfterCollapses(const std::vector<glm::vec3>& positions, 
     sequence.triangle_offsets.resize(keep + 1);
     sequence.triangles.resize(sequence.triangle_offsets[keep]);
 
+    // Each input vertex's planes (its triangles', area-weighted), summed onto the survivors of
+    // the edge collapses as they merge.
+    std::vector<PlaneSum> planes(options.place ? n : 0);
+    if (options.place)
+        for (uint32_t t = 0; t < tc; ++t) {
+            const glm::dvec3 p0 = positions[triangles[3 * t]], p1 = positions[triangles[3 * t + 1]],
+                             p2 = positions[triangles[3 * t + 2]];
+            const glm::dvec3 cross = glm::cross(p1 - p0, p2 - p0);
+            const double len = glm::length(cross);
+            if (!(len > 0.0)) continue;
+            const glm::dvec3 normal = cross / len;
+            const double area = 0.5 * len, d = -glm::dot(normal, p0);
+            PlaneSum s;
+            s.a = area * glm::outerProduct(normal, normal);
+            s.b = area * d * normal;
+            s.area = area;
+            for (int c = 0; c < 3; ++c) planes[triangles[3 * t + c]].add(s);
+        }
+
     // The state the collapses leave: each vertex's survivor, the triangles alive and their corners.
     std::vector<uint32_t> survivor(n);
     std::iota(survivor.begin(), survivor.end(), 0u);
@@ -42,6 +120,7 @@ CollapseSequence clusterAfterCollapses(const std::vector<glm::vec3>& positions, 
     for (size_t i = 0; i < keep; ++i) {
         survivor[sequence.removed[i]] = sequence.kept[i];
         alive[sequence.removed[i]] = 0;
+        if (options.place) planes[sequence.kept[i]].add(planes[sequence.removed[i]]);
     }
     for (uint32_t t : sequence.triangles) dead[t] = 1;
     const auto find = [&](uint32_t v) {
@@ -65,42 +144,107 @@ CollapseSequence clusterAfterCollapses(const std::vector<glm::vec3>& positions, 
     }
 
     std::vector<float> radius(n, 0.0f);
+    std::vector<uint32_t> member_mark(n, 0);
+    uint32_t cluster_id = 0;
     std::vector<uint32_t> members, order, died;
-    std::vector<std::pair<uint64_t, uint32_t>> keyed;
+    struct Keyed {
+        uint64_t cell;
+        uint32_t colour, vertex;
+        bool operator<(const Keyed& o) const {
+            return cell != o.cell ? cell < o.cell : colour != o.colour ? colour < o.colour : vertex < o.vertex;
+        }
+        bool sameCluster(const Keyed& o) const { return cell == o.cell && colour == o.colour; }
+    };
+    std::vector<Keyed> keyed;
+    const bool by_colour = options.colour_borders && colours;
+    // Would moving the members onto p turn a triangle that survives over (or flat from not)?
+    const auto turnsOver = [&](const glm::vec3& p, uint32_t mark) {
+        for (uint32_t v : members)
+            for (uint32_t t : incident[v]) {
+                if (dead[t]) continue;
+                const uint32_t* c = &corners[3 * t];
+                const int inside = (member_mark[c[0]] == mark) + (member_mark[c[1]] == mark) + (member_mark[c[2]] == mark);
+                if (inside >= 2) continue;  // degenerate once clustered
+                glm::vec3 moved[3];
+                for (int k = 0; k < 3; ++k) moved[k] = member_mark[c[k]] == mark ? p : positions[c[k]];
+                const glm::vec3 before = glm::cross(positions[c[1]] - positions[c[0]], positions[c[2]] - positions[c[0]]);
+                const glm::vec3 after = glm::cross(moved[1] - moved[0], moved[2] - moved[0]);
+                if (glm::dot(before, after) < 0.0f) return true;
+            }
+        return false;
+    };
     const float last_cell = extent * options.last_cell * 1.0001f;
     for (float cell = first_cell; cell <= last_cell; cell *= 2.0f) {
         keyed.clear();
-        for (uint32_t v = 0; v < n; ++v) {
+        for (uint32_t v = 0; v < uint32_t(alive.size()); ++v) {
             if (!alive[v]) continue;
             const glm::vec3 g = glm::floor((positions[v] - lo) / cell);
             const uint64_t key = (uint64_t(uint32_t(g.x)) << 42) | (uint64_t(uint32_t(g.y)) << 21) | uint64_t(uint32_t(g.z));
-            keyed.push_back({key, v});
+            keyed.push_back({key, by_colour ? (*colours)[v] : 0u, v});
         }
         if (keyed.size() <= 1) break;
         std::sort(keyed.begin(), keyed.end());
         for (size_t b = 0; b < keyed.size();) {
             size_t e = b + 1;
-            while (e < keyed.size() && keyed[e].first == keyed[b].first) ++e;
+            while (e < keyed.size() && keyed[e].sameCluster(keyed[b])) ++e;
             if (e - b > 1) {
                 members.clear();
+                const uint32_t mark = ++cluster_id;
                 glm::dvec3 centre(0.0);
+                glm::vec3 box_lo(INFINITY), box_hi(-INFINITY);
                 for (size_t j = b; j < e; ++j) {
-                    members.push_back(keyed[j].second);
-                    centre += glm::dvec3(positions[keyed[j].second]);
+                    const uint32_t v = keyed[j].vertex;
+                    members.push_back(v);
+                    member_mark[v] = mark;
+                    centre += glm::dvec3(positions[v]);
+                    box_lo = glm::min(box_lo, positions[v]), box_hi = glm::max(box_hi, positions[v]);
                 }
                 centre /= double(members.size());
-                // The kept vertex: the member nearest the cell's centroid (lowest id on ties).
-                uint32_t kept = members[0];
+                // The member nearest the cell's centroid (lowest id on ties): the point when
+                // nothing is placed.
+                uint32_t nearest = members[0];
                 double best = INFINITY;
                 for (uint32_t v : members) {
                     const glm::dvec3 d = glm::dvec3(positions[v]) - centre;
                     const double d2 = glm::dot(d, d);
-                    if (d2 < best) best = d2, kept = v;
+                    if (d2 < best) best = d2, nearest = v;
+                }
+                uint32_t kept = nearest;
+                if (options.place) {
+                    PlaneSum sum;
+                    for (uint32_t v : members) sum.add(planes[v]);
+                    const glm::vec3 p = glm::clamp(glm::vec3(leastSquaresPoint(sum, centre)), box_lo, box_hi);
+                    if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && !turnsOver(p, mark)) {
+                        kept = uint32_t(positions.size());
+                        positions.push_back(p);
+                        planes.push_back(sum);
+                        alive.push_back(1);
+                        radius.push_back(0.0f);
+                        member_mark.push_back(0);
+                        incident.emplace_back();
+                        if (colours) {
+                            // The members' colours mixed in linear light, by the surface each stands for.
+                            glm::dvec3 mix(0.0);
+                            double weight = 0.0, alpha = 0.0;
+                            for (uint32_t v : members) {
+                                const double w = planes[v].area + 1e-30;
+                                const uint32_t c = (*colours)[v];
+                                for (int k = 0; k < 3; ++k) mix[k] += w * srgbToLinear(float((c >> (8 * k)) & 0xFFu) / 255.0f);
+                                alpha += w * double(c >> 24);
+                                weight += w;
+                            }
+                            uint32_t out = uint32_t(std::lround(alpha / weight)) << 24;
+                            for (int k = 0; k < 3; ++k)
+                                out |= uint32_t(std::lround(255.0f * linearToSrgb(float(mix[k] / weight)))) << (8 * k);
+                            colours->push_back(out);
+                        }
+                    }
                 }
                 order.clear();
                 for (uint32_t v : members)
                     if (v != kept) order.push_back(v);
-                const auto dist = [&](uint32_t v) { return glm::length(positions[v] - positions[kept]); };
+                const glm::vec3 at = positions[kept];
+                const auto dist = [&](uint32_t v) { return glm::length(positions[v] - at); };
                 std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t c) { return dist(a) < dist(c); });
                 for (uint32_t v : order) {
                     const float r = std::max(radius[kept], radius[v] + dist(v));

@@ -270,7 +270,7 @@ uint32_t tintedColour(const glm::vec4& tint, uint32_t colour) {
 }
 
 // The progressive mesh's vertices are vertices of its input (welded where they coincide; edge
-// collapses and clustering keep positions), so each takes the colour of the input vertex at its
+// collapses keep positions), so each takes the colour of the input vertex at its
 // position (of coinciding ones, the first).
 void colourByPosition(const std::vector<glm::vec3>& input, const std::vector<uint32_t>& input_colours, ProgressiveMesh& p) {
     struct Key {
@@ -558,8 +558,15 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                     }
                     const float error = choice.error;
                     ProgressiveMesh& p = built[j - b];
-                    p = options.cluster ? buildClusteredProgressiveMesh(merged) : buildProgressiveMesh(merged, Collapser::Fast);
-                    colourByPosition(merged.positions, merged_colours, p);
+                    if (options.cluster) {
+                        ClusterOptions cluster;
+                        cluster.place = options.place;
+                        cluster.colour_borders = options.colour_borders;
+                        p = buildClusteredProgressiveMesh(merged, merged_colours, cluster);
+                    } else {
+                        p = buildProgressiveMesh(merged, Collapser::Fast);
+                        colourByPosition(merged.positions, merged_colours, p);
+                    }
                     h.nodes[n].error = error;
                     if (parent[n] != UINT32_MAX) handUp(n, p, glm::mat4(1.0f), error, 1.0f);
                     if (progress) ++progress->done;

@@ -110,6 +110,10 @@ struct HlodOptions {
     // Continue each HLOD's edge collapses with vertex clustering (cluster_collapse.h), so that
     // the objects' floors vanish and neighbours join; off: edge collapses only.
     bool cluster = true;
+    // Clusters move onto placed vertices (ClusterOptions::place); off: onto a member.
+    bool place = true;
+    // Clusters do not mix colours (ClusterOptions::colour_borders).
+    bool colour_borders = false;
     // Subtrees that repeat share one HLOD (findRepeatedSubtrees); off: every inner node its own.
     bool share_repeats = true;
     unsigned threads = 0;  // 0: all hardware threads

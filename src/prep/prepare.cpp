@@ -13,6 +13,7 @@
 #include "scene/oss_file.h"
 
 #include <algorithm>
+#include <stdexcept>
 #include <condition_variable>
 #include <exception>
 #include <mutex>
@@ -46,10 +47,30 @@ ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser) {
     });
 }
 
-ProgressiveMesh buildClusteredProgressiveMesh(const Mesh& mesh) {
-    return buildFromSequence(mesh, [](const WeldedMesh& w) {
-        return clusterAfterCollapses(w.positions, w.triangles, fastCollapseSequence(w.positions, w.triangles));
-    });
+ProgressiveMesh buildClusteredProgressiveMesh(const Mesh& mesh, std::span<const uint32_t> colours,
+                                             const ClusterOptions& options) {
+    WeldedMesh welded = weldPositions(mesh.positions, mesh.indices);
+    std::vector<uint32_t> welded_colours;
+    if (!colours.empty()) {
+        if (colours.size() != mesh.positions.size())
+            throw std::invalid_argument("buildClusteredProgressiveMesh: one colour per position expected");
+        welded_colours.reserve(welded.positions.size());
+        for (uint32_t v : welded.source) welded_colours.push_back(colours[v]);
+    }
+    const CollapseSequence sequence =
+        clusterAfterCollapses(welded.positions, colours.empty() ? nullptr : &welded_colours, welded.triangles,
+                              fastCollapseSequence(welded.positions, welded.triangles), options);
+    const CollapseArrays arrays =
+        recordCollapseArrays(uint32_t(welded.positions.size()), uint32_t(welded.triangles.size() / 3), sequence);
+    ProgressiveMesh pm = rearrange(welded.positions, welded.triangles, sequence, arrays);
+    if (!colours.empty()) {
+        pm.colours.resize(pm.positions.size());
+        for (size_t v = 0; v < welded_colours.size(); ++v) pm.colours[arrays.permuteV[v]] = welded_colours[v];
+    }
+    calibrateRecordedErrors(pm);
+    pm.source_vertices = uint32_t(mesh.positions.size());
+    pm.dropped_triangles = welded.dropped_triangles;
+    return pm;
 }
 
 namespace {

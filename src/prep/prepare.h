@@ -2,10 +2,12 @@
 #pragma once
 
 #include "import/scene_source.h"
+#include "prep/cluster_collapse.h"
 #include "scene/prepared_scene.h"
 
 #include <atomic>
 #include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -28,6 +30,8 @@ struct PrepOptions {
     uint32_t node_triangles = 2048;   // HlodOptions::node_triangles
     uint32_t hlod_reduction = 4;      // HlodOptions::reduction
     bool hlod_cluster = true;         // HlodOptions::cluster
+    bool hlod_place = true;           // HlodOptions::place
+    bool hlod_colour_borders = false; // HlodOptions::colour_borders
     bool hlod_share = true;           // HlodOptions::share_repeats
 };
 
@@ -40,8 +44,11 @@ struct PrepProgress {
 // Weld + collapse sequence + §4.2 arrays + Algorithm 1 for one mesh (local space).
 ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser);
 // The same with the fast collapser's sequence continued by vertex clustering
-// (cluster_collapse.h), for HLODs: components may vanish and join.
-ProgressiveMesh buildClusteredProgressiveMesh(const Mesh& mesh);
+// (cluster_collapse.h), for HLODs: components may vanish and join, clusters move onto placed
+// vertices. colours (one per mesh position, or empty): the vertices' colours, carried to
+// ProgressiveMesh::colours (a placed vertex's is its members' mix); empty: none.
+ProgressiveMesh buildClusteredProgressiveMesh(const Mesh& mesh, std::span<const uint32_t> colours = {},
+                                             const ClusterOptions& options = {});
 
 // What a preparation made, for its summary line.
 struct PrepSummary {

@@ -44,7 +44,7 @@ WeldedMesh weldPositions(const std::vector<glm::vec3>& positions, const std::vec
             const uint32_t v = triangles[t + i];
             if (remap[v] == UINT32_MAX) {
                 auto [it, added] = index_of.emplace(keyOf(positions[v]), uint32_t(out.positions.size()));
-                if (added) out.positions.push_back(positions[v]);
+                if (added) out.positions.push_back(positions[v]), out.source.push_back(v);
                 remap[v] = it->second;
             }
             c[i] = remap[v];

@@ -11,6 +11,7 @@ namespace occ {
 struct WeldedMesh {
     std::vector<glm::vec3> positions;  // unique positions, in order of first use
     std::vector<uint32_t> triangles;   // 3 per triangle; triangles with a repeated corner dropped
+    std::vector<uint32_t> source;      // per position: the first input vertex welded into it
     uint32_t dropped_triangles = 0;    // triangles that became degenerate (two corners welded)
 };
 

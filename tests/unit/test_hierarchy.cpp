@@ -110,10 +110,11 @@ struct BuiltHlods {
     HlodOptions options;
     std::vector<ProgressiveMesh> made;
     HlodProgress progress;
-    BuiltHlods() {
+    explicit BuiltHlods(bool colour_borders = false) {
         const HierarchyFixture& f = fixture();
         h = buildObjectHierarchy(f.boxes, f.triangles, 8);
         options.node_triangles = 600;
+        options.colour_borders = colour_borders;
         buildHlods(*f.file, h, options, [&](ProgressiveMesh&& p) {
             made.push_back(std::move(p));
             return uint32_t(made.size() - 1);
@@ -161,13 +162,15 @@ TEST(Hierarchy, HlodsAreProgressiveMeshesOfTheirSubtrees) {
     EXPECT_GT(inner, 8u);
 }
 
-// Issue 49: an HLOD's vertices carry the colours of the objects they stand for. Each vertex of
-// an HLOD is a vertex of an object of its subtree, so its colour is that object's (the plant's
-// meshes are white), sRGB-encoded: one of the subtree's object colours, of an object whose box
-// holds the vertex.
-TEST(Hierarchy, HlodVerticesCarryTheColoursOfTheObjectsTheyStandFor) {
+// Issue 49: an HLOD's vertices carry the colours of the objects they stand for. A vertex of an
+// HLOD is a vertex of an object of its subtree, with that object's colour (the plant's meshes
+// are white), sRGB-encoded, and the object's box holds it; or a placed vertex of a cluster.
+// With colour borders kept, a cluster is of one colour, one of the subtree's object colours.
+// Without them (prep's default) a placed vertex mixes its cluster's colours: each channel then
+// lies between the subtree's least and greatest.
+void checkHlodColours(bool colour_borders) {
     const HierarchyFixture& f = fixture();
-    const BuiltHlods built;
+    const BuiltHlods built(colour_borders);
     const ObjectHierarchy& h = built.h;
     const std::vector<ProgressiveMesh>& made = built.made;
     const auto encoded = [](const float* linear) {
@@ -176,7 +179,7 @@ TEST(Hierarchy, HlodVerticesCarryTheColoursOfTheObjectsTheyStandFor) {
         return c;
     };
     const std::span<const oss::ObjectDisk> objects = f.file->objects();
-    size_t checked = 0, multicoloured = 0;
+    size_t checked = 0, multicoloured = 0, mixed = 0;
     for (size_t n = 0; n < h.nodes.size(); ++n) {
         if (h.nodes[n].child_count == 0) continue;
         // The subtree's objects.
@@ -187,6 +190,12 @@ TEST(Hierarchy, HlodVerticesCarryTheColoursOfTheObjectsTheyStandFor) {
             if (s.child_count == 0) subtree.push_back(s.object);
             for (uint32_t c = s.first_child; c < s.first_child + s.child_count; ++c) stack.push_back(c);
         }
+        glm::ivec3 least(255), greatest(0);
+        for (uint32_t o : subtree)
+            for (int k = 0; k < 3; ++k) {
+                const int channel = int((encoded(objects[o].color) >> (8 * k)) & 0xFFu);
+                least[k] = std::min(least[k], channel), greatest[k] = std::max(greatest[k], channel);
+            }
         const ProgressiveMesh& p = made[h.nodes[n].mesh];
         ASSERT_EQ(p.colours.size(), p.positions.size()) << "node " << n;
         std::set<uint32_t> seen;
@@ -200,6 +209,16 @@ TEST(Hierarchy, HlodVerticesCarryTheColoursOfTheObjectsTheyStandFor) {
                     glm::all(glm::lessThanEqual(p.positions[v], hi + slack)))
                     found = true;
             }
+            if (colour_borders && !found)
+                for (uint32_t o : subtree) found = found || encoded(objects[o].color) == p.colours[v];
+            if (!colour_borders && !found) {
+                found = true;
+                for (int k = 0; k < 3; ++k) {
+                    const int channel = int((p.colours[v] >> (8 * k)) & 0xFFu);
+                    found = found && channel >= least[k] - 1 && channel <= greatest[k] + 1;
+                }
+                mixed += found;
+            }
             EXPECT_TRUE(found) << "node " << n << " vertex " << v << " colour " << std::hex << p.colours[v];
             seen.insert(p.colours[v]);
             ++checked;
@@ -208,7 +227,11 @@ TEST(Hierarchy, HlodVerticesCarryTheColoursOfTheObjectsTheyStandFor) {
     }
     EXPECT_GT(checked, 1000u);
     EXPECT_GT(multicoloured, 4u);
+    if (!colour_borders) EXPECT_GT(mixed, 0u) << "clusters were expected to mix colours somewhere";
 }
+
+TEST(Hierarchy, HlodVerticesCarryTheColoursOfTheObjectsTheyStandFor) { checkHlodColours(true); }
+TEST(Hierarchy, PlacedHlodVerticesMixTheColoursOfTheirClusters) { checkHlodColours(false); }
 
 // A cloud of 512 small closed tetrahedra: edge collapses cannot go below the 4 triangles each
 // (2 048 in all); clustering after them can, and what it makes is still a progressive mesh whose
@@ -226,8 +249,8 @@ TEST(Hierarchy, ClusteringRemovesTheFloorsEdgeCollapsesKeep) {
             }
     const CollapseSequence edges = fastCollapseSequence(positions, triangles);
     EXPECT_EQ(edges.triangles.size(), 0u) << "a tetrahedron has no legal edge collapse";
-    EXPECT_THROW(clusterAfterCollapses(positions, triangles, edges, {0.5f, 0.25f}), std::invalid_argument);
-    const CollapseSequence clustered = clusterAfterCollapses(positions, triangles, edges);
+    EXPECT_THROW(clusterAfterCollapses(positions, nullptr, triangles, edges, {0.5f, 0.25f}), std::invalid_argument);
+    const CollapseSequence clustered = clusterAfterCollapses(positions, nullptr, triangles, edges);
     const CollapseArrays arrays = recordCollapseArrays(uint32_t(positions.size()), uint32_t(triangles.size() / 3), clustered);
     const ProgressiveMesh p = rearrange(positions, triangles, clustered, arrays);
     LodPrefixScratch scratch;
