@@ -59,7 +59,9 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
         hlod.reduction = prep.hlod_reduction;
         hlod.cluster = prep.hlod_cluster;
         hlod.place = prep.hlod_place;
+        hlod.place_edges = prep.hlod_place_edges;
         hlod.colour_borders = prep.hlod_colour_borders;
+        hlod.fine_input = prep.hlod_fine_input;
         hlod.share_repeats = prep.hlod_share;
         hlod.threads = prep.threads;
         ObjectHierarchy h;
@@ -115,8 +117,9 @@ struct PrepCommandOptions {
     std::string hierarchy = "on";
     std::string hlod_cluster = "on";
     std::string hlod_share = "on";
-    std::string hlod_place = "on";
-    std::string hlod_colour_borders = "off";
+    std::string hlod_place = "clusters";
+    std::string hlod_colour_borders = "on";
+    std::string hlod_input = "fine";
     ImportOptions import;
 };
 
@@ -132,8 +135,10 @@ int runPrep(PrepCommandOptions o) {
     o.prep.hierarchy = o.hierarchy == "on";
     o.prep.hlod_cluster = o.hlod_cluster == "on";
     o.prep.hlod_share = o.hlod_share == "on";
-    o.prep.hlod_place = o.hlod_place == "on";
+    o.prep.hlod_place = o.hlod_place != "off";
+    o.prep.hlod_place_edges = o.hlod_place == "all";
     o.prep.hlod_colour_borders = o.hlod_colour_borders == "on";
+    o.prep.hlod_fine_input = o.hlod_input == "fine";
     if (o.prep.fanout < 2 || o.prep.fanout > 64)
         throw UsageError("--fanout " + std::to_string(o.prep.fanout) + ": must be in [2, 64]");
     if (o.prep.node_triangles < 16)
@@ -202,15 +207,23 @@ Command addPrepCommand(CLI::App& app) {
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
     sub->add_option("--hlod-place", o->hlod_place,
-                    "hierarchy: on: a cluster's vertices move onto a new vertex where the squared distances to\n"
-                    "the planes they stand for are least (Lindstrom 2000), so flat parts stay flat; off: onto\n"
+                    "hierarchy: clusters: a cluster's vertices move onto a new vertex where the squared distances\n"
+                    "to the planes they stand for are least (Lindstrom 2000), so flat parts stay flat; all: the\n"
+                    "edge collapses before clustering place their vertices so too (Garland & Heckbert); off: onto\n"
                     "the member nearest the cluster's centre")
-        ->check(CLI::IsMember({"on", "off"}))
+        ->check(CLI::IsMember({"clusters", "all", "off"}))
         ->capture_default_str();
     sub->add_option("--hlod-colour-borders", o->hlod_colour_borders,
                     "hierarchy: on: clustering never joins vertices of different colours (a cell keeps one\n"
                     "cluster per colour); off: a cluster mixes its members' colours")
         ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
+    sub->add_option("--hlod-input", o->hlod_input,
+                    "hierarchy: fine: an HLOD is simplified from its children's levels up to their share of\n"
+                    "--node-triangles (objects at full detail where they fit) and keeps its levels up to\n"
+                    "1/--hlod-reduction of what it stands for; reduced: from children's levels already at\n"
+                    "1/--hlod-reduction (faster prep; a box there is a tetrahedron, and every HLOD above shows it)")
+        ->check(CLI::IsMember({"fine", "reduced"}))
         ->capture_default_str();
     sub->add_option("--hlod-share", o->hlod_share,
                     "hierarchy: on: a subtree that repeats an earlier one (the same meshes under the same\n"

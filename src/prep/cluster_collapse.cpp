@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "prep/cluster_collapse.h"
 
+#include "prep/least_squares_point.h"
 #include "scene/colour.h"
 
 #include <algorithm>
@@ -25,42 +26,26 @@ struct PlaneSum {
     }
 };
 
-// Eigenvalues and eigenvectors (columns of `vectors`) of a symmetric 3x3 matrix, cyclic Jacobi.
-void symmetricEigen(glm::dmat3 m, glm::dvec3& values, glm::dmat3& vectors) {
-    vectors = glm::dmat3(1.0);
-    for (int sweep = 0; sweep < 16; ++sweep) {
-        const double off = m[0][1] * m[0][1] + m[0][2] * m[0][2] + m[1][2] * m[1][2];
-        const double scale = m[0][0] * m[0][0] + m[1][1] * m[1][1] + m[2][2] * m[2][2];
-        if (off <= 1e-24 * scale || off == 0.0) break;
-        for (int p = 0; p < 2; ++p)
-            for (int q = p + 1; q < 3; ++q) {
-                if (m[p][q] == 0.0) continue;
-                const double theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
-                const double t = (theta >= 0 ? 1.0 : -1.0) / (std::abs(theta) + std::sqrt(theta * theta + 1.0));
-                const double c = 1.0 / std::sqrt(t * t + 1.0), s = t * c;
-                glm::dmat3 r(1.0);
-                r[p][p] = c, r[q][q] = c, r[q][p] = s, r[p][q] = -s;  // column-major: r[col][row]
-                m = glm::transpose(r) * m * r;
-                vectors = vectors * r;
-            }
+// An sRGB RGBA8 colour (oss::kWhite's layout) mixed from weighted ones, in linear light.
+class ColourMix {
+public:
+    void add(uint32_t c, double w) {
+        for (int k = 0; k < 3; ++k) mix_[k] += w * srgbToLinear(float((c >> (8 * k)) & 0xFFu) / 255.0f);
+        alpha_ += w * double(c >> 24);
+        weight_ += w;
     }
-    values = {m[0][0], m[1][1], m[2][2]};
-}
+    uint32_t result() const {
+        if (!(weight_ > 0.0)) return 0xFFFFFFFFu;
+        uint32_t out = uint32_t(std::lround(alpha_ / weight_)) << 24;
+        for (int k = 0; k < 3; ++k)
+            out |= uint32_t(std::lround(255.0f * linearToSrgb(float(mix_[k] / weight_)))) << (8 * k);
+        return out;
+    }
 
-// The point of least squared distance to the planes, nearest `centre` along the directions the
-// planes leave free (eigenvalues under 1e-3 of the largest: Lindstrom's truncated inverse).
-glm::dvec3 leastSquaresPoint(const PlaneSum& q, const glm::dvec3& centre) {
-    glm::dvec3 values;
-    glm::dmat3 vectors;
-    symmetricEigen(q.a, values, vectors);
-    const double largest = std::max({values.x, values.y, values.z});
-    if (!(largest > 0.0)) return centre;
-    const glm::dvec3 residual = -(q.a * centre + q.b);
-    glm::dvec3 x = centre;
-    for (int i = 0; i < 3; ++i)
-        if (values[i] > 1e-3 * largest) x += vectors[i] * (glm::dot(vectors[i], residual) / values[i]);
-    return x;
-}
+private:
+    glm::dvec3 mix_{0.0};
+    double alpha_ = 0.0, weight_ = 0.0;
+};
 
 }  // namespace
 
@@ -73,30 +58,57 @@ CollapseSequence clusterAfterCollapses(std::vector<glm::vec3>& positions, std::v
         throw std::invalid_argument("clusterAfterCollapses: one colour per position expected");
     const uint32_t n = uint32_t(positions.size());
     const uint32_t tc = uint32_t(triangles.size() / 3);
-    if (n == 0 || tc == 0) return sequence;
-
     glm::vec3 lo(INFINITY), hi(-INFINITY);
     for (const glm::vec3& p : positions) {
         lo = glm::min(lo, p);
         hi = glm::max(hi, p);
     }
     const float extent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
-    if (!(extent > 0.0f) || !std::isfinite(extent)) return sequence;
+    // Nothing to cluster: the edge collapses as they are.
+    const bool cluster = n > 0 && tc > 0 && extent > 0.0f && std::isfinite(extent);
     const float first_cell = extent * options.first_cell;
 
     // The edge collapses up to the first one that moves more than the first grid would.
     size_t keep = 0;
     const float limit = first_cell * std::sqrt(3.0f);
-    while (keep < sequence.size() && sequence.error[keep] <= limit) ++keep;
+    while (keep < sequence.size() && (!cluster || sequence.error[keep] <= limit)) ++keep;
     sequence.removed.resize(keep);
     sequence.kept.resize(keep);
     sequence.error.resize(keep);
     sequence.triangle_offsets.resize(keep + 1);
     sequence.triangles.resize(sequence.triangle_offsets[keep]);
 
+    // The vertices the kept collapses placed (created in order, each first as the kept vertex
+    // of its pair's first entry), with their colours mixed from the pair's.
+    uint32_t placed = 0;
+    for (size_t i = 0; i < keep; ++i)
+        if (sequence.kept[i] >= n) placed = std::max(placed, sequence.kept[i] - n + 1);
+    if (placed > sequence.placed.size())
+        throw std::invalid_argument("clusterAfterCollapses: a collapse keeps a vertex that was never placed");
+    positions.insert(positions.end(), sequence.placed.begin(), sequence.placed.begin() + placed);
+    if (colours) {
+        colours->resize(n + placed, 0xFFFFFFFFu);
+        std::vector<uint8_t> made(placed, 0);
+        for (size_t i = 0; i < keep; ++i) {
+            const uint32_t w = sequence.kept[i];
+            if (w < n || made[w - n]) continue;
+            made[w - n] = 1;  // its first entry: the pair that made it, i and i + 1
+            const double share = sequence.placed_share[w - n];
+            ColourMix mix;
+            mix.add((*colours)[sequence.removed[i]], share + 1e-9);
+            if (i + 1 < sequence.size() && sequence.kept[i + 1] == w)
+                mix.add((*colours)[sequence.removed[i + 1]], 1.0 - share + 1e-9);
+            (*colours)[w] = mix.result();
+        }
+    }
+    sequence.placed.clear();
+    sequence.placed_share.clear();
+    const uint32_t total = n + placed;
+    if (!cluster) return sequence;
+
     // Each input vertex's planes (its triangles', area-weighted), summed onto the survivors of
     // the edge collapses as they merge.
-    std::vector<PlaneSum> planes(options.place ? n : 0);
+    std::vector<PlaneSum> planes(options.place ? total : 0);
     if (options.place)
         for (uint32_t t = 0; t < tc; ++t) {
             const glm::dvec3 p0 = positions[triangles[3 * t]], p1 = positions[triangles[3 * t + 1]],
@@ -114,9 +126,9 @@ CollapseSequence clusterAfterCollapses(std::vector<glm::vec3>& positions, std::v
         }
 
     // The state the collapses leave: each vertex's survivor, the triangles alive and their corners.
-    std::vector<uint32_t> survivor(n);
+    std::vector<uint32_t> survivor(total);
     std::iota(survivor.begin(), survivor.end(), 0u);
-    std::vector<uint8_t> alive(n, 1), dead(tc, 0);
+    std::vector<uint8_t> alive(total, 1), dead(tc, 0);
     for (size_t i = 0; i < keep; ++i) {
         survivor[sequence.removed[i]] = sequence.kept[i];
         alive[sequence.removed[i]] = 0;
@@ -134,7 +146,7 @@ CollapseSequence clusterAfterCollapses(std::vector<glm::vec3>& positions, std::v
         return r;
     };
     std::vector<uint32_t> corners(triangles.size());
-    std::vector<std::vector<uint32_t>> incident(n);
+    std::vector<std::vector<uint32_t>> incident(total);
     for (uint32_t t = 0; t < tc; ++t) {
         if (dead[t]) continue;
         for (int c = 0; c < 3; ++c) {
@@ -143,8 +155,12 @@ CollapseSequence clusterAfterCollapses(std::vector<glm::vec3>& positions, std::v
         }
     }
 
-    std::vector<float> radius(n, 0.0f);
-    std::vector<uint32_t> member_mark(n, 0);
+    // A placed vertex starts with the distance its pair's collapse recorded: an edge collapse
+    // moves its vertices by about its error.
+    std::vector<float> radius(total, 0.0f);
+    for (size_t i = 0; i < keep; ++i)
+        if (sequence.kept[i] >= n) radius[sequence.kept[i]] = std::max(radius[sequence.kept[i]], sequence.error[i]);
+    std::vector<uint32_t> member_mark(total, 0);
     uint32_t cluster_id = 0;
     std::vector<uint32_t> members, order, died;
     struct Keyed {
@@ -213,7 +229,7 @@ CollapseSequence clusterAfterCollapses(std::vector<glm::vec3>& positions, std::v
                 if (options.place) {
                     PlaneSum sum;
                     for (uint32_t v : members) sum.add(planes[v]);
-                    const glm::vec3 p = glm::clamp(glm::vec3(leastSquaresPoint(sum, centre)), box_lo, box_hi);
+                    const glm::vec3 p = glm::clamp(glm::vec3(leastSquaresPoint(sum.a, sum.b, centre)), box_lo, box_hi);
                     if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && !turnsOver(p, mark)) {
                         kept = uint32_t(positions.size());
                         positions.push_back(p);
@@ -223,20 +239,10 @@ CollapseSequence clusterAfterCollapses(std::vector<glm::vec3>& positions, std::v
                         member_mark.push_back(0);
                         incident.emplace_back();
                         if (colours) {
-                            // The members' colours mixed in linear light, by the surface each stands for.
-                            glm::dvec3 mix(0.0);
-                            double weight = 0.0, alpha = 0.0;
-                            for (uint32_t v : members) {
-                                const double w = planes[v].area + 1e-30;
-                                const uint32_t c = (*colours)[v];
-                                for (int k = 0; k < 3; ++k) mix[k] += w * srgbToLinear(float((c >> (8 * k)) & 0xFFu) / 255.0f);
-                                alpha += w * double(c >> 24);
-                                weight += w;
-                            }
-                            uint32_t out = uint32_t(std::lround(alpha / weight)) << 24;
-                            for (int k = 0; k < 3; ++k)
-                                out |= uint32_t(std::lround(255.0f * linearToSrgb(float(mix[k] / weight)))) << (8 * k);
-                            colours->push_back(out);
+                            // The members' colours mixed by the surface each stands for.
+                            ColourMix mix;
+                            for (uint32_t v : members) mix.add((*colours)[v], planes[v].area + 1e-30);
+                            colours->push_back(mix.result());
                         }
                     }
                 }

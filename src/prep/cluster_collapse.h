@@ -44,6 +44,8 @@ struct ClusterOptions {
     // cell's centroid, no vertex added. A placement that would turn a surviving triangle over
     // falls back to that member too.
     bool place = true;
+    // The edge collapses before clustering place too (fastCollapseSequence's place).
+    bool place_edges = false;
     // Vertices of different colours (the `colours` given) are not clustered together: a cell
     // keeps one cluster per colour, so a red part beside a grey one stays red.
     bool colour_borders = false;

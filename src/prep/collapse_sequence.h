@@ -19,6 +19,11 @@ struct CollapseSequence {
     std::vector<uint32_t> triangle_offsets{0};  // collapse i removed triangles[offsets[i], offsets[i+1])
     std::vector<uint32_t> triangles;
     uint32_t refused_faces = 0;              // faces the collapser kept as they are (never removed)
+    // Vertices the collapses placed (issue 49, item 3): vertex count + i is at placed[i]. A
+    // placing collapse of the edge a-b is two entries, a -> w (nothing removed) then b -> w (the
+    // edge's triangles); placed_share[i] is a's share of the pair's surface, to mix attributes.
+    std::vector<glm::vec3> placed;
+    std::vector<float> placed_share;
 
     size_t size() const { return removed.size(); }
     void push(uint32_t removed_vertex, uint32_t kept_vertex, float cost, const uint32_t* tris, size_t tri_count) {

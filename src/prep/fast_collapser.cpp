@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "prep/fast_collapser.h"
 
+#include "prep/least_squares_point.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -26,6 +28,8 @@ struct Quadric {
         b0 += q.b0, b1 += q.b1, b2 += q.b2, c += q.c;
         weight += q.weight;
     }
+    glm::dmat3 matrix() const { return glm::dmat3(a00, a01, a02, a01, a11, a12, a02, a12, a22); }
+    glm::dvec3 vector() const { return {b0, b1, b2}; }
     double eval(const glm::vec3& pf) const {
         const double x = pf.x, y = pf.y, z = pf.z;
         return x * (a00 * x + 2 * (a01 * y + a02 * z + b0)) + y * (a11 * y + 2 * (a12 * z + b1)) +
@@ -114,8 +118,15 @@ private:
 class FastCollapser {
 public:
     CollapseSequence run(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& triangles,
-                         CollapseCost cost) {
-        pos_ = positions.data();
+                         CollapseCost cost, bool place, std::span<const uint32_t> colours) {
+        colour_.assign(colours.begin(), colours.end());
+        positions_.assign(positions.begin(), positions.end());
+        pos_ = positions_.data();
+        place_ = place && cost == CollapseCost::Quadric;
+        box_lo_ = glm::vec3(INFINITY), box_hi_ = glm::vec3(-INFINITY);
+        for (const glm::vec3& p : positions) box_lo_ = glm::min(box_lo_, p), box_hi_ = glm::max(box_hi_, p);
+        external_.resize(positions.size());
+        for (uint32_t v = 0; v < uint32_t(positions.size()); ++v) external_[v] = v;
         corner_.assign(triangles.begin(), triangles.end());
         cost_kind_ = cost;
         n_ = uint32_t(positions.size());
@@ -133,13 +144,21 @@ public:
             if (!locked_[u]) pushBest(u);
         while (!heap_.empty()) {
             const uint32_t u = heap_.top(), v = best_target_[u];
-            if (removed_[v] || !isLegal(u, v)) {
+            glm::vec3 at;
+            bool reverse = false;
+            if (removed_[v] || !legalTarget(u, v, at, &reverse)) {
                 // Another neighbour may still be legal; the next change around u retries anyway.
                 retryWithLegalTarget(u);
                 continue;
             }
+            if (reverse) {
+                const float c = best_cost_[u];
+                heap_.remove(v);
+                collapse(v, u, c, at);
+                continue;
+            }
             heap_.remove(u);
-            collapse(u, v, best_cost_[u]);
+            collapse(u, v, best_cost_[u], at);
         }
         return std::move(sequence_);
     }
@@ -268,7 +287,37 @@ private:
     // absorbed much look dear to move onto. Depends on u's quadric and v's position only.
     float cost(uint32_t u, uint32_t v) const {
         if (cost_kind_ == CollapseCost::EdgeLength) return glm::length(pos_[u] - pos_[v]);
+        if (place_) {
+            Quadric q = quadric_[u];
+            q.add(quadric_[v]);
+            return float(std::max(0.0, q.eval(placement(u, v))));
+        }
         return float(std::max(0.0, quadric_[u].eval(pos_[v])));
+    }
+
+    // Placing (issue 49, item 3): both ends of an edge of two interior vertices may move to a
+    // new point; a border vertex moves along its border onto a neighbour as before (placed
+    // border collapses cut the corners of flat sheets), and nothing moves a locked vertex.
+    bool placeable(uint32_t u, uint32_t v) const {
+        return place_ && !locked_[v] && !border_[u] && !border_[v] && (colour_.empty() || colour_[u] == colour_[v]);
+    }
+
+    // Where the vertex the collapse u-v leaves goes: v's position (a half-edge collapse), or,
+    // where placeable, the point of least squared distance to both ends' planes (their summed
+    // quadric, Garland & Heckbert's optimal placement; flat directions resolved towards the
+    // edge's midpoint), unless it is no cheaper than v's position or lies farther from the
+    // midpoint than the edge is long (near-parallel planes).
+    glm::vec3 placement(uint32_t u, uint32_t v) const {
+        if (!placeable(u, v)) return pos_[v];
+        Quadric q = quadric_[u];
+        q.add(quadric_[v]);
+        const glm::dvec3 pu = pos_[u], pv = pos_[v], mid = 0.5 * (pu + pv);
+        const glm::dvec3 x = leastSquaresPoint(q.matrix(), q.vector(), mid);
+        // Within the input's box: an HLOD stays inside the box its node is culled by.
+        const glm::vec3 p = glm::clamp(glm::vec3(x), box_lo_, box_hi_);
+        if (!(glm::length(x - mid) <= glm::length(pu - pv)) || !std::isfinite(p.x + p.y + p.z)) return pos_[v];
+        const double at_p = q.eval(p), at_v = q.eval(pos_[v]);
+        return at_p < at_v * (1.0 - 1e-6) ? p : pos_[v];
     }
 
     // A locked vertex whose border changed (a hole closed through it) may now be a plain border
@@ -396,7 +445,8 @@ private:
         uint32_t target = kNone;
         for (uint32_t w : neighbours_) {
             const float e = cost(u, w);
-            if ((e < best || (e == best && w < target)) && isLegal(u, w)) best = e, target = w;
+            glm::vec3 at;
+            if ((e < best || (e == best && w < target)) && legalTarget(u, w, at)) best = e, target = w;
         }
         setBest(u, best, target);
     }
@@ -411,7 +461,56 @@ private:
     // interior (or, where loops met at x, becomes a plain border vertex again). Without it every
     // bolt hole of a CAD sheet stopped as a triangle and held its sheet far above its target.
     // Sets closes_hole_ to x for collapse(), kNone otherwise.
-    bool isLegal(uint32_t u, uint32_t v) {
+    // The collapse u-v with the kept vertex at its placement, or else at v: false when neither
+    // is legal; at: where it goes.
+    // A placement at u's own position is the half-edge collapse v -> u (no vertex added):
+    // reverse is then set, and the caller removes v instead.
+    bool legalTarget(uint32_t u, uint32_t v, glm::vec3& at, bool* reverse = nullptr) {
+        at = placement(u, v);
+        if (reverse) *reverse = false;
+        if (at == pos_[u] && at != pos_[v]) {
+            if (reverse && !locked_[u] && isLegal(v, u, at)) return *reverse = true;
+        } else if (isLegal(u, v, at)) {
+            return true;
+        }
+        if (at == pos_[v]) return false;
+        at = pos_[v];
+        return isLegal(u, v, at);
+    }
+
+    // A placed vertex must also keep the triangles around v from turning over, and every
+    // triangle around either end within kPlacedTurn of its normal (a triangle that becomes flat
+    // is allowed): the placement's normal check.
+    static constexpr float kPlacedTurn = 0.5f;  // cos 60 degrees
+    bool keepsFacing(uint32_t moved, uint32_t other, const glm::vec3& at, bool placed, uint32_t mv) {
+        bool ok = true;
+        const glm::vec3 from = pos_[moved];
+        forTriangles(moved, [&](uint32_t t) {
+            if (!ok || contains(t, other)) return;
+            const uint32_t* c = &corner_[3 * t];
+            const int k = c[0] == moved ? 0 : (c[1] == moved ? 1 : 2);
+            const uint32_t a = c[(k + 1) % 3], b = c[(k + 2) % 3];
+            const glm::vec3 n_old = glm::cross(pos_[a] - from, pos_[b] - from);
+            const glm::vec3 n_new = glm::cross(pos_[a] - at, pos_[b] - at);
+            const float d = glm::dot(n_old, n_new);
+            if (d < 0.0f) {
+                ok = false;
+                return;
+            }
+            if (placed) {
+                const float lo = glm::length(n_old), ln = glm::length(n_new);
+                if (ln > 1e-3f * lo && d < kPlacedTurn * lo * ln) {
+                    ok = false;
+                    return;
+                }
+            }
+            if (mv != 0 && mark_[a] == mv && mark_[b] == mv)
+                forTriangles(other, [&](uint32_t s) { ok = ok && !(contains(s, a) && contains(s, b)); });
+        });
+        return ok;
+    }
+
+    bool isLegal(uint32_t u, uint32_t v, const glm::vec3& at) {
         closes_hole_ = kNone;
         const uint32_t mv = markNeighbours(v, nullptr);
         if (mark_[u] != mv) return false;  // no longer an edge
@@ -441,26 +540,12 @@ private:
         // along its border (one): the border stays a border.
         if (shared != (border_[u] ? 1u : 2u)) return false;
 
-        bool ok = true;
-        const glm::vec3 pu = pos_[u], pv = pos_[v];
-        forTriangles(u, [&](uint32_t t) {
-            if (!ok || contains(t, v)) return;
-            const uint32_t* c = &corner_[3 * t];
-            const int k = c[0] == u ? 0 : (c[1] == u ? 1 : 2);
-            const uint32_t a = c[(k + 1) % 3], b = c[(k + 2) % 3];
-            const glm::vec3 n_old = glm::cross(pos_[a] - pu, pos_[b] - pu);
-            const glm::vec3 n_new = glm::cross(pos_[a] - pv, pos_[b] - pv);
-            if (glm::dot(n_old, n_new) < 0.0f) {
-                ok = false;
-                return;
-            }
-            if (mark_[a] == mv && mark_[b] == mv)
-                forTriangles(v, [&](uint32_t s) { ok = ok && !(contains(s, a) && contains(s, b)); });
-        });
-        return ok;
+        const bool placed = at != pos_[v];
+        if (!keepsFacing(u, v, at, placed, mv)) return false;
+        return !placed || keepsFacing(v, u, at, placed, 0);
     }
 
-    void collapse(uint32_t u, uint32_t v, float cost_value) {
+    void collapse(uint32_t u, uint32_t v, float cost_value, const glm::vec3& at) {
         removed_tris_.clear();
         forTriangles(u, [&](uint32_t t) {
             if (contains(t, v)) {
@@ -482,6 +567,16 @@ private:
         }
         head_[u] = tail_[u] = kNone;
         removed_[u] = 1;
+        // A placed vertex: v's slot goes on as a new vertex at `at`, which both ends move onto.
+        const bool placed = at != pos_[v];
+        uint32_t kept = external_[v];
+        if (placed) {
+            kept = n_ + uint32_t(sequence_.placed.size());
+            const double wu = error_quadric_[u].weight, wv = error_quadric_[v].weight;
+            sequence_.placed.push_back(at);
+            sequence_.placed_share.push_back(wu + wv > 0.0 ? float(wu / (wu + wv)) : 0.5f);
+            positions_[v] = at;
+        }
         float recorded = cost_value;
         if (cost_kind_ == CollapseCost::Quadric) {
             // Recorded as a distance: the root mean square distance of the kept position to the
@@ -493,7 +588,13 @@ private:
             const Quadric& e = error_quadric_[v];
             recorded = e.weight > 0 ? float(std::sqrt(std::max(0.0, e.eval(pos_[v])) / e.weight)) : 0.0f;
         }
-        sequence_.push(u, v, recorded, removed_tris_.data(), removed_tris_.size());
+        if (placed) {
+            sequence_.push(external_[u], kept, recorded, nullptr, 0);
+            sequence_.push(external_[v], kept, recorded, removed_tris_.data(), removed_tris_.size());
+            external_[v] = kept;
+        } else {
+            sequence_.push(external_[u], kept, recorded, removed_tris_.data(), removed_tris_.size());
+        }
 
         // A closed hole leaves v interior and x interior or a plain border vertex.
         const uint32_t closed = closes_hole_;
@@ -512,6 +613,10 @@ private:
         neighbours_.clear();
         markNeighbours(v, &neighbours_);
         for (uint32_t w : neighbours_) {
+            if (place_ && !locked_[w]) {
+                pushBest(w);  // v's quadric (and maybe place) changed: every cost to v did
+                continue;
+            }
             if (locked_[w] || best_target_[w] == v) continue;
             if (border_[w] || best_target_[w] == u || best_target_[w] == kNone) {
                 pushBest(w);
@@ -524,7 +629,12 @@ private:
         }
     }
 
-    const glm::vec3* pos_ = nullptr;  // the welded positions, positions.size() = n_
+    std::vector<glm::vec3> positions_;  // the welded positions; a slot's moves to where a placing collapse put it
+    glm::vec3* pos_ = nullptr;          // positions_.data()
+    std::vector<uint32_t> external_;    // per slot: the vertex it is in the sequence (a placed one: n_ + i)
+    bool place_ = false;
+    std::vector<uint32_t> colour_;  // per slot, when colours were given: only ends of one colour are placed
+    glm::vec3 box_lo_{0.0f}, box_hi_{0.0f};  // the input's box: placements stay in it
     std::vector<uint32_t> corner_;
     CollapseCost cost_kind_ = CollapseCost::Quadric;
     uint32_t n_ = 0, t_ = 0;
@@ -555,9 +665,9 @@ private:
 }  // namespace
 
 CollapseSequence fastCollapseSequence(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& triangles,
-                                      CollapseCost cost) {
+                                      CollapseCost cost, bool place, std::span<const uint32_t> colours) {
     thread_local FastCollapser collapser;
-    return collapser.run(positions, triangles, cost);
+    return collapser.run(positions, triangles, cost, place, colours);
 }
 
 }  // namespace occ

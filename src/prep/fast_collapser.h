@@ -3,6 +3,8 @@
 
 #include "prep/collapse_sequence.h"
 
+#include <span>
+
 namespace occ {
 
 enum class CollapseCost {
@@ -25,8 +27,18 @@ enum class CollapseCost {
 // vertex turns interior, or from locked to border where loops met there).
 // Flat arrays and our own heap, no half-edge structure: several times faster than OpenMesh's
 // Decimater, same invariants (see tests/unit/test_collapse.cpp).
+// place (issue 49, item 3; Quadric cost only): a collapse of an edge between two interior
+// vertices, or two border vertices along their border, may move both ends to a new vertex at
+// the point of least squared distance to their summed planes (Garland & Heckbert's optimal
+// placement), recorded as two entries onto a vertex past the input's (CollapseSequence::placed),
+// where that point is cheaper than the kept end's position and keeps every triangle around
+// both ends within 60 degrees of its normal (else the half-edge collapse, if legal). Ranking is
+// then by the summed quadric at the placement. A thin slab's top face then meets its bottom
+// face half way instead of taking its corners, so its facets do not tilt. colours (one per
+// position, or empty): only ends of the same colour are placed (a colour border stays sharp).
 // positions: welded (no two equal); triangles: 3 per triangle, no repeated corner.
 CollapseSequence fastCollapseSequence(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& triangles,
-                                      CollapseCost cost = CollapseCost::Quadric);
+                                      CollapseCost cost = CollapseCost::Quadric, bool place = false,
+                                      std::span<const uint32_t> colours = {});
 
 }  // namespace occ

@@ -291,6 +291,41 @@ void colourByPosition(const std::vector<glm::vec3>& input, const std::vector<uin
     }
 }
 
+// The largest k in [q, n] whose level has at most `most` triangles (q where even it has more).
+uint32_t levelWithAtMost(std::span<const uint32_t> map, uint32_t q, uint64_t most) {
+    const uint32_t n = uint32_t(map.size() - 1);
+    uint32_t lo = std::min(q, n), hi = n;
+    while (lo < hi) {
+        const uint32_t mid = lo + (hi - lo + 1) / 2;
+        if (map[mid] <= most) lo = mid;
+        else hi = mid - 1;
+    }
+    return lo;
+}
+
+// Keeps p's levels up to k vertices (k in [q, n]), so that its finest level is its level k
+// (the first k positions, the first map[k] triangles walked below k). Returns that level's
+// error, which the caller adds to the node's; the collapse errors left are lowered by it
+// (never below 0), so that node error + a level's error is still that level's error against
+// the input: max(t, e) = t + max(0, e - t).
+float truncateLevels(ProgressiveMesh& p, uint32_t k) {
+    const uint32_t n = p.vertexCount();
+    if (k >= n) return 0.0f;
+    float t = 0.0f;
+    for (uint32_t v = k; v < n; ++v) t = std::max(t, p.error[v]);
+    p.triangles.resize(3 * size_t(p.map[k]));
+    for (uint32_t& c : p.triangles)
+        while (c >= k) c = uint32_t(p.ecol[c]);
+    p.positions.resize(k);
+    p.ecol.resize(k);
+    p.error.resize(k);
+    for (float& e : p.error) e = std::max(0.0f, e - t);
+    if (!p.colours.empty()) p.colours.resize(k);
+    p.map.resize(size_t(k) + 1);
+    p.q = std::min(p.q, k);
+    return t;
+}
+
 // errors[k] for k <= top: offset plus scale times the largest collapse error the level with k
 // vertices has undone (those of vertices k .. n - 1; 0 at full detail).
 std::vector<float> levelErrors(std::span<const float> error, uint32_t top, float offset, float scale) {
@@ -365,13 +400,15 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
         level_first[node.depth] = n;
         for (uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) parent[c] = n;
     }
-    // What each child of node n contributes to n's merged input.
     // What child c of node n contributes to n's merged input: its share of twice
-    // node_triangles, and at most 1 / reduction of its subtree, so that HLODs stay a fraction
-    // of the scene however small its objects.
+    // node_triangles, and (reduced input) at most 1 / reduction of its subtree, so that HLODs
+    // stay a fraction of the scene however small its objects. With fine input the share is
+    // not cut by the reduction: the HLOD is simplified from the finer levels and only its
+    // levels up to 1 / reduction of its subtree are kept (truncateLevels).
     const auto wanted = [&](uint32_t n, uint32_t c) {
         const uint64_t share = 2ull * options.node_triangles / std::max(1u, h.nodes[n].child_count);
-        return std::max<uint64_t>(1, std::min<uint64_t>(share, h.nodes[c].triangles / std::max(1u, options.reduction)));
+        const uint64_t cap = options.fine_input ? h.nodes[c].triangles : h.nodes[c].triangles / std::max(1u, options.reduction);
+        return std::max<uint64_t>(1, std::min<uint64_t>(share, cap));
     };
     if (progress) {
         progress->total = 0;
@@ -556,17 +593,20 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                             merged_colours.push_back(tintedColour(from.tint, from.colours[v]));
                         if (from.kept) *from.kept = KeptMesh{};
                     }
-                    const float error = choice.error;
+                    float error = choice.error;
                     ProgressiveMesh& p = built[j - b];
                     if (options.cluster) {
                         ClusterOptions cluster;
                         cluster.place = options.place;
+                        cluster.place_edges = options.place_edges;
                         cluster.colour_borders = options.colour_borders;
                         p = buildClusteredProgressiveMesh(merged, merged_colours, cluster);
                     } else {
                         p = buildProgressiveMesh(merged, Collapser::Fast);
                         colourByPosition(merged.positions, merged_colours, p);
                     }
+                    if (options.fine_input)
+                        error += truncateLevels(p, levelWithAtMost(p.map, p.q, std::max<uint64_t>(1, node.triangles / std::max(1u, options.reduction))));
                     h.nodes[n].error = error;
                     if (parent[n] != UINT32_MAX) handUp(n, p, glm::mat4(1.0f), error, 1.0f);
                     if (progress) ++progress->done;

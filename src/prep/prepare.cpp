@@ -59,7 +59,10 @@ ProgressiveMesh buildClusteredProgressiveMesh(const Mesh& mesh, std::span<const 
     }
     const CollapseSequence sequence =
         clusterAfterCollapses(welded.positions, colours.empty() ? nullptr : &welded_colours, welded.triangles,
-                              fastCollapseSequence(welded.positions, welded.triangles), options);
+                              fastCollapseSequence(welded.positions, welded.triangles, CollapseCost::Quadric, options.place_edges,
+                                                   options.colour_borders ? std::span<const uint32_t>(welded_colours)
+                                                                          : std::span<const uint32_t>()),
+                              options);
     const CollapseArrays arrays =
         recordCollapseArrays(uint32_t(welded.positions.size()), uint32_t(welded.triangles.size() / 3), sequence);
     ProgressiveMesh pm = rearrange(welded.positions, welded.triangles, sequence, arrays);

@@ -31,7 +31,9 @@ struct PrepOptions {
     uint32_t hlod_reduction = 4;      // HlodOptions::reduction
     bool hlod_cluster = true;         // HlodOptions::cluster
     bool hlod_place = true;           // HlodOptions::place
-    bool hlod_colour_borders = false; // HlodOptions::colour_borders
+    bool hlod_place_edges = false;    // HlodOptions::place_edges
+    bool hlod_colour_borders = true;  // HlodOptions::colour_borders
+    bool hlod_fine_input = true;      // HlodOptions::fine_input
     bool hlod_share = true;           // HlodOptions::share_repeats
 };
 

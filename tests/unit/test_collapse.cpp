@@ -306,6 +306,48 @@ ProgressiveMesh uncalibrated(const Mesh& mesh) {
 // Calibration only raises errors, keeps everything else, and leaves the levels' errors within
 // 2x of a dense measurement (other seed, 2 000 samples, levels between its measured ones),
 // where the collapser's own RMS errors understate many levels by more.
+// Issue 49, item 3: a thin slab (4 x 4 x 0.2, a box) simplified to 4 triangles. Half-edge
+// collapses leave a tetrahedron of its corners: each vertex is a corner, on the top or bottom
+// face, and the facets tilt by the slab's thickness over its width. Placing collapses meet the
+// top and bottom faces half way: three of the four vertices lie in the mid-plane (the link
+// condition stops the fourth, whose collapse would leave no volume) and the facets tilt less.
+TEST(Collapsers, PlacingCollapsesFoldAThinSlabTowardsItsMidPlane) {
+    Mesh box;
+    for (int i = 0; i < 8; ++i) box.positions.push_back({i & 1 ? 4.0f : 0.0f, i & 2 ? 4.0f : 0.0f, i & 4 ? 0.2f : 0.0f});
+    for (const uint32_t c : {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5})
+        box.indices.push_back(c);
+    // The level's largest tilt (degrees from the z axis) and how many of its vertices lie in the mid-plane.
+    const auto flatness = [](const ProgressiveMesh& pm, uint32_t k) {
+        const std::vector<uint32_t> tris = lodTriangles(pm, k);
+        float tilt = 0.0f;
+        std::set<uint32_t> mid;
+        for (size_t t = 0; t + 2 < tris.size(); t += 3) {
+            const glm::vec3 a = pm.positions[tris[t]], b = pm.positions[tris[t + 1]], c = pm.positions[tris[t + 2]];
+            const glm::vec3 n = glm::normalize(glm::cross(b - a, c - a));
+            tilt = std::max(tilt, glm::degrees(std::acos(std::min(1.0f, std::abs(n.z)))));
+            for (int i = 0; i < 3; ++i)
+                if (std::abs(pm.positions[tris[t + i]].z - 0.1f) < 1e-5f) mid.insert(tris[t + i]);
+        }
+        return std::pair{tilt, mid.size()};
+    };
+    ClusterOptions half, placing;
+    half.first_cell = half.last_cell = placing.first_cell = placing.last_cell = 1.0f;  // edge collapses only
+    placing.place_edges = true;
+    const ProgressiveMesh h = buildClusteredProgressiveMesh(box, {}, half), p = buildClusteredProgressiveMesh(box, {}, placing);
+    LodPrefixScratch scratch;
+    for (const ProgressiveMesh* pm : {&h, &p}) {
+        const auto bad = checkLodPrefix(pm->vertexCount(), pm->ecol, pm->triangles, pm->map, pm->q, scratch);
+        EXPECT_FALSE(bad.has_value()) << bad->what;
+        ASSERT_EQ(pm->map[pm->q], 4u) << "a closed box ends at 4 triangles";
+    }
+    EXPECT_GT(p.vertexCount(), 8u) << "placing collapses add the vertices they place";
+    const auto [half_tilt, half_mid] = flatness(h, h.q);
+    const auto [placed_tilt, placed_mid] = flatness(p, p.q);
+    EXPECT_EQ(half_mid, 0u);
+    EXPECT_EQ(placed_mid, 3u);
+    EXPECT_LT(placed_tilt, 0.75f * half_tilt);
+}
+
 TEST(ErrorCalibration, LevelErrorsFollowTheMeasuredDistanceOnEngineParts) {
     const Scene engine = importModel(test::kEngine);
     uint32_t pairs = 0, raw_under = 0, calibrated_under = 0;
