@@ -34,11 +34,11 @@ CutStage::CutStage(const DeviceScene& scene, const PipelineOptions& options, k::
     if (options.visibility_weighted) share_of_level_.resize(n);
 }
 
-k::CutRule CutStage::rule(const k::Camera& camera) const {
+k::CutRule CutStage::rule(const k::Camera& camera, float tau) const {
     k::CutRule r;
     const bool error = options_.lod == LodRule::Error && options_.mode != CullMode::Full;
     r.kind = options_.mode == CullMode::Full ? k::CutRule::kLeaves : error ? k::CutRule::kCost : k::CutRule::kOwnError;
-    r.tau = options_.tau;
+    r.tau = tau;
     r.pet = options_.pet;
     r.draw_cost = options_.draw_cost;
     r.fine_share = PipelineOptions::kFineCutShare;
@@ -59,9 +59,35 @@ void CutStage::append(size_t depth, k::DevicePtr<const uint8_t> flags, uint8_t v
 
 void CutStage::refine(const k::Camera& camera, const k::Frustum& frustum, k::DevicePtr<uint8_t> in_frustum,
                       const k::HzmLevels* hzm) {
+    tau_ = options_.tau;
+    refineAt(camera, frustum, in_frustum, hzm, tau_);
+    // The budget rule may draw finer: again at half the tau while a refinement stays within
+    // finer_cut_nodes; the first that would not is stopped and the cut before it taken again.
+    // A finer cut reaches every node the coarser one did, so every in_frustum flag it needs is
+    // written again. Each frame decides from its own camera and HZM alone: any rank that
+    // refines a frame gets the same cut.
+    const uint64_t most = options_.finer_cut_nodes;
+    if (options_.mode == CullMode::Full || options_.lod != LodRule::Budget || most == 0) return;
+    if (kept_cut_.size() < cut_.size())
+        for (auto* a : {&kept_cut_, &kept_hidden_, &kept_share_}) a->resize(cut_.size());
+    for (int step = 0; step < PipelineOptions::kFinerCutSteps && nodes_tested_ <= most; ++step) {
+        // The finer refinement writes into the spare lists; the cut so far waits in kept_*.
+        std::swap(cut_, kept_cut_), std::swap(hidden_, kept_hidden_), std::swap(share_, kept_share_);
+        const uint32_t counts[3] = {cut_count_, hidden_count_, share_count_};
+        if (!refineAt(camera, frustum, in_frustum, hzm, 0.5f * tau_, most)) {
+            std::swap(cut_, kept_cut_), std::swap(hidden_, kept_hidden_), std::swap(share_, kept_share_);
+            cut_count_ = counts[0], hidden_count_ = counts[1], share_count_ = counts[2];
+            break;
+        }
+        tau_ *= 0.5f;
+    }
+}
+
+bool CutStage::refineAt(const k::Camera& camera, const k::Frustum& frustum, k::DevicePtr<uint8_t> in_frustum,
+                        const k::HzmLevels* hzm, float tau, uint64_t most) {
     const bool occlusion = hzm != nullptr;
     const bool weighted = occlusion && options_.visibility_weighted;
-    const k::CutRule r = rule(camera);
+    const k::CutRule r = rule(camera, tau);
     const bool coarsening = r.kind == k::CutRule::kCost;
     cut_count_ = fine_count_ = hidden_count_ = share_count_ = 0;
     nodes_tested_ = 0;
@@ -72,6 +98,7 @@ void CutStage::refine(const k::Camera& camera, const k::Frustum& frustum, k::Dev
     uint32_t candidates = scene_.item_count > 0 ? 1 : 0;
     if (candidates) k::deviceMemset(candidates_.ptr(), 0, sizeof(uint32_t));  // the root, id 0
     for (size_t depth = 0; candidates > 0; ++depth) {
+        if (most > 0 && nodes_tested_ + candidates > most) return false;
         if (levels_.size() <= depth) levels_.emplace_back();
         k::DeviceArray<uint32_t>& level = levels_[depth];
         level.growTo(candidates);
@@ -105,6 +132,7 @@ void CutStage::refine(const k::Camera& camera, const k::Frustum& frustum, k::Dev
         }
     }
     if (occlusion) share_count_ = k::unionAscending(cut_.ptr(), cut_count_, hidden_.ptr(), hidden_count_, share_.ptr());
+    return true;
 }
 
 uint32_t CutStage::withLeafChildren(k::DevicePtr<const uint32_t> ids, uint32_t count, k::DeviceArray<uint32_t>& out) {

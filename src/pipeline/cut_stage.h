@@ -42,12 +42,18 @@ public:
     k::DevicePtr<const uint32_t> fineCut() const { return fine_.ptr(); }
     uint32_t fineCutCount() const { return fine_count_; }
     uint64_t nodesTested() const { return nodes_tested_; }
+    // The tau (pixels) the last refinement's cut is bounded by: PipelineOptions::tau, or a
+    // finer one where the cut was small (PipelineOptions::finer_cut_items).
+    float tau() const { return tau_; }
     // `ids` (ascending) and the leaves among their children, ascending, each once, into out:
     // occluder candidates. An HLOD is no occluder; its leaf children may be.
     uint32_t withLeafChildren(k::DevicePtr<const uint32_t> ids, uint32_t count, k::DeviceArray<uint32_t>& out);
 
 private:
-    k::CutRule rule(const k::Camera& camera) const;
+    k::CutRule rule(const k::Camera& camera, float tau) const;
+    // false (and the cut left unfinished) where it would test more than `most` nodes (0: no bound).
+    bool refineAt(const k::Camera& camera, const k::Frustum& frustum, k::DevicePtr<uint8_t> in_frustum,
+                  const k::HzmLevels* hzm, float tau, uint64_t most = 0);
     // Appends the level's entries whose flag is `value` to `list` (ascending as the levels are).
     void append(size_t depth, k::DevicePtr<const uint8_t> flags, uint8_t value, k::DeviceArray<uint32_t>& list,
                 uint32_t& count);
@@ -69,8 +75,12 @@ private:
     k::DeviceArray<uint8_t> occluded_, level_state_, flags_;
     k::DeviceArray<float> share_of_level_;
     k::DeviceArray<uint32_t> cut_, fine_, hidden_, share_, leaf_children_;
+    // The cut a finer refinement (PipelineOptions::finer_cut_nodes) started from, kept until it
+    // finishes within its bound or is given up.
+    k::DeviceArray<uint32_t> kept_cut_, kept_hidden_, kept_share_;
     uint32_t cut_count_ = 0, fine_count_ = 0, hidden_count_ = 0, share_count_ = 0;
     uint64_t nodes_tested_ = 0;
+    float tau_ = 1.0f;
 };
 
 }  // namespace occ

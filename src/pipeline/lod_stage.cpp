@@ -71,7 +71,7 @@ LodStage::LodStage(const OssFile& file, const DeviceScene& scene, const Pipeline
 }
 
 void LodStage::select(const k::Camera& camera, VisibleItems& visible,
-                      std::span<const std::pair<uint32_t, uint32_t>> previous, const k::HzmLevels* hzm) {
+                      std::span<const std::pair<uint32_t, uint32_t>> previous, const k::HzmLevels* hzm, float tau) {
     const uint32_t count = visible.size();
     const k::DevicePtr<const uint32_t> ids = visible.device_ids.ptr();
     const auto shares = [&]() -> k::DevicePtr<const float> {
@@ -90,7 +90,7 @@ void LodStage::select(const k::Camera& camera, VisibleItems& visible,
         k::copyToDevice(visible.device_triangles.ptr(), visible.triangles.data(), count);
     } else if (options_.lod == LodRule::Error) {
         // No hysteresis: keeping a coarser level than the bound allows would break it.
-        k::lodSelectByError(scene_.objects.ptr(), ids, count, camera, options_.tau, options_.pet, shares(),
+        k::lodSelectByError(scene_.objects.ptr(), ids, count, camera, tau, options_.pet, shares(),
                             scene_.map_first.ptr(), lod_error_.ptr(), object_scale_.ptr(),
                             scene_.nodes ? item_error_.ptr() : nullptr, scene_.maps, visible.device_vertices.ptr(),
                             visible.device_triangles.ptr());
@@ -112,7 +112,7 @@ void LodStage::select(const k::Camera& camera, VisibleItems& visible,
         // With a hierarchy the cut stopped where a node's own error is within tau; its level may
         // then be finer than the budget gives, never coarser (the bound covers input + level).
         if (scene_.nodes)
-            k::lodRaiseToErrorBound(scene_.objects.ptr(), ids, count, camera, options_.tau, options_.pet, share,
+            k::lodRaiseToErrorBound(scene_.objects.ptr(), ids, count, camera, tau, options_.pet, share,
                                     scene_.map_first.ptr(), lod_error_.ptr(), object_scale_.ptr(), item_error_.ptr(),
                                     scene_.maps, visible.device_vertices.ptr(), visible.device_triangles.ptr());
         k::copyToHost(visible.vertices.data(), visible.device_vertices.ptr(), count);

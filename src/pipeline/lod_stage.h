@@ -43,8 +43,10 @@ public:
     // Chooses the LOD of visible.ids (on the device and the host) into its counts. previous: the
     // last frame's set as (id, vertex count) pairs, ascending, for the hysteresis (empty: none);
     // hzm: the occluders' HZM for the visibility-weighted choice (oc+lod), or null.
+    // tau: the pixels of error the hierarchy's cut was refined to (CutStage::tau), which a
+    // level must keep within; without a hierarchy PipelineOptions::tau.
     void select(const k::Camera& camera, VisibleItems& visible,
-                std::span<const std::pair<uint32_t, uint32_t>> previous, const k::HzmLevels* hzm);
+                std::span<const std::pair<uint32_t, uint32_t>> previous, const k::HzmLevels* hzm, float tau);
 
     double budget() const { return budget_; }
     // The error rule, and the budget rule with a hierarchy: per mesh the largest collapse error

@@ -183,7 +183,7 @@ void Pipeline::cullPass(const CameraPose& pose, uint64_t frame, FrameStats& stat
     const bool weighted = options_.visibility_weighted && options_.mode == CullMode::OcLod;
     const k::HzmLevels hzm = occlusion_->hzmLevels();
     // The hysteresis starts from the last frame's set: this pipeline's, or the other switch rank's.
-    lod_->select(camera, visible_, history_.lastFrameLods(frame), weighted ? &hzm : nullptr);
+    lod_->select(camera, visible_, history_.lastFrameLods(frame), weighted ? &hzm : nullptr, cut_ ? cut_->tau() : options_.tau);
 
     std::vector<VisibleSet::Entry> entries(count);
     for (size_t j = 0; j < count; ++j) entries[j] = {visible_.ids[j], visible_.vertices[j]};
