@@ -709,11 +709,11 @@ Command addRenderCommand(CLI::App& app) {
                     "nodes, an inner node drawn as its HLOD where its error projects to at most --tau pixels\n"
                     "(tested against the frustum and the HZM level by level); off: every object on its own")
         ->capture_default_str();
-    sub->add_option("--finer-cut-nodes", o->pipeline.finer_cut_nodes,
-                    "--hierarchy on, budget rule: refine the cut again at half the --tau, down to tau/8, while a\n"
-                    "refinement tests at most this many nodes (the first that would test more is stopped and the\n"
-                    "cut before it kept): a view with few items (a walk inside the model) gets a finer picture\n"
-                    "from its spare frame time (0: always --tau)")
+    sub->add_option("--finer-cut-items", o->pipeline.finer_cut_items,
+                    "--hierarchy on, budget rule: refine the cut again at half the --tau, down to tau/8, while the\n"
+                    "finer cut draws at most this many items (the first that would draw more is given up and the\n"
+                    "cut before it kept): a view with few items, or most of them hidden, gets a finer picture from\n"
+                    "its spare frame time (0: always --tau)")
         ->capture_default_str();
     sub->add_option("--draw-cost", o->pipeline.draw_cost,
                     "--hierarchy on --lod error: what one draw is worth in triangles; the cut stops at a node\n"

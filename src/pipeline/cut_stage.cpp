@@ -61,20 +61,21 @@ void CutStage::refine(const k::Camera& camera, const k::Frustum& frustum, k::Dev
                       const k::HzmLevels* hzm) {
     tau_ = options_.tau;
     refineAt(camera, frustum, in_frustum, hzm, tau_);
-    // The budget rule may draw finer: again at half the tau while a refinement stays within
-    // finer_cut_nodes; the first that would not is stopped and the cut before it taken again.
+    // The budget rule may draw finer: again at half the tau while the cut draws at most
+    // finer_cut_items (and its refinement tests at most kFinerCutNodesPerItem times as many
+    // nodes); the first that would not is given up and the cut before it taken again.
     // A finer cut reaches every node the coarser one did, so every in_frustum flag it needs is
     // written again. Each frame decides from its own camera and HZM alone: any rank that
     // refines a frame gets the same cut.
-    const uint64_t most = options_.finer_cut_nodes;
-    if (options_.mode == CullMode::Full || options_.lod != LodRule::Budget || most == 0) return;
+    const uint64_t items = options_.finer_cut_items, most = items * PipelineOptions::kFinerCutNodesPerItem;
+    if (options_.mode == CullMode::Full || options_.lod != LodRule::Budget || items == 0) return;
     if (kept_cut_.size() < cut_.size())
         for (auto* a : {&kept_cut_, &kept_hidden_, &kept_share_}) a->resize(cut_.size());
-    for (int step = 0; step < PipelineOptions::kFinerCutSteps && nodes_tested_ <= most; ++step) {
+    for (int step = 0; step < PipelineOptions::kFinerCutSteps && cut_count_ <= items && nodes_tested_ <= most; ++step) {
         // The finer refinement writes into the spare lists; the cut so far waits in kept_*.
         std::swap(cut_, kept_cut_), std::swap(hidden_, kept_hidden_), std::swap(share_, kept_share_);
         const uint32_t counts[3] = {cut_count_, hidden_count_, share_count_};
-        if (!refineAt(camera, frustum, in_frustum, hzm, 0.5f * tau_, most)) {
+        if (!refineAt(camera, frustum, in_frustum, hzm, 0.5f * tau_, most) || cut_count_ > items) {
             std::swap(cut_, kept_cut_), std::swap(hidden_, kept_hidden_), std::swap(share_, kept_share_);
             cut_count_ = counts[0], hidden_count_ = counts[1], share_count_ = counts[2];
             break;

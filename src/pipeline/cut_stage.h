@@ -75,7 +75,7 @@ private:
     k::DeviceArray<uint8_t> occluded_, level_state_, flags_;
     k::DeviceArray<float> share_of_level_;
     k::DeviceArray<uint32_t> cut_, fine_, hidden_, share_, leaf_children_;
-    // The cut a finer refinement (PipelineOptions::finer_cut_nodes) started from, kept until it
+    // The cut a finer refinement (PipelineOptions::finer_cut_items) started from, kept until it
     // finishes within its bound or is given up.
     k::DeviceArray<uint32_t> kept_cut_, kept_hidden_, kept_share_;
     uint32_t cut_count_ = 0, fine_count_ = 0, hidden_count_ = 0, share_count_ = 0;

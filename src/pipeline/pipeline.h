@@ -138,13 +138,16 @@ struct PipelineOptions {
     static constexpr float kFineCutShare = 0.1f;
     // The budget rule may draw finer, never coarser (issue 49, item 4): with the hierarchy, the
     // cut at tau is refined again at half the tau, and so on down to tau / 2^kFinerCutSteps, as
-    // long as a refinement tests at most finer_cut_nodes nodes; the one that would test more
-    // stops before the level that would, and the cut before it is taken again. A view with few
-    // items (a walk inside the model) spends its spare frame on a finer picture; a view of the
-    // whole model keeps a cut near tau. Levels then keep within the tau used (CutStage::tau).
-    // The nodes a refinement tests cost about 0.07 ms per thousand on this 2-core machine
-    // (docs/results.md). 0: always tau.
-    uint32_t finer_cut_nodes = 32768;
+    // long as the finer cut draws at most finer_cut_items items; the first that would draw more
+    // is given up and the cut before it kept (one that would test over kFinerCutNodesPerItem
+    // times as many nodes, drawn or hidden, is stopped before the level that would). A view
+    // with few items (a walk inside the model) or most of them hidden spends its spare frame on
+    // a finer picture; a view of the whole model keeps a cut near tau. Levels then keep within
+    // the tau used (CutStage::tau). The frame's cost is in the items drawn (their levels,
+    // streaming and reformation); testing a thousand nodes costs about 0.1 ms on this 2-core
+    // machine (docs/results.md). 0: always tau.
+    uint32_t finer_cut_items = 20000;
+    static constexpr uint32_t kFinerCutNodesPerItem = 4;
     static constexpr int kFinerCutSteps = 3;
 };
 
