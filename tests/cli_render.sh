@@ -60,7 +60,7 @@ import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
 assert rows and all(int(r["budget_vertices"]) == 64 * 48 for r in rows), rows[0]["budget_vertices"]
 PY
-"$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display --budget 10% --stats "$dir/b.csv" >/dev/null ||
+"$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display --hierarchy off --budget 10% --stats "$dir/b.csv" >/dev/null ||
   fail "render --budget 10%"
 vertices=$("$exe" info "$dir/p.oss" | python3 -c "import json,sys; print(json.load(sys.stdin)['vertices'])")
 python3 - "$dir/b.csv" "$vertices" <<'PY' || fail "--budget 10% of $vertices vertices"

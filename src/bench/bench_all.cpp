@@ -274,6 +274,8 @@ RunResult Bench::render(const std::string& name, const PreparedScene& scene, std
                                         "--summary", (raw_ / (name + ".summary.json")).string(),
                                         "--budget", "10%"};
     argv.insert(argv.end(), base.begin(), base.end());
+    // The papers' runs are flat: render refines a .oss's hierarchy unless told not to (issue 49).
+    if (std::find(extra.begin(), extra.end(), "--hierarchy") == extra.end()) argv.insert(argv.end(), {"--hierarchy", "off"});
     argv.insert(argv.end(), extra.begin(), extra.end());
     RunResult r = runner_.run(name, argv);
     if (!backend_.empty() && !display_.empty()) return r;

@@ -5,6 +5,7 @@
 #include "scene/atomic_file.h"
 #include "scene/oss_file.h"
 
+#include <algorithm>
 #include <ctime>
 #include <iomanip>
 #include <map>
@@ -441,6 +442,9 @@ private:
         const fs::path stats = out_ / "raw" / (name + ".csv");
         std::vector<std::string> argv = command({"render", oss.string(), "--path", cam.string(), "--size", "512x512",
                                                  "--budget", o_.budget, "--stats", stats.string()});
+        // Runs that do not name --hierarchy are the flat ones (render's default refines a
+        // .oss's hierarchy, issue 49).
+        if (std::find(extra.begin(), extra.end(), "--hierarchy") == extra.end()) argv.insert(argv.end(), {"--hierarchy", "off"});
         argv.insert(argv.end(), extra.begin(), extra.end());
         const RunResult r = runner_.run(name, argv);
         done(r);

@@ -51,7 +51,7 @@ constexpr double kWindowOccluderMs = 10.0;
 // The command line as given (CLI11 fills it).
 struct RenderOptions {
     std::string scene, path, stats, size = "512x512", mode = "oc+lod", stream = "sc", pvs_occluders = "auto", budget = "auto";
-    std::string pace = "fast", lod = "budget", visibility_weighted = "off", hierarchy = "off", late_pass = "on", colours = "model";
+    std::string pace = "fast", lod = "budget", visibility_weighted = "off", hierarchy = "auto", late_pass = "on", colours = "model";
     std::string raster = "exact";
     double path_fps = 60;
     bool no_display = false, headless = false, exact = false, reference = false, no_deltas = false;
@@ -75,6 +75,7 @@ struct RenderConfig {
     bool draws = false;   // draws frames (not --no-display)
     bool window = false;  // in a window (drawing, not --headless)
     bool paced = false;   // --pace recorded
+    bool hierarchy_auto = false;  // --hierarchy auto: pipeline.hierarchy follows the .oss, once opened
     render::ColourMode colours = render::ColourMode::Model;  // --colours
     std::chrono::milliseconds rank_timeout{5000};
 };
@@ -98,7 +99,8 @@ RenderConfig resolveRender(const RenderOptions& o) {
         throw UsageError("--raster " + o.raster + ": expected masked or exact");
     p.raster = o.raster == "masked" ? OccluderRaster::Masked : OccluderRaster::Exact;
     p.late_pass = onOff("--late-pass", o.late_pass) == "on";
-    p.hierarchy = onOff("--hierarchy", o.hierarchy) == "on";
+    c.hierarchy_auto = o.hierarchy == "auto";
+    p.hierarchy = !c.hierarchy_auto && onOff("--hierarchy", o.hierarchy) == "on";
     p.stream = parseStreamMode(o.stream);
     if (o.occluder_ms >= 0) p.occluder_ms = o.occluder_ms;
     if (o.no_display && o.headless) throw UsageError("render: --no-display and --headless exclude each other");
@@ -514,6 +516,9 @@ int runRender(const RenderOptions& options) {
     const roles::RankLayout layout(transport.size());
     resolveForLayout(c, layout);
     const OssFile file = OssFile::open(preparedScene(c.cli.scene));
+    // --hierarchy auto (issue 49, item 6): the hierarchy of a .oss that has one, on 1 to 3
+    // ranks (sort-last's 2 + P partitions are of objects: flat there).
+    if (c.hierarchy_auto) c.pipeline.hierarchy = file.nodeCount() > 0 && layout.displays() <= 1;
 #ifdef OCC_HAVE_GL
     if (c.window) return runInWindow(c, file, transport, device.ordinal);
 #endif
@@ -705,9 +710,10 @@ Command addRenderCommand(CLI::App& app) {
                     "and in --lod error's bound (Charalambos 2006); off: the projected area (oc+lod only)")
         ->capture_default_str();
     sub->add_option("--hierarchy", o->hierarchy,
-                    "on: refine the scene's object hierarchy (prep --hierarchy on) each frame into a cut of\n"
-                    "nodes, an inner node drawn as its HLOD where its error projects to at most --tau pixels\n"
-                    "(tested against the frustum and the HZM level by level); off: every object on its own")
+                    "auto: on where the .oss has a hierarchy (prep's default) and 1 to 3 ranks run, else off;\n"
+                    "on: refine the scene's object hierarchy each frame into a cut of nodes, an inner node drawn\n"
+                    "as its HLOD where its error projects to at most --tau pixels (tested against the frustum and\n"
+                    "the HZM level by level); off: every object on its own (the flat pipeline of Peng & Cao)")
         ->capture_default_str();
     sub->add_option("--finer-cut-items", o->pipeline.finer_cut_items,
                     "--hierarchy on, budget rule: refine the cut again at half the --tau, down to tau/8, while the\n"

@@ -283,6 +283,8 @@ public:
     uint32_t itemCount() const { return scene_.item_count; }
     // The last cut's nodes tested (all levels), with the hierarchy; 0 without.
     uint64_t nodesTested() const { return cut_ ? cut_->nodesTested() : 0; }
+    // The tau the last cut was refined to (PipelineOptions::finer_cut_items), or options' tau.
+    float cutTau() const { return cut_ ? cut_->tau() : options_.tau; }
     // From now on the active vertex array's two buffers and the index buffer live in the
     // lender's slots kActiveVertexSlot + 0 / 1 and kIndexSlot (the display's GL buffers), which
     // streamPass brackets with its write calls; what they hold is copied over once. The lender

@@ -671,6 +671,7 @@ TEST(Hierarchy, TheDeviceCutEqualsAHostRefinementAndReachesOnlyWhatItRefines) {
             o.mode = mode;
             o.hierarchy = true;
             o.tau = tau;
+            o.finer_cut_items = 0;  // the cut at tau itself; the finer one below
             Pipeline p(file, o);
             for (const bool at_corner : {false, true}) {
                 const CameraPose& pose = at_corner ? corner : overview;
@@ -687,6 +688,35 @@ TEST(Hierarchy, TheDeviceCutEqualsAHostRefinementAndReachesOnlyWhatItRefines) {
                 }
             }
         }
+    }
+    // Issue 49, item 4: the budget rule refines a cut of few items again at half the tau, down to
+    // tau / 8: the cut at tau 4 of this small plant is the one at tau 0.5; bounded to fewer items
+    // than that finer cut draws, it stays the cut at tau 4.
+    {
+        PipelineOptions o;
+        o.width = 256, o.height = 192;
+        o.mode = CullMode::Lod;
+        o.hierarchy = true;
+        o.tau = 4.0f;
+        Pipeline finer(file, o);
+        o.tau = 0.5f;
+        o.finer_cut_items = 0;
+        Pipeline fine(file, o);
+        o.tau = 4.0f;
+        Pipeline coarse(file, o);
+        FrameStats stats;
+        finer.frustumPass(overview, stats);
+        fine.frustumPass(overview, stats);
+        coarse.frustumPass(overview, stats);
+        EXPECT_EQ(finer.cutTau(), 0.5f);
+        EXPECT_EQ(finer.downloadFrustumObjects(), fine.downloadFrustumObjects());
+        const size_t coarse_items = coarse.downloadFrustumObjects().size(), fine_items = fine.downloadFrustumObjects().size();
+        ASSERT_LT(coarse_items, fine_items) << "the fixture's cut was expected to grow at a finer tau";
+        o.finer_cut_items = uint32_t(coarse_items);  // room for the cut at 4, not for the one at 2
+        Pipeline bounded(file, o);
+        bounded.frustumPass(overview, stats);
+        EXPECT_EQ(bounded.downloadFrustumObjects(), coarse.downloadFrustumObjects());
+        EXPECT_EQ(bounded.cutTau(), 4.0f);
     }
     // The error rule with occlusion: frames through the pipeline give cuts of nodes in the
     // frustum, none under another; the fine cut's leaves supply the next frames' occluders.
