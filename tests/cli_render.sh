@@ -47,7 +47,8 @@ python3 -c "import json,sys; p=json.load(open(sys.argv[1]))['pace']; assert p['f
 # Each impossible option is named by its flag, also when the library found it out of range.
 for bad in "--size 0x10" "--size big" "--mode none" "--stream fast" "--alpha 1" "--pet -1" "--budget -3" \
            "--budget 200%" "--budget many" "--lod-hysteresis 1" "--aos 100000" "--pace slow" "--path-fps 0" \
-           "--link x" "--link 1:0" "--link -1" "--link 1:100:2:3" "--link 1::2" "--colours red" "--raster fast"; do
+           "--link x" "--link 1:0" "--link -1" "--link 1:100:2:3" "--link 1::2" "--colours red" "--raster fast" \
+           "--hierarchy maybe"; do
   "$exe" render "$dir/p.oss" --path "$dir/walk.cam" --no-display $bad >/dev/null 2>"$dir/err"; status=$?
   [ $status -eq 2 ] || fail "render $bad: exit $status"
   [ "$(wc -l <"$dir/err")" -eq 1 ] && grep -q -- "^error: ${bad%% *}" "$dir/err" || fail "render $bad: $(cat "$dir/err")"

@@ -99,8 +99,10 @@ RenderConfig resolveRender(const RenderOptions& o) {
         throw UsageError("--raster " + o.raster + ": expected masked or exact");
     p.raster = o.raster == "masked" ? OccluderRaster::Masked : OccluderRaster::Exact;
     p.late_pass = onOff("--late-pass", o.late_pass) == "on";
+    if (o.hierarchy != "auto" && o.hierarchy != "on" && o.hierarchy != "off")
+        throw UsageError("--hierarchy " + o.hierarchy + ": expected auto, on or off");
     c.hierarchy_auto = o.hierarchy == "auto";
-    p.hierarchy = !c.hierarchy_auto && onOff("--hierarchy", o.hierarchy) == "on";
+    p.hierarchy = o.hierarchy == "on";
     p.stream = parseStreamMode(o.stream);
     if (o.occluder_ms >= 0) p.occluder_ms = o.occluder_ms;
     if (o.no_display && o.headless) throw UsageError("render: --no-display and --headless exclude each other");
