@@ -120,11 +120,14 @@ public:
     CollapseSequence run(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& triangles,
                          CollapseCost cost, bool place, std::span<const uint32_t> colours) {
         colour_.assign(colours.begin(), colours.end());
-        positions_.assign(positions.begin(), positions.end());
-        pos_ = positions_.data();
         place_ = place && cost == CollapseCost::Quadric;
-        box_lo_ = glm::vec3(INFINITY), box_hi_ = glm::vec3(-INFINITY);
-        for (const glm::vec3& p : positions) box_lo_ = glm::min(box_lo_, p), box_hi_ = glm::max(box_hi_, p);
+        pos_ = positions.data();
+        if (place_) {  // placed vertices move their slot: a copy to move
+            positions_.assign(positions.begin(), positions.end());
+            pos_ = positions_.data();
+            box_lo_ = glm::vec3(INFINITY), box_hi_ = glm::vec3(-INFINITY);
+            for (const glm::vec3& p : positions) box_lo_ = glm::min(box_lo_, p), box_hi_ = glm::max(box_hi_, p);
+        }
         external_.resize(positions.size());
         for (uint32_t v = 0; v < uint32_t(positions.size()); ++v) external_[v] = v;
         corner_.assign(triangles.begin(), triangles.end());
@@ -629,8 +632,8 @@ private:
         }
     }
 
-    std::vector<glm::vec3> positions_;  // the welded positions; a slot's moves to where a placing collapse put it
-    glm::vec3* pos_ = nullptr;          // positions_.data()
+    std::vector<glm::vec3> positions_;  // placing: the welded positions, a slot's moved where a collapse put it
+    const glm::vec3* pos_ = nullptr;    // the input's positions, or positions_.data() when placing
     std::vector<uint32_t> external_;    // per slot: the vertex it is in the sequence (a placed one: n_ + i)
     bool place_ = false;
     std::vector<uint32_t> colour_;  // per slot, when colours were given: only ends of one colour are placed

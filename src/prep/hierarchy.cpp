@@ -9,7 +9,6 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -267,28 +266,6 @@ uint32_t tintedColour(const glm::vec4& tint, uint32_t colour) {
         out |= uint32_t(std::lround(255.0f * linearToSrgb(linear))) << (8 * c);
     }
     return out;
-}
-
-// The progressive mesh's vertices are vertices of its input (welded where they coincide; edge
-// collapses keep positions), so each takes the colour of the input vertex at its
-// position (of coinciding ones, the first).
-void colourByPosition(const std::vector<glm::vec3>& input, const std::vector<uint32_t>& input_colours, ProgressiveMesh& p) {
-    struct Key {
-        uint32_t x, y, z;
-        bool operator==(const Key&) const = default;
-    };
-    struct Hash {
-        size_t operator()(const Key& k) const { return (uint64_t(k.x) * 0x9E3779B1u) ^ (uint64_t(k.y) * 0x85EBCA77u) ^ (uint64_t(k.z) * 0xC2B2AE3Du); }
-    };
-    const auto key = [](const glm::vec3& v) { return Key{std::bit_cast<uint32_t>(v.x), std::bit_cast<uint32_t>(v.y), std::bit_cast<uint32_t>(v.z)}; };
-    std::unordered_map<Key, uint32_t, Hash> at;
-    at.reserve(input.size());
-    for (size_t v = 0; v < input.size(); ++v) at.emplace(key(input[v]), input_colours[v]);
-    p.colours.resize(p.positions.size());
-    for (size_t v = 0; v < p.positions.size(); ++v) {
-        const auto found = at.find(key(p.positions[v]));
-        p.colours[v] = found != at.end() ? found->second : oss::kWhite;
-    }
 }
 
 // The largest k in [q, n] whose level has at most `most` triangles (q where even it has more).
@@ -602,8 +579,7 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                         cluster.colour_borders = options.colour_borders;
                         p = buildClusteredProgressiveMesh(merged, merged_colours, cluster);
                     } else {
-                        p = buildProgressiveMesh(merged, Collapser::Fast);
-                        colourByPosition(merged.positions, merged_colours, p);
+                        p = buildProgressiveMesh(merged, Collapser::Fast, merged_colours);
                     }
                     if (options.fine_input)
                         error += truncateLevels(p, levelWithAtMost(p.map, p.q, std::max<uint64_t>(1, node.triangles / std::max(1u, options.reduction))));

@@ -24,14 +24,27 @@ namespace occ {
 
 namespace {
 
-// Weld, the collapse sequence `collapse` makes of the welded mesh, the §4.2 arrays, Algorithm 1.
+// Weld, the collapse sequence `collapse` makes of the welded mesh (which it may extend with
+// placed vertices and their colours), the §4.2 arrays, Algorithm 1. colours: one per mesh
+// position, carried to ProgressiveMesh::colours; empty: none.
 template <typename Collapse>
-ProgressiveMesh buildFromSequence(const Mesh& mesh, const Collapse& collapse) {
-    const WeldedMesh welded = weldPositions(mesh.positions, mesh.indices);
-    const CollapseSequence sequence = collapse(welded);
+ProgressiveMesh buildFromSequence(const Mesh& mesh, std::span<const uint32_t> colours, const Collapse& collapse) {
+    WeldedMesh welded = weldPositions(mesh.positions, mesh.indices);
+    std::vector<uint32_t> welded_colours;
+    if (!colours.empty()) {
+        if (colours.size() != mesh.positions.size())
+            throw std::invalid_argument("buildProgressiveMesh: one colour per position expected");
+        welded_colours.reserve(welded.positions.size());
+        for (uint32_t v : welded.source) welded_colours.push_back(colours[v]);
+    }
+    const CollapseSequence sequence = collapse(welded, colours.empty() ? nullptr : &welded_colours);
     const CollapseArrays arrays = recordCollapseArrays(uint32_t(welded.positions.size()),
                                                        uint32_t(welded.triangles.size() / 3), sequence);
     ProgressiveMesh pm = rearrange(welded.positions, welded.triangles, sequence, arrays);
+    if (!colours.empty()) {
+        pm.colours.resize(pm.positions.size());
+        for (size_t v = 0; v < welded_colours.size(); ++v) pm.colours[arrays.permuteV[v]] = welded_colours[v];
+    }
     calibrateRecordedErrors(pm);  // the recorded errors become distances tau can trust
     pm.source_vertices = uint32_t(mesh.positions.size());
     pm.dropped_triangles = welded.dropped_triangles;
@@ -40,8 +53,8 @@ ProgressiveMesh buildFromSequence(const Mesh& mesh, const Collapse& collapse) {
 
 }  // namespace
 
-ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser) {
-    return buildFromSequence(mesh, [collapser](const WeldedMesh& w) {
+ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser, std::span<const uint32_t> colours) {
+    return buildFromSequence(mesh, colours, [collapser](const WeldedMesh& w, std::vector<uint32_t>*) {
         return collapser == Collapser::Fast ? fastCollapseSequence(w.positions, w.triangles)
                                             : openMeshCollapseSequence(w.positions, w.triangles);
     });
@@ -49,31 +62,12 @@ ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser) {
 
 ProgressiveMesh buildClusteredProgressiveMesh(const Mesh& mesh, std::span<const uint32_t> colours,
                                              const ClusterOptions& options) {
-    WeldedMesh welded = weldPositions(mesh.positions, mesh.indices);
-    std::vector<uint32_t> welded_colours;
-    if (!colours.empty()) {
-        if (colours.size() != mesh.positions.size())
-            throw std::invalid_argument("buildClusteredProgressiveMesh: one colour per position expected");
-        welded_colours.reserve(welded.positions.size());
-        for (uint32_t v : welded.source) welded_colours.push_back(colours[v]);
-    }
-    const CollapseSequence sequence =
-        clusterAfterCollapses(welded.positions, colours.empty() ? nullptr : &welded_colours, welded.triangles,
-                              fastCollapseSequence(welded.positions, welded.triangles, CollapseCost::Quadric, options.place_edges,
-                                                   options.colour_borders ? std::span<const uint32_t>(welded_colours)
-                                                                          : std::span<const uint32_t>()),
-                              options);
-    const CollapseArrays arrays =
-        recordCollapseArrays(uint32_t(welded.positions.size()), uint32_t(welded.triangles.size() / 3), sequence);
-    ProgressiveMesh pm = rearrange(welded.positions, welded.triangles, sequence, arrays);
-    if (!colours.empty()) {
-        pm.colours.resize(pm.positions.size());
-        for (size_t v = 0; v < welded_colours.size(); ++v) pm.colours[arrays.permuteV[v]] = welded_colours[v];
-    }
-    calibrateRecordedErrors(pm);
-    pm.source_vertices = uint32_t(mesh.positions.size());
-    pm.dropped_triangles = welded.dropped_triangles;
-    return pm;
+    return buildFromSequence(mesh, colours, [&options](WeldedMesh& w, std::vector<uint32_t>* welded_colours) {
+        const std::span<const uint32_t> borders =
+            options.colour_borders && welded_colours ? std::span<const uint32_t>(*welded_colours) : std::span<const uint32_t>();
+        CollapseSequence edges = fastCollapseSequence(w.positions, w.triangles, CollapseCost::Quadric, options.place_edges, borders);
+        return clusterAfterCollapses(w.positions, welded_colours, w.triangles, std::move(edges), options);
+    });
 }
 
 namespace {

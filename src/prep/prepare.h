@@ -43,8 +43,10 @@ struct PrepProgress {
     uint64_t meshes_total = 0, triangles_total = 0;
 };
 
-// Weld + collapse sequence + §4.2 arrays + Algorithm 1 for one mesh (local space).
-ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser);
+// Weld + collapse sequence + §4.2 arrays + Algorithm 1 for one mesh (local space). colours
+// (one per mesh position, or empty): the vertices' colours, carried to ProgressiveMesh::colours
+// (of positions welded together, the first's).
+ProgressiveMesh buildProgressiveMesh(const Mesh& mesh, Collapser collapser, std::span<const uint32_t> colours = {});
 // The same with the fast collapser's sequence continued by vertex clustering
 // (cluster_collapse.h), for HLODs: components may vanish and join, clusters move onto placed
 // vertices. colours (one per mesh position, or empty): the vertices' colours, carried to
