@@ -153,8 +153,23 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
         frame_.readItems(our_items_);
         full_->readItems(items_);
         mapToDrawnItems(pipeline, items_);
+        // Where two objects' surfaces lie within the bound of each other in depth (IFC walls,
+        // slabs and their layers overlap), the reference shows the nearer, and a frame within
+        // the bound may show another: two tie passes find the last drawn and the first drawn of
+        // those whose surface lies within tau pixels' span behind the reference's (a pixel spans
+        // 2 tan(fovy / 2) / height of its distance), and each counts as the reference's item.
+        const float pull = boundCheckPixels(options_.tau) * 2.0f * std::tan(0.5f * camera.fovy) / float(height_);
+        for (int pass = 0; pass < 2; ++pass) {
+            if (pass == 1) std::reverse(candidates_.begin(), candidates_.end());
+            full_->beginTiePass();
+            renderer_.drawFullDetail(candidates_.data(), candidates_.size(), camera, pull);
+            full_->endTiePass();
+            full_->readItems(tied_items_[pass]);
+            mapToDrawnItems(pipeline, tied_items_[pass]);
+        }
+        const uint32_t* const tied[2] = {tied_items_[0].data(), tied_items_[1].data()};
         const PictureDifference d = comparePictures(ours.data(), full_picture_.data(), our_items_.data(), items_.data(),
-                                                    width_, height_, boundCheckPixels(options_.tau));
+                                                    width_, height_, boundCheckPixels(options_.tau), tied);
         s.psnr_db = d.psnr_db;
         s.mse = d.mse;
         s.perceptible_share = d.perceptible_percent;

@@ -86,7 +86,7 @@ private:
     std::vector<uint8_t> picture_, full_picture_, in_pvs_, seen_;
     std::vector<uint32_t> exact_before_, exact_now_;  // the exact visible set of the last frame and this one
     bool picture_read_ = false;
-    std::vector<uint32_t> items_, candidates_, our_items_, drawn_of_;
+    std::vector<uint32_t> items_, tied_items_[2], candidates_, our_items_, drawn_of_;
     std::vector<uint32_t> parent_;  // with a hierarchy: each node's parent (UINT32_MAX at the root)
     k::DeviceArray<float> full_hzm_;
     k::DeviceArray<uint8_t> occluded_;

@@ -205,7 +205,7 @@ double ssim(const uint8_t* a, const uint8_t* b, uint32_t width, uint32_t height)
 
 void changedPixelItemDistances(const uint8_t* ours_rgb, const uint8_t* ref_rgb, const uint32_t* ours_items,
                                const uint32_t* ref_items, uint32_t width, uint32_t height, uint32_t max_radius,
-                               std::vector<float>& distances) {
+                               std::vector<float>& distances, std::span<const uint32_t* const> tied_ref_items) {
     const int64_t w = width, h = height, reach = max_radius;
     for (int64_t y = 0; y < h; ++y) {
         for (int64_t x = 0; x < w; ++x) {
@@ -215,7 +215,11 @@ void changedPixelItemDistances(const uint8_t* ours_rgb, const uint8_t* ref_rgb, 
             // Squared distances are integers, so the search compares them exactly.
             int64_t best = std::numeric_limits<int64_t>::max();
             const auto consider = [&](int64_t qx, int64_t qy) {
-                if (qx < 0 || qy < 0 || qx >= w || qy >= h || ref_items[qy * w + qx] != item) return;
+                if (qx < 0 || qy < 0 || qx >= w || qy >= h) return;
+                const int64_t q = qy * w + qx;
+                bool match = ref_items[q] == item;
+                for (const uint32_t* tied : tied_ref_items) match = match || tied[q] == item;
+                if (!match) return;
                 best = std::min(best, (qx - x) * (qx - x) + (qy - y) * (qy - y));
             };
             consider(x, y);
@@ -263,7 +267,8 @@ double psnrFromSquaredError(double squared_error, uint64_t bytes) {
 }
 
 PictureDifference comparePictures(const uint8_t* ours_rgb, const uint8_t* ref_rgb, const uint32_t* ours_items,
-                                  const uint32_t* ref_items, uint32_t width, uint32_t height, float tau) {
+                                  const uint32_t* ref_items, uint32_t width, uint32_t height, float tau,
+                                  std::span<const uint32_t* const> tied_ref_items) {
     const uint64_t pixels = uint64_t(width) * height, bytes = 3 * pixels;
     PictureDifference d;
     const double squared = squaredError(ours_rgb, ref_rgb, bytes);
@@ -275,7 +280,7 @@ PictureDifference comparePictures(const uint8_t* ours_rgb, const uint8_t* ref_rg
     if (ours_items && ref_items) {
         std::vector<float> distances;
         changedPixelItemDistances(ours_rgb, ref_rgb, ours_items, ref_items, width, height, kBoundSearchRadiusPx,
-                                  distances);
+                                  distances, tied_ref_items);
         d.bound_pixels = distances.size();
         for (float distance : distances) d.bound_beyond_tau += distance > tau;
         d.bound_p99_px = percentile(distances, 99);

@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 // How far a rendered picture is from a reference picture of the same view, in four measures
@@ -62,12 +63,16 @@ double ssim(const uint8_t* a, const uint8_t* b, uint32_t width, uint32_t height)
 // reference background. A changed pixel with no match within max_radius appends
 // max_radius + 1, the sentinel for "farther than max_radius". Pixels are appended in buffer
 // order; `distances` is not cleared. All four buffers hold width * height pixels.
+// tied_ref_items (each width * height ids): more items per reference pixel, those whose surface
+// ties in depth with ref_items' there (IFC walls, slabs and their layers overlap): any of them
+// matches, for a picture within the bound could show any of them.
 // Cost: a ring search that stops once a ring cannot hold anything nearer than the best found,
 // so a pixel next to its item costs a few lookups and no pixel costs more than
 // (2 max_radius + 1)^2.
 void changedPixelItemDistances(const uint8_t* ours_rgb, const uint8_t* ref_rgb, const uint32_t* ours_items,
                                const uint32_t* ref_items, uint32_t width, uint32_t height, uint32_t max_radius,
-                               std::vector<float>& distances);
+                               std::vector<float>& distances,
+                               std::span<const uint32_t* const> tied_ref_items = {});
 
 // The p-th percentile (p in [0, 100], clamped) of `values` by nearest rank: the smallest value
 // v such that at least p percent of the values are <= v (the way bench_massive reads its p99),
@@ -109,8 +114,10 @@ struct PictureDifference {
 
 // Compares our width x height RGB picture with the reference. ours_items and ref_items are both
 // null (no bound check: the bound fields stay 0) or both width * height item ids (0 =
-// background) in one id space; tau is the distance in pixels the bound allows.
+// background) in one id space; tau is the distance in pixels the bound allows; tied_ref_items as
+// changedPixelItemDistances takes them.
 PictureDifference comparePictures(const uint8_t* ours_rgb, const uint8_t* ref_rgb, const uint32_t* ours_items,
-                                  const uint32_t* ref_items, uint32_t width, uint32_t height, float tau);
+                                  const uint32_t* ref_items, uint32_t width, uint32_t height, float tau,
+                                  std::span<const uint32_t* const> tied_ref_items = {});
 
 }  // namespace occ::render

@@ -19,7 +19,7 @@ namespace {
 constexpr float kBackground[4] = {0.08f, 0.09f, 0.11f, 1.0f};
 constexpr GLuint kWorldBinding = 0, kColourBinding = 1, kBoxBinding = 2, kItemVertexColourBinding = 3,
                  kVertexColourBinding = 4;
-constexpr GLint kViewProjLocation = 0, kEyeLocation = 1;
+constexpr GLint kViewProjLocation = 0, kEyeLocation = 1, kTiePullLocation = 2;
 
 GLuint makeBuffer() {
     GLuint b = 0;
@@ -132,6 +132,23 @@ void FrameTarget::begin(bool with_items) {
     glClearNamedFramebufferfv(fbo_, GL_DEPTH, 0, &far_depth);
     if (!with_items) glNamedFramebufferDrawBuffers(fbo_, 1, both);
     OCC_GL_CHECK(glEnable(GL_DEPTH_TEST));
+}
+
+void FrameTarget::beginTiePass() {
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+    const GLuint no_item[4] = {0, 0, 0, 0};
+    const GLenum items_only[2] = {GL_NONE, GL_COLOR_ATTACHMENT1};
+    glNamedFramebufferDrawBuffers(fbo_, 2, items_only);
+    glClearNamedFramebufferuiv(fbo_, GL_COLOR, 1, no_item);
+    glDepthMask(GL_FALSE);
+    OCC_GL_CHECK(glDepthFunc(GL_LEQUAL));
+}
+
+void FrameTarget::endTiePass() {
+    glDepthFunc(GL_LESS);
+    glDepthMask(GL_TRUE);
+    const GLenum both[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+    OCC_GL_CHECK(glNamedFramebufferDrawBuffers(fbo_, 2, both));
 }
 
 void FrameTarget::readColour(std::vector<uint8_t>& rgb) const {
@@ -339,7 +356,7 @@ void SceneRenderer::uploadFullDetail() {
     full_uploaded_ = true;
 }
 
-void SceneRenderer::drawFullDetail(const uint32_t* ids, size_t count, const k::Camera& camera) {
+void SceneRenderer::drawFullDetail(const uint32_t* ids, size_t count, const k::Camera& camera, float tie_pull) {
     if (!full_uploaded_) uploadFullDetail();
     const auto meshes = scene_.file->meshRecords();
     full_draws_.clear();
@@ -358,7 +375,9 @@ void SceneRenderer::drawFullDetail(const uint32_t* ids, size_t count, const k::C
         glNamedBufferData(full_commands_, GLsizeiptr(full_commands_host_.size() * sizeof(k::DrawCommand)),
                           full_commands_host_.data(), GL_STREAM_DRAW);
         glBindBuffer(GL_DRAW_INDIRECT_BUFFER, full_commands_);
+        glProgramUniform1f(shaded_program_, kTiePullLocation, tie_pull);
         multiDraw(full_vao_, uint32_t(full_draws_.size()), camera);
+        glProgramUniform1f(shaded_program_, kTiePullLocation, 0.0f);
     }
     checkGlError("drawing at full detail", __FILE__, __LINE__);
 }

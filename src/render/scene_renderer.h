@@ -40,6 +40,13 @@ public:
     // Binds the framebuffer, sets the viewport and clears colour to the background, items to 0
     // and depth to 1 (far). with_items: later draws also write the item buffer.
     void begin(bool with_items);
+    // After a drawing with items: clears the item buffer, and until endTiePass later draws write
+    // items only, without depth writes, where their depth is at most the drawn depth (GL_LEQUAL):
+    // the last one drawn wins, so drawing the same list again pulled towards the eye
+    // (SceneRenderer::drawFullDetail's tie_pull) leaves at each pixel the last item whose surface
+    // lies within the pull behind the one drawn there (or that one). Colour and depth stay.
+    void beginTiePass();
+    void endTiePass();
     // Read back, bottom row first (GL's order, also the kernels' "y up" order):
     void readColour(std::vector<uint8_t>& rgb) const;   // 3 * W * H bytes
     void readItems(std::vector<uint32_t>& items) const;  // W * H
@@ -86,8 +93,10 @@ public:
     DrawCounts drawFrame(const Pipeline& pipeline, const k::Camera& camera);
 
     // Draws objects ids[0, count) at full detail (every triangle of their meshes) into the bound
-    // target. The first call uploads every mesh of the file once.
-    void drawFullDetail(const uint32_t* ids, size_t count, const k::Camera& camera);
+    // target. The first call uploads every mesh of the file once. tie_pull (FrameTarget's tie
+    // pass): each vertex moves that fraction of its distance towards the eye, which keeps its
+    // pixel and brings its depth nearer; 0 draws the objects where they are.
+    void drawFullDetail(const uint32_t* ids, size_t count, const k::Camera& camera, float tie_pull = 0.0f);
 
     struct Box {
         glm::vec4 lo, hi, colour;  // w unused

@@ -245,6 +245,33 @@ TEST(ChangedPixelItemDistances, FindsTheEuclideanNearestNotTheFirstRingsMatch) {
     EXPECT_EQ(distances[0], 5.0f);
 }
 
+// An item the reference hides behind a tied surface (coplanar walls: the reference showed item 2
+// where item 5 lies at the same depth) matches where a tie buffer holds it, in either buffer,
+// and only there.
+TEST(ChangedPixelItemDistances, TiedReferenceItemsMatchLikeTheShownOnes) {
+    std::vector<uint32_t> ref(8 * 8, 2), ours(8 * 8, 2), tied_a(8 * 8, 2), tied_b(8 * 8, 2);
+    ours[2 * 8 + 2] = 5;  // ours shows 5 at (2, 2), the reference 2 everywhere
+    const std::vector<uint8_t> ours_rgb = colours(ours), ref_rgb = colours(ref);
+    std::vector<float> distances;
+    changedPixelItemDistances(ours_rgb.data(), ref_rgb.data(), ours.data(), ref.data(), 8, 8, 4, distances);
+    EXPECT_EQ(distances, std::vector<float>{5.0f});  // no 5 within 4 pixels
+
+    tied_b[2 * 8 + 5] = 5;  // 5 ties with 2 three pixels right of (2, 2)
+    const uint32_t* const tied[2] = {tied_a.data(), tied_b.data()};
+    distances.clear();
+    changedPixelItemDistances(ours_rgb.data(), ref_rgb.data(), ours.data(), ref.data(), 8, 8, 4, distances, tied);
+    EXPECT_EQ(distances, std::vector<float>{3.0f});
+
+    tied_a[2 * 8 + 2] = 5;  // and at (2, 2) itself, in the other buffer
+    distances.clear();
+    changedPixelItemDistances(ours_rgb.data(), ref_rgb.data(), ours.data(), ref.data(), 8, 8, 4, distances, tied);
+    EXPECT_EQ(distances, std::vector<float>{0.0f});
+    const PictureDifference d =
+        comparePictures(ours_rgb.data(), ref_rgb.data(), ours.data(), ref.data(), 8, 8, 1.0f, tied);
+    EXPECT_EQ(d.bound_pixels, 1u);
+    EXPECT_EQ(d.bound_beyond_tau, 0u);
+}
+
 TEST(Percentile, IsTheNearestRank) {
     std::vector<float> values = {5, 1, 4, 2, 3};
     EXPECT_EQ(percentile(values, 0), 1.0);

@@ -16,6 +16,11 @@ layout(std430, binding = 3) readonly buffer ItemVertexColour { uint colour_first
 layout(std430, binding = 4) readonly buffer VertexColour { uint vertex_colour[]; };
 
 layout(location = 0) uniform mat4 view_proj;
+layout(location = 1) uniform vec3 eye;
+// The reference's tie pass (FrameDisplay): each vertex moves this fraction of its distance
+// towards the eye, so its pixel stays and its depth comes nearer by as much as that pixel's
+// share of the fraction spans there; 0 in every other draw.
+layout(location = 2) uniform float tie_pull;
 
 out vec3 world_position;
 out vec3 base_colour;
@@ -33,6 +38,6 @@ void main() {
     }
     base_colour = c;
     item = object_id + 1u;  // 0 = background in the item buffer
-    depth_floor = object_depth_floor;
-    gl_Position = view_proj * p;
+    depth_floor = tie_pull > 0.0 ? 0.0 : object_depth_floor;
+    gl_Position = view_proj * vec4(mix(p.xyz, eye, tie_pull), 1.0);
 }
