@@ -69,4 +69,36 @@ OCC_HD inline uint32_t levelWithinError(const float* e, uint32_t q, uint32_t ver
     return lo;
 }
 
+// levelWithinError(e, q, vertex_count, allowed), searched outwards from `hint` (any value; the
+// answer does not depend on it): where the answer lies near the hint, as a level does from one
+// frame to the next, it costs a probe or two in one cache line instead of log2(vertex_count)
+// probes across the mesh's errors, each a likely cache miss.
+OCC_HD inline uint32_t levelWithinErrorNear(const float* e, uint32_t q, uint32_t vertex_count, float allowed,
+                                            uint32_t hint) {
+    const uint32_t first = q < vertex_count ? q : vertex_count;
+    if (hint < first || hint > vertex_count) return levelWithinError(e, first, vertex_count, allowed);
+    // The answer is the smallest k >= first with e[k] <= allowed (e does not grow with k).
+    if (e[hint] <= allowed) {
+        // At or below the hint: gallop down while the level below is within too.
+        uint32_t hi = hint, step = 1;
+        while (hi > first) {
+            const uint32_t probe = hi - first > step ? hi - step : first;
+            if (e[probe] > allowed) return levelWithinError(e, probe + 1, hi, allowed);
+            hi = probe;
+            step *= 2;
+        }
+        return first;
+    }
+    // Above the hint: gallop up to the first level within (vertex_count always is, or is the
+    // answer when nothing is).
+    uint32_t lo = hint + 1, step = 1;
+    while (lo < vertex_count) {
+        const uint32_t probe = vertex_count - lo > step ? lo + step : vertex_count;
+        if (e[probe] <= allowed) return levelWithinError(e, lo, probe, allowed);
+        lo = probe + 1;
+        step *= 2;
+    }
+    return vertex_count;
+}
+
 }  // namespace occ::k

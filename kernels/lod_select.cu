@@ -204,6 +204,7 @@ struct ErrorLevel {
     const uint32_t* maps;
     uint32_t* vertex_count;
     uint32_t* triangle_count;
+    uint32_t* hint;  // by item: where the search starts, then the level found; may be null
     bool raise;  // lodRaiseToErrorBound: keep a finer level already chosen
 
     OCC_HD uint32_t operator()(uint32_t j) const {
@@ -222,7 +223,21 @@ struct ErrorLevel {
                 // to its level; none left: full detail (no level has a negative error).
                 if (error_offset) allowed -= error_offset[id];
                 allowed /= fmaxf(scale[id], 1e-30f);
-                k = levelWithinError(lod_error + map_first[o.mesh], o.q, o.vertex_count, allowed);
+                const float* e = lod_error + map_first[o.mesh];
+                if (raise) {
+                    // Level errors do not grow with the vertex count, so a chosen level within
+                    // the bound is kept after one load, and a raised one lies above it.
+                    const uint32_t chosen = vertex_count[j];
+                    const uint32_t q = o.q < o.vertex_count ? o.q : o.vertex_count;
+                    if (chosen >= q && chosen <= o.vertex_count && e[chosen] <= allowed) return chosen;
+                    const uint32_t first = chosen >= q && chosen < o.vertex_count ? chosen + 1 : q;
+                    k = hint ? levelWithinErrorNear(e, first, o.vertex_count, allowed, hint[id])
+                             : levelWithinError(e, first, o.vertex_count, allowed);
+                } else {
+                    k = hint ? levelWithinErrorNear(e, o.q, o.vertex_count, allowed, hint[id])
+                             : levelWithinError(e, o.q, o.vertex_count, allowed);
+                }
+                if (hint) hint[id] = k;
             }
         }
         if (raise && vertex_count[j] >= k) return vertex_count[j];
@@ -253,10 +268,11 @@ uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const u
                           DevicePtr<const uint64_t> map_first,
                           DevicePtr<const float> lod_error, DevicePtr<const float> scale,
                           DevicePtr<const float> error_offset, DevicePtr<const uint32_t> maps,
-                          DevicePtr<uint32_t> vertex_count, DevicePtr<uint32_t> triangle_count) {
+                          DevicePtr<uint32_t> vertex_count, DevicePtr<uint32_t> triangle_count,
+                          DevicePtr<uint32_t> hint) {
     return errorLevels(ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first),
                                   raw(lod_error), raw(scale), raw(error_offset), raw(maps), raw(vertex_count),
-                                  raw(triangle_count), false},
+                                  raw(triangle_count), raw(hint), false},
                        count);
 }
 
@@ -265,10 +281,10 @@ uint64_t lodRaiseToErrorBound(DevicePtr<const ObjectInfo> objects, DevicePtr<con
                               DevicePtr<const uint64_t> map_first, DevicePtr<const float> lod_error,
                               DevicePtr<const float> scale, DevicePtr<const float> error_offset,
                               DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
-                              DevicePtr<uint32_t> triangle_count) {
+                              DevicePtr<uint32_t> triangle_count, DevicePtr<uint32_t> hint) {
     return errorLevels(ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first),
                                   raw(lod_error), raw(scale), raw(error_offset), raw(maps), raw(vertex_count),
-                                  raw(triangle_count), true},
+                                  raw(triangle_count), raw(hint), true},
                        count);
 }
 

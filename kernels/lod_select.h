@@ -51,24 +51,29 @@ uint64_t lodSelect(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t
 // level with k vertices, in object space (0 at full detail); scale[i] is how much object i's
 // world matrix enlarges lengths at most. Writes vertex_count and triangle_count as lodSelect
 // does and returns sum vc_i. No budget: the error bounds the picture, the count follows.
+// hint (null, or one entry per item, by id): where each search starts, then the level found
+// (levelWithinErrorNear): a level moves little from frame to frame, so the next frame's search
+// costs a probe or two; the levels chosen do not depend on it.
 uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
                           const Camera& camera, float tau, float pet, DevicePtr<const float> visible_share,
                           DevicePtr<const uint64_t> map_first,
                           DevicePtr<const float> lod_error, DevicePtr<const float> scale,
                           DevicePtr<const float> error_offset, DevicePtr<const uint32_t> maps,
-                          DevicePtr<uint32_t> vertex_count, DevicePtr<uint32_t> triangle_count);
+                          DevicePtr<uint32_t> vertex_count, DevicePtr<uint32_t> triangle_count,
+                          DevicePtr<uint32_t> hint = nullptr);
 
 // The error bound as a floor under a level already chosen (the budget rule with a hierarchy,
 // issue 49: the budget may draw finer than tau allows, never coarser): for each listed object
 // the level lodSelectByError would choose, where it is finer than vertex_count[j] (which then
 // takes it, and triangle_count[j] its triangles); levels at least as fine stay. A level of 0
 // (not drawn: A_i < pet) is raised only where the bound draws the object. Same arguments as
-// lodSelectByError; returns the new sum of vc_i.
+// lodSelectByError; returns the new sum of vc_i. A level already within the bound is kept after
+// one probe of its error; the hint is used and written only where the level is raised.
 uint64_t lodRaiseToErrorBound(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
                               const Camera& camera, float tau, float pet, DevicePtr<const float> visible_share,
                               DevicePtr<const uint64_t> map_first, DevicePtr<const float> lod_error,
                               DevicePtr<const float> scale, DevicePtr<const float> error_offset,
                               DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
-                              DevicePtr<uint32_t> triangle_count);
+                              DevicePtr<uint32_t> triangle_count, DevicePtr<uint32_t> hint = nullptr);
 
 }  // namespace occ::k

@@ -63,7 +63,8 @@ void CutStage::refine(const k::Camera& camera, const k::Frustum& frustum, k::Dev
     refineAt(camera, frustum, in_frustum, hzm, tau_);
     // The budget rule may draw finer: again at half the tau while the cut draws at most
     // finer_cut_items (and its refinement tests at most kFinerCutNodesPerItem times as many
-    // nodes); the first that would not is given up and the cut before it taken again.
+    // nodes); the first that would not is given up, at the level where it outgrows either, and
+    // the cut before it taken again.
     // A finer cut reaches every node the coarser one did, so every in_frustum flag it needs is
     // written again. Each frame decides from its own camera and HZM alone: any rank that
     // refines a frame gets the same cut.
@@ -75,7 +76,7 @@ void CutStage::refine(const k::Camera& camera, const k::Frustum& frustum, k::Dev
         // The finer refinement writes into the spare lists; the cut so far waits in kept_*.
         std::swap(cut_, kept_cut_), std::swap(hidden_, kept_hidden_), std::swap(share_, kept_share_);
         const uint32_t counts[3] = {cut_count_, hidden_count_, share_count_};
-        if (!refineAt(camera, frustum, in_frustum, hzm, 0.5f * tau_, most) || cut_count_ > items) {
+        if (!refineAt(camera, frustum, in_frustum, hzm, 0.5f * tau_, most, items) || cut_count_ > items) {
             std::swap(cut_, kept_cut_), std::swap(hidden_, kept_hidden_), std::swap(share_, kept_share_);
             cut_count_ = counts[0], hidden_count_ = counts[1], share_count_ = counts[2];
             break;
@@ -85,7 +86,7 @@ void CutStage::refine(const k::Camera& camera, const k::Frustum& frustum, k::Dev
 }
 
 bool CutStage::refineAt(const k::Camera& camera, const k::Frustum& frustum, k::DevicePtr<uint8_t> in_frustum,
-                        const k::HzmLevels* hzm, float tau, uint64_t most) {
+                        const k::HzmLevels* hzm, float tau, uint64_t most, uint64_t most_items) {
     const bool occlusion = hzm != nullptr;
     const bool weighted = occlusion && options_.visibility_weighted;
     const k::CutRule r = rule(camera, tau);
@@ -118,6 +119,7 @@ bool CutStage::refineAt(const k::Camera& camera, const k::Frustum& frustum, k::D
                      level_state_.ptr());
         append(depth, level_state_.ptr(), k::kCutStop, coarsening ? fine_ : cut_, coarsening ? fine_count_ : cut_count_);
         if (occlusion) append(depth, level_state_.ptr(), k::kCutHidden, hidden_, hidden_count_);
+        if (most_items > 0 && cut_count_ > most_items) return false;
         candidates = k::cutChildren(nodes_.ptr(), level.ptr(), level_state_.ptr(), count, child_counts_.ptr(),
                                     child_offsets_.ptr(), candidates_.ptr());
     }

@@ -51,9 +51,11 @@ public:
 
 private:
     k::CutRule rule(const k::Camera& camera, float tau) const;
-    // false (and the cut left unfinished) where it would test more than `most` nodes (0: no bound).
+    // false (and the cut left unfinished) where it would test more than `most` nodes or draw
+    // more than `most_items` items (0: no bound); the items are counted as levels stop, so a
+    // cut that outgrows the bound is given up where it does, not at its last level.
     bool refineAt(const k::Camera& camera, const k::Frustum& frustum, k::DevicePtr<uint8_t> in_frustum,
-                  const k::HzmLevels* hzm, float tau, uint64_t most = 0);
+                  const k::HzmLevels* hzm, float tau, uint64_t most = 0, uint64_t most_items = 0);
     // Appends the level's entries whose flag is `value` to `list` (ascending as the levels are).
     void append(size_t depth, k::DevicePtr<const uint8_t> flags, uint8_t value, k::DeviceArray<uint32_t>& list,
                 uint32_t& count);

@@ -54,6 +54,8 @@ LodStage::LodStage(const OssFile& file, const DeviceScene& scene, const Pipeline
         k::copyToDevice(lod_error_.ptr(), lod_error.data(), lod_error.size());
         object_scale_.resize(scale.size());
         k::copyToDevice(object_scale_.ptr(), scale.data(), scale.size());
+        level_hint_.resize(scale.size());
+        k::deviceMemset(level_hint_.ptr(), 0, scale.size() * sizeof(uint32_t));
         if (scene.nodes) {
             // An HLOD's level gets what its node's own error leaves of tau.
             std::vector<float> item_error(std::max<uint32_t>(1, scene.item_count), 0.0f);
@@ -93,7 +95,7 @@ void LodStage::select(const k::Camera& camera, VisibleItems& visible,
         k::lodSelectByError(scene_.objects.ptr(), ids, count, camera, tau, options_.pet, shares(),
                             scene_.map_first.ptr(), lod_error_.ptr(), object_scale_.ptr(),
                             scene_.nodes ? item_error_.ptr() : nullptr, scene_.maps, visible.device_vertices.ptr(),
-                            visible.device_triangles.ptr());
+                            visible.device_triangles.ptr(), level_hint_.ptr());
         k::copyToHost(visible.vertices.data(), visible.device_vertices.ptr(), count);
     } else {
         const k::DevicePtr<const float> share = shares();
@@ -114,7 +116,8 @@ void LodStage::select(const k::Camera& camera, VisibleItems& visible,
         if (scene_.nodes)
             k::lodRaiseToErrorBound(scene_.objects.ptr(), ids, count, camera, tau, options_.pet, share,
                                     scene_.map_first.ptr(), lod_error_.ptr(), object_scale_.ptr(), item_error_.ptr(),
-                                    scene_.maps, visible.device_vertices.ptr(), visible.device_triangles.ptr());
+                                    scene_.maps, visible.device_vertices.ptr(), visible.device_triangles.ptr(),
+                                    level_hint_.ptr());
         k::copyToHost(visible.vertices.data(), visible.device_vertices.ptr(), count);
     }
 }

@@ -64,6 +64,9 @@ private:
     // largest collapse error of the level with k vertices; per object, its world scale. With
     // nodes: per item, the world error its input already has (an HLOD's node error, 0 for leaves).
     k::DeviceArray<float> lod_error_, object_scale_, item_error_;
+    // Per item, the level its last error-bounded search found: where the next one starts
+    // (k::levelWithinErrorNear; speed only, the levels chosen do not depend on it).
+    k::DeviceArray<uint32_t> level_hint_;
     k::DeviceArray<float> visible_share_;  // visibility_weighted: per visible entry
     k::PinnedArray<k::LodEntry> previous_lod_;  // the hysteresis' last visible set, on its way up
     k::DeviceArray<k::LodEntry> previous_lod_device_;

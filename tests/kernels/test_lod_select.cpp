@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "lod_select.h"
+#include "box_projection.h"
 
 #include "device_test_support.h"
 
@@ -311,4 +312,55 @@ TEST_F(LodSelect, TheErrorBoundRaisesACoarserLevelAndKeepsAFinerOne) {
     EXPECT_EQ(toHost(vc), (std::vector<uint32_t>{970, 125}));
     EXPECT_EQ(toHost(tc), (std::vector<uint32_t>{2 * 970, 3 * 125}));
     EXPECT_EQ(total, 970u + 125u);
+}
+
+// The search from a hint (levelWithinErrorNear) finds what the plain search finds, from every
+// hint in and around the range, on level errors with runs of equal values (a suffix maximum has
+// them), for allowed errors below, between and above them.
+TEST(LevelWithinErrorNear, EqualsThePlainSearchFromEveryHint) {
+    std::mt19937 random(49);
+    for (int mesh = 0; mesh < 40; ++mesh) {
+        const uint32_t n = 1 + random() % 70, q = random() % (n + 3);
+        std::vector<float> e(n + 1, 0.0f);
+        for (uint32_t k = n; k-- > 0;) e[k] = e[k + 1] + float(random() % 3) * 0.5f;  // non-increasing
+        for (float allowed : {-1.0f, 0.0f, 0.25f, e[0] * 0.5f, e[0] * 0.5f + 0.25f, e[0], e[0] + 1.0f}) {
+            const uint32_t want = levelWithinError(e.data(), q, n, allowed);
+            for (uint32_t hint = 0; hint <= n + 2; ++hint)
+                ASSERT_EQ(levelWithinErrorNear(e.data(), q, n, allowed, hint), want)
+                    << "n " << n << " q " << q << " allowed " << allowed << " hint " << hint;
+        }
+    }
+}
+
+// With a hint array the raise chooses the same levels, records them for the next call, and a
+// second call from those hints (and from stale ones) chooses them again.
+TEST_F(LodSelect, TheErrorBoundsHintsChangeNoLevel) {
+    const std::vector<ObjectInfo> objects{object(kNearBox, 0, 1000, 4), object(kNearBox, 1, 125, 4)};
+    const std::vector<uint64_t> map_first{0, 1001};
+    std::vector<uint32_t> maps;
+    std::vector<float> lod_error;
+    for (uint32_t m = 0; m < 2; ++m)
+        for (uint32_t k = 0; k <= objects[m].vertex_count; ++k) {
+            maps.push_back((m + 2) * k);
+            lod_error.push_back(float(objects[m].vertex_count - k) * 0.001f);
+        }
+    const DeviceArray<ObjectInfo> objects_d = toDevice(objects);
+    const DeviceArray<uint32_t> ids_d = toDevice(std::vector<uint32_t>{0, 1});
+    const DeviceArray<uint64_t> map_first_d = toDevice(map_first);
+    const DeviceArray<uint32_t> maps_d = toDevice(maps);
+    const DeviceArray<float> lod_error_d = toDevice(lod_error), scale_d = toDevice(std::vector<float>{1, 1}),
+                             offset_d = toDevice(std::vector<float>{0.0095f, 0.0095f});
+    for (const std::vector<uint32_t>& start : {std::vector<uint32_t>{0, 0}, std::vector<uint32_t>{999, 7},
+                                               std::vector<uint32_t>{970, 125}}) {
+        DeviceArray<uint32_t> hint = toDevice(start);
+        for (int call = 0; call < 2; ++call) {
+            DeviceArray<uint32_t> vc = toDevice(std::vector<uint32_t>{400, 0}), tc = toDevice(std::vector<uint32_t>{800, 0});
+            lodRaiseToErrorBound(objects_d.ptr(), ids_d.ptr(), 2, testCamera(), 1.0f, 1.0f, nullptr, map_first_d.ptr(),
+                                 lod_error_d.ptr(), scale_d.ptr(), offset_d.ptr(), maps_d.ptr(), vc.ptr(), tc.ptr(),
+                                 hint.ptr());
+            // Object 1 had no level (0): raised to the bound's 125 - 30 = 95.
+            EXPECT_EQ(toHost(vc), (std::vector<uint32_t>{970, 95}));
+            EXPECT_EQ(toHost(hint), (std::vector<uint32_t>{970, 95}));
+        }
+    }
 }
