@@ -101,4 +101,19 @@ OCC_HD inline uint32_t levelWithinErrorNear(const float* e, uint32_t q, uint32_t
     return vertex_count;
 }
 
+// The level a raise to k vertices (of vertex_count) lands on when raised levels step in
+// fractions `step` (0: k itself): the grid vertex_count, v - floor(v * step) (at least 1 less),
+// ... down to k; the smallest grid level at or above k. A level raised to a bound that moves
+// with the camera then changes only where the bound crosses a grid level, not at every vertex,
+// and no frame's choice depends on another's.
+OCC_HD inline uint32_t levelOnRaiseGrid(uint32_t k, uint32_t vertex_count, float step) {
+    if (!(step > 0.0f) || k == 0 || k >= vertex_count) return k;
+    uint32_t v = vertex_count;
+    while (true) {
+        const uint32_t down = float(v) * step >= 1.0f ? uint32_t(float(v) * step) : 1u;
+        if (v - k < down) return v;
+        v -= down;
+    }
+}
+
 }  // namespace occ::k

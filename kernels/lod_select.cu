@@ -206,6 +206,7 @@ struct ErrorLevel {
     uint32_t* triangle_count;
     uint32_t* hint;  // by item: where the search starts, then the level found; may be null
     bool raise;  // lodRaiseToErrorBound: keep a finer level already chosen
+    float raise_step;  // lodRaiseToErrorBound: raised levels on levelOnRaiseGrid's grid
 
     OCC_HD uint32_t operator()(uint32_t j) const {
         const uint32_t id = ids[j];
@@ -238,6 +239,7 @@ struct ErrorLevel {
                              : levelWithinError(e, o.q, o.vertex_count, allowed);
                 }
                 if (hint) hint[id] = k;
+                if (raise) k = levelOnRaiseGrid(k, o.vertex_count, raise_step);
             }
         }
         if (raise && vertex_count[j] >= k) return vertex_count[j];
@@ -272,7 +274,7 @@ uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const u
                           DevicePtr<uint32_t> hint) {
     return errorLevels(ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first),
                                   raw(lod_error), raw(scale), raw(error_offset), raw(maps), raw(vertex_count),
-                                  raw(triangle_count), raw(hint), false},
+                                  raw(triangle_count), raw(hint), false, 0.0f},
                        count);
 }
 
@@ -281,10 +283,10 @@ uint64_t lodRaiseToErrorBound(DevicePtr<const ObjectInfo> objects, DevicePtr<con
                               DevicePtr<const uint64_t> map_first, DevicePtr<const float> lod_error,
                               DevicePtr<const float> scale, DevicePtr<const float> error_offset,
                               DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
-                              DevicePtr<uint32_t> triangle_count, DevicePtr<uint32_t> hint) {
+                              DevicePtr<uint32_t> triangle_count, DevicePtr<uint32_t> hint, float raise_step) {
     return errorLevels(ErrorLevel{raw(objects), raw(ids), camera, tau, pet, raw(visible_share), raw(map_first),
                                   raw(lod_error), raw(scale), raw(error_offset), raw(maps), raw(vertex_count),
-                                  raw(triangle_count), raw(hint), true},
+                                  raw(triangle_count), raw(hint), true, raise_step},
                        count);
 }
 

@@ -68,12 +68,15 @@ uint64_t lodSelectByError(DevicePtr<const ObjectInfo> objects, DevicePtr<const u
 // takes it, and triangle_count[j] its triangles); levels at least as fine stay. A level of 0
 // (not drawn: A_i < pet) is raised only where the bound draws the object. Same arguments as
 // lodSelectByError; returns the new sum of vc_i. A level already within the bound is kept after
-// one probe of its error; the hint is used and written only where the level is raised.
+// one probe of its error; the hint is used and written only where the level is raised. A raised
+// level goes on up to levelOnRaiseGrid(level, P_i, raise_step) (0: stays at the bound's level),
+// so that a bound that moves with the camera changes it only now and then.
 uint64_t lodRaiseToErrorBound(DevicePtr<const ObjectInfo> objects, DevicePtr<const uint32_t> ids, uint32_t count,
                               const Camera& camera, float tau, float pet, DevicePtr<const float> visible_share,
                               DevicePtr<const uint64_t> map_first, DevicePtr<const float> lod_error,
                               DevicePtr<const float> scale, DevicePtr<const float> error_offset,
                               DevicePtr<const uint32_t> maps, DevicePtr<uint32_t> vertex_count,
-                              DevicePtr<uint32_t> triangle_count, DevicePtr<uint32_t> hint = nullptr);
+                              DevicePtr<uint32_t> triangle_count, DevicePtr<uint32_t> hint = nullptr,
+                              float raise_step = 0.0f);
 
 }  // namespace occ::k

@@ -735,7 +735,8 @@ Command addRenderCommand(CLI::App& app) {
         ->check(CLI::IsMember({"model", "object", "uniform"}))
         ->capture_default_str();
     sub->add_option("--lod-hysteresis", o->pipeline.lod_hysteresis,
-                    "keep an object's last vertex count while Eq. 1's is within this fraction of it (0 = off)")
+                    "keep an object's last vertex count while Eq. 1's is within this fraction of it; with the\n"
+                    "hierarchy, levels raised to the error bound also step by this fraction (0 = off)")
         ->capture_default_str();
     sub->add_option("--keep-visible", o->pipeline.keep_visible,
                     "oc+lod: an object that came back into view after a gap of at most this many frames stays\n"

@@ -113,11 +113,13 @@ void LodStage::select(const k::Camera& camera, VisibleItems& visible,
         }
         // With a hierarchy the cut stopped where a node's own error is within tau; its level may
         // then be finer than the budget gives, never coarser (the bound covers input + level).
+        // Raised levels step by the hysteresis' fraction (k::levelOnRaiseGrid), so that they
+        // change, and are reformed and streamed, only where the bound crosses a step.
         if (scene_.nodes)
             k::lodRaiseToErrorBound(scene_.objects.ptr(), ids, count, camera, tau, options_.pet, share,
                                     scene_.map_first.ptr(), lod_error_.ptr(), object_scale_.ptr(), item_error_.ptr(),
                                     scene_.maps, visible.device_vertices.ptr(), visible.device_triangles.ptr(),
-                                    level_hint_.ptr());
+                                    level_hint_.ptr(), float(options_.lod_hysteresis));
         k::copyToHost(visible.vertices.data(), visible.device_vertices.ptr(), count);
     }
 }

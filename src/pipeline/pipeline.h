@@ -85,7 +85,10 @@ struct PipelineOptions {
     // Beyond the papers: an object that stays in the PVS keeps last frame's vertex count when
     // Eq. 1's new count is within this fraction of it (and the budget allows), so LODs do not
     // flicker by a few vertices every frame: fewer visible-set changes to send, stream and
-    // reform. 0 = Eq. 1's count every frame.
+    // reform. With a hierarchy, a level raised to the error bound goes on up to the next of
+    // levels this fraction apart (k::levelOnRaiseGrid; no state between frames): on the 10^6
+    // plant's orbit 57 k triangles reformed per frame instead of 682 k, for 11 % more drawn.
+    // 0 = Eq. 1's count every frame and raised levels at the bound.
     float lod_hysteresis = 0.1f;
     // Beyond the papers, after CHC++'s "assumed visible" (k::keepRecentlyVisible): in oc+lod an
     // object that came back into view after a gap of at most this many frames stays in the

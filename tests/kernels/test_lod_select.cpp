@@ -364,3 +364,28 @@ TEST_F(LodSelect, TheErrorBoundsHintsChangeNoLevel) {
         }
     }
 }
+
+// Raised levels on the grid n, n - floor(n step), ...: the smallest grid level at or above k,
+// never below k nor above n, k itself without a step; a bound that moves by a vertex or two
+// mostly stays on one grid level.
+TEST(LevelOnRaiseGrid, IsTheSmallestGridLevelAtOrAboveTheBound) {
+    EXPECT_EQ(levelOnRaiseGrid(37, 100, 0.0f), 37u);
+    EXPECT_EQ(levelOnRaiseGrid(0, 100, 0.1f), 0u);
+    EXPECT_EQ(levelOnRaiseGrid(100, 100, 0.1f), 100u);
+    // Grid from 100: 100, 90, 81, 73, 66, 60, 54, 49, 45, 41, 37, ...
+    EXPECT_EQ(levelOnRaiseGrid(91, 100, 0.1f), 100u);
+    EXPECT_EQ(levelOnRaiseGrid(90, 100, 0.1f), 90u);
+    EXPECT_EQ(levelOnRaiseGrid(74, 100, 0.1f), 81u);
+    EXPECT_EQ(levelOnRaiseGrid(73, 100, 0.1f), 73u);
+    EXPECT_EQ(levelOnRaiseGrid(3, 5, 0.1f), 3u);  // steps of at least one vertex
+    uint32_t changes = 0, last = 0;
+    for (uint32_t k = 1; k <= 2000; ++k) {
+        const uint32_t g = levelOnRaiseGrid(k, 2000, 0.1f);
+        ASSERT_GE(g, k);
+        ASSERT_LE(g, 2000u);
+        ASSERT_LE(double(g - k), 0.1 * g + 1.0);
+        changes += g != last;
+        last = g;
+    }
+    EXPECT_LT(changes, 100u);  // about 70 steps down to 1, against 2000 levels
+}
