@@ -27,7 +27,7 @@ for offset in 0 100 400 $((size / 3)) $((size / 2)) $((size - 1)); do
   [ $status -eq 2 ] || fail "flip at $offset: exit $status"
   grep -q "^error: $dir/bad.oss: section [A-Z]* at offset [0-9]*: " "$dir/err" || fail "flip at $offset: $(cat "$dir/err")"
 done
-for length in 0 10 447 448 $((size / 2)) $((size - 1)); do
+for length in 0 10 511 512 $((size / 2)) $((size - 1)); do
   head -c "$length" "$dir/engine.oss" >"$dir/cut.oss"
   "$exe" verify "$dir/cut.oss" >/dev/null 2>"$dir/err"; status=$?
   [ $status -eq 2 ] || fail "truncated to $length: exit $status"

@@ -62,6 +62,7 @@ void prepareModel(const std::string& input, const std::string& output, const Imp
         hlod.place_edges = prep.hlod_place_edges;
         hlod.colour_borders = prep.hlod_colour_borders;
         hlod.fine_input = prep.hlod_fine_input;
+        hlod.normals = prep.hlod_normals;
         hlod.share_repeats = prep.hlod_share;
         hlod.threads = prep.threads;
         ObjectHierarchy h;
@@ -120,6 +121,7 @@ struct PrepCommandOptions {
     std::string hlod_place = "clusters";
     std::string hlod_colour_borders = "on";
     std::string hlod_input = "fine";
+    std::string hlod_normals = "on";
     ImportOptions import;
 };
 
@@ -139,6 +141,7 @@ int runPrep(PrepCommandOptions o) {
     o.prep.hlod_place_edges = o.hlod_place == "all";
     o.prep.hlod_colour_borders = o.hlod_colour_borders == "on";
     o.prep.hlod_fine_input = o.hlod_input == "fine";
+    o.prep.hlod_normals = o.hlod_normals == "on";
     if (o.prep.fanout < 2 || o.prep.fanout > 64)
         throw UsageError("--fanout " + std::to_string(o.prep.fanout) + ": must be in [2, 64]");
     if (o.prep.node_triangles < 16)
@@ -216,6 +219,11 @@ Command addPrepCommand(CLI::App& app) {
     sub->add_option("--hlod-colour-borders", o->hlod_colour_borders,
                     "hierarchy: on: clustering never joins vertices of different colours (a cell keeps one\n"
                     "cluster per colour); off: a cluster mixes its members' colours")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
+    sub->add_option("--hlod-normals", o->hlod_normals,
+                    "hierarchy: on: each HLOD vertex carries the normal of the full detail it stands for, and\n"
+                    "the display lights it by that; off: HLODs are lit by their faces' normals")
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
     sub->add_option("--hlod-input", o->hlod_input,

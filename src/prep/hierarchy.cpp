@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "prep/hierarchy.h"
+#include "prep/vertex_normals.h"
 
 #include "prep/prepare.h"
 #include "scene/colour.h"
@@ -298,6 +299,7 @@ float truncateLevels(ProgressiveMesh& p, uint32_t k) {
     p.error.resize(k);
     for (float& e : p.error) e = std::max(0.0f, e - t);
     if (!p.colours.empty()) p.colours.resize(k);
+    if (!p.normals.empty()) p.normals.resize(k);
     p.map.resize(size_t(k) + 1);
     p.q = std::min(p.q, k);
     return t;
@@ -581,6 +583,7 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                     } else {
                         p = buildProgressiveMesh(merged, Collapser::Fast, merged_colours);
                     }
+                    if (options.normals) p.normals = hlodVertexNormals(p);
                     if (options.fine_input)
                         error += truncateLevels(p, levelWithAtMost(p.map, p.q, std::max<uint64_t>(1, node.triangles / std::max(1u, options.reduction))));
                     h.nodes[n].error = error;

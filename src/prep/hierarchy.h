@@ -122,6 +122,9 @@ struct HlodOptions {
     // off: from levels already cut to 1 / reduction, whose errors (a box at a quarter of its
     // triangles is a tetrahedron) every HLOD above inherits.
     bool fine_input = true;
+    // Each HLOD vertex carries the normal of the full detail it stands for (hlodVertexNormals),
+    // which the display lights it by; off: HLODs are lit by their faces' normals.
+    bool normals = true;
     // Subtrees that repeat share one HLOD (findRepeatedSubtrees); off: every inner node its own.
     bool share_repeats = true;
     unsigned threads = 0;  // 0: all hardware threads

@@ -33,6 +33,7 @@ struct PrepOptions {
     bool hlod_place = true;           // HlodOptions::place
     bool hlod_place_edges = false;    // HlodOptions::place_edges
     bool hlod_colour_borders = true;  // HlodOptions::colour_borders
+    bool hlod_normals = true;         // HlodOptions::normals
     bool hlod_fine_input = true;      // HlodOptions::fine_input
     bool hlod_share = true;           // HlodOptions::share_repeats
 };

@@ -150,26 +150,48 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
         s.changed_pixel_share = changedPixelPercent(ours.data(), full_picture_.data(), pixels, 3);
         // The bound check in one id space: a reference pixel (a leaf) counts as the item drawn
         // for it, the leaf or the node above it in this frame's cut; not drawn: matches nothing.
+        drawn_cached_ = false;
         frame_.readItems(our_items_);
         full_->readItems(items_);
         mapToDrawnItems(pipeline, items_);
-        // Where two objects' surfaces lie within the bound of each other in depth (IFC walls,
-        // slabs and their layers overlap), the reference shows the nearer, and a frame within
-        // the bound may show another: two tie passes find the last drawn and the first drawn of
-        // those whose surface lies within tau pixels' span behind the reference's (a pixel spans
-        // 2 tan(fovy / 2) / height of its distance), and each counts as the reference's item.
-        const float pull = boundCheckPixels(options_.tau) * 2.0f * std::tan(0.5f * camera.fovy) / float(height_);
-        for (int pass = 0; pass < 2; ++pass) {
-            if (pass == 1) std::reverse(candidates_.begin(), candidates_.end());
-            full_->beginTiePass();
-            renderer_.drawFullDetail(candidates_.data(), candidates_.size(), camera, pull);
-            full_->endTiePass();
-            full_->readItems(tied_items_[pass]);
-            mapToDrawnItems(pipeline, tied_items_[pass]);
+        const float bound = boundCheckPixels(options_.tau);
+        PictureDifference d = comparePictures(ours.data(), full_picture_.data(), our_items_.data(), items_.data(),
+                                              width_, height_, bound);
+        // Where surfaces of several objects lie within the bound of each other in depth (IFC
+        // walls, slabs and their layers overlap), the reference shows the nearest, and a frame
+        // within the bound may show another. So an item with changed pixels beyond the bound is
+        // looked for again among the surfaces within tau pixels' span behind the reference's
+        // (a pixel spans 2 tan(fovy / 2) / height of its distance): two tie passes draw its
+        // leaves alone at full detail, pulled that far towards the eye, depth test GL_LEQUAL,
+        // in ascending and descending order, and each pixel they reach counts as one of its.
+        if (d.bound_beyond_tau > 0) {
+            bound_distances_.clear();
+            changedPixelItemDistances(ours.data(), full_picture_.data(), our_items_.data(), items_.data(), width_,
+                                      height_, kBoundSearchRadiusPx, bound_distances_);
+            suspect_.assign(size_t(pipeline.scene().item_count) + 1, 0);
+            size_t next = 0;
+            for (uint64_t p = 0; p < pixels; ++p)
+                if (std::memcmp(ours.data() + 3 * p, full_picture_.data() + 3 * p, 3) != 0 &&
+                    bound_distances_[next++] > bound && our_items_[p] < suspect_.size())
+                    suspect_[our_items_[p]] = 1;
+            tie_leaves_.clear();
+            for (uint32_t leaf : candidates_) {
+                const uint32_t drawn = drawnItem(pipeline, leaf + 1);
+                if (drawn != 0 && drawn < suspect_.size() && suspect_[drawn]) tie_leaves_.push_back(leaf);
+            }
+            const float pull = bound * 2.0f * std::tan(0.5f * camera.fovy) / float(height_);
+            for (int pass = 0; pass < 2; ++pass) {
+                if (pass == 1) std::reverse(tie_leaves_.begin(), tie_leaves_.end());
+                full_->beginTiePass();
+                renderer_.drawFullDetail(tie_leaves_.data(), tie_leaves_.size(), camera, pull);
+                full_->endTiePass();
+                full_->readItems(tied_items_[pass]);
+                mapToDrawnItems(pipeline, tied_items_[pass]);
+            }
+            const uint32_t* const tied[2] = {tied_items_[0].data(), tied_items_[1].data()};
+            d = comparePictures(ours.data(), full_picture_.data(), our_items_.data(), items_.data(), width_, height_,
+                                bound, tied);
         }
-        const uint32_t* const tied[2] = {tied_items_[0].data(), tied_items_[1].data()};
-        const PictureDifference d = comparePictures(ours.data(), full_picture_.data(), our_items_.data(), items_.data(),
-                                                    width_, height_, boundCheckPixels(options_.tau), tied);
         s.psnr_db = d.psnr_db;
         s.mse = d.mse;
         s.perceptible_share = d.perceptible_percent;
@@ -185,28 +207,34 @@ DisplayStats FrameDisplay::display(const Pipeline& pipeline, const CameraPose& p
 }
 
 void FrameDisplay::mapToDrawnItems(const Pipeline& pipeline, std::vector<uint32_t>& items) {
+    for (uint32_t& item : items) item = drawnItem(pipeline, item);
+}
+
+uint32_t FrameDisplay::drawnItem(const Pipeline& pipeline, uint32_t item) {
     const DeviceScene& scene = pipeline.scene();
     const uint32_t n = scene.item_count;
-    drawn_of_.assign(size_t(n) + 1, UINT32_MAX);  // by item + 1, as the buffer holds them
-    drawn_of_[0] = 0;                             // the background is the background
-    in_pvs_.assign(n, 0);
-    for (uint32_t id : pipeline.visibleObjects()) in_pvs_[id] = 1;
-    if (scene.nodes && parent_.size() != n) {
-        parent_.assign(n, UINT32_MAX);
-        for (uint32_t i = 0; i < n; ++i)
-            for (uint32_t c = scene.host_nodes[i].first_child; c < scene.host_nodes[i].first_child + scene.host_nodes[i].child_count; ++c)
-                parent_[c] = i;
-    }
-    for (uint32_t& item : items) {
-        if (item == 0 || item > n) continue;
-        uint32_t& drawn = drawn_of_[item];
-        if (drawn == UINT32_MAX) {
-            uint32_t i = item - 1;
-            while (!in_pvs_[i] && scene.nodes && parent_[i] != UINT32_MAX) i = parent_[i];
-            drawn = in_pvs_[i] ? i + 1 : UINT32_MAX - 1;  // culled: no pixel of ours can match it
+    if (!drawn_cached_) {
+        // The frame's visible set, once per frame (the bound check clears drawn_cached_).
+        drawn_cached_ = true;
+        drawn_of_.assign(size_t(n) + 1, UINT32_MAX);  // by item + 1, as the buffer holds them
+        drawn_of_[0] = 0;                             // the background is the background
+        in_pvs_.assign(n, 0);
+        for (uint32_t id : pipeline.visibleObjects()) in_pvs_[id] = 1;
+        if (scene.nodes && parent_.size() != n) {
+            parent_.assign(n, UINT32_MAX);
+            for (uint32_t i = 0; i < n; ++i)
+                for (uint32_t c = scene.host_nodes[i].first_child; c < scene.host_nodes[i].first_child + scene.host_nodes[i].child_count; ++c)
+                    parent_[c] = i;
         }
-        item = drawn;
     }
+    if (item == 0 || item > n) return item;
+    uint32_t& drawn = drawn_of_[item];
+    if (drawn == UINT32_MAX) {
+        uint32_t i = item - 1;
+        while (!in_pvs_[i] && scene.nodes && parent_[i] != UINT32_MAX) i = parent_[i];
+        drawn = in_pvs_[i] ? i + 1 : UINT32_MAX - 1;  // culled: no pixel of ours can match it
+    }
+    return drawn;
 }
 
 void FrameDisplay::drawCullingView(const Pipeline& pipeline, const k::Camera& camera) {

@@ -77,6 +77,10 @@ private:
     // Replaces each reference item id + 1 in `items` by the id + 1 of the item this frame drew
     // for it (itself, or with a hierarchy the node above it in the cut); 0 stays 0.
     void mapToDrawnItems(const Pipeline& pipeline, std::vector<uint32_t>& items);
+    // The item drawn for `item` (id + 1, as the item buffer holds them; 0: the background): the
+    // item or the node above it in the frame's visible set; UINT32_MAX - 1 where none is drawn.
+    // Cached per frame (drawn_cached_).
+    uint32_t drawnItem(const Pipeline& pipeline, uint32_t item);
 
     const DisplayOptions options_;
     uint32_t width_, height_;
@@ -86,7 +90,10 @@ private:
     std::vector<uint8_t> picture_, full_picture_, in_pvs_, seen_;
     std::vector<uint32_t> exact_before_, exact_now_;  // the exact visible set of the last frame and this one
     bool picture_read_ = false;
-    std::vector<uint32_t> items_, tied_items_[2], candidates_, our_items_, drawn_of_;
+    std::vector<uint32_t> items_, tied_items_[2], candidates_, our_items_, drawn_of_, tie_leaves_;
+    std::vector<float> bound_distances_;
+    std::vector<uint8_t> suspect_;  // by item + 1: has changed pixels beyond the bound
+    bool drawn_cached_ = false;
     std::vector<uint32_t> parent_;  // with a hierarchy: each node's parent (UINT32_MAX at the root)
     k::DeviceArray<float> full_hzm_;
     k::DeviceArray<uint8_t> occluded_;

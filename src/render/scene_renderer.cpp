@@ -18,7 +18,7 @@ namespace {
 
 constexpr float kBackground[4] = {0.08f, 0.09f, 0.11f, 1.0f};
 constexpr GLuint kWorldBinding = 0, kColourBinding = 1, kBoxBinding = 2, kItemVertexColourBinding = 3,
-                 kVertexColourBinding = 4;
+                 kVertexColourBinding = 4, kVertexNormalBinding = 5;
 constexpr GLint kViewProjLocation = 0, kEyeLocation = 1, kTiePullLocation = 2;
 
 GLuint makeBuffer() {
@@ -189,33 +189,41 @@ SceneRenderer::SceneRenderer(const DeviceScene& scene, ColourMode colour_mode) :
                                       n ? scene.host_world.data() : nullptr, n ? 0 : GL_DYNAMIC_STORAGE_BIT));
     OCC_GL_CHECK(glNamedBufferStorage(colour_buffer_, GLsizeiptr(std::max<size_t>(1, n) * sizeof(glm::vec4)),
                                       n ? colours.data() : nullptr, n ? 0 : GL_DYNAMIC_STORAGE_BIT));
-    // The HLODs' vertex colours (ColourMode::Model): each HLOD mesh's COLOURS once, and per item
-    // where its mesh's start among them (UINT32_MAX: none, the item's colour alone). The shader
-    // reads a vertex's colour at the draw's first plus gl_VertexID - gl_BaseVertex: a drawn LOD
-    // is a prefix of its mesh's vertices. Resident, not streamed, as the full-detail occluder
-    // meshes are.
-    std::vector<uint32_t> first(std::max<uint32_t>(1, n), UINT32_MAX), vertex_colours;
-    if (colour_mode == ColourMode::Model && scene.nodes && scene.file) {
+    // The HLODs' vertex colours (ColourMode::Model; white in the other modes) and normals: each
+    // HLOD mesh's COLOURS and NORMALS once, and per item where its mesh's start among them
+    // (UINT32_MAX: none, the item's colour alone, lit by its faces). The shader reads a vertex's
+    // at the draw's first plus gl_VertexID - gl_BaseVertex: a drawn LOD is a prefix of its mesh's
+    // vertices. Resident, not streamed, as the full-detail occluder meshes are.
+    std::vector<uint32_t> first(std::max<uint32_t>(1, n), UINT32_MAX), vertex_colours, vertex_normals;
+    if (scene.nodes && scene.file) {
         std::unordered_map<uint32_t, uint32_t> first_of_mesh;
         for (uint32_t i = 0; i < n; ++i) {
             if (scene.host_nodes[i].child_count == 0) continue;
             const uint32_t mesh = scene.host_objects[i].mesh;
             const auto [at, added] = first_of_mesh.try_emplace(mesh, uint32_t(vertex_colours.size()));
             if (added) {
-                const std::span<const uint32_t> c = scene.file->mesh(mesh).colours;
-                if (vertex_colours.size() + c.size() >= UINT32_MAX)
+                const OssFile::MeshView view = scene.file->mesh(mesh);
+                if (vertex_colours.size() + view.colours.size() >= UINT32_MAX)
                     throw SystemError("OpenGL: the HLODs' vertex colours do not fit 32-bit offsets");
-                vertex_colours.insert(vertex_colours.end(), c.begin(), c.end());
+                if (colour_mode == ColourMode::Model)
+                    vertex_colours.insert(vertex_colours.end(), view.colours.begin(), view.colours.end());
+                else
+                    vertex_colours.resize(vertex_colours.size() + view.colours.size(), oss::kWhite);
+                vertex_normals.insert(vertex_normals.end(), view.normals.begin(), view.normals.end());
             }
             first[i] = at->second;
         }
     }
     item_vertex_colours_ = makeBuffer();
     vertex_colours_ = makeBuffer();
+    vertex_normals_ = makeBuffer();
     OCC_GL_CHECK(glNamedBufferStorage(item_vertex_colours_, GLsizeiptr(first.size() * sizeof(uint32_t)), first.data(), 0));
     if (vertex_colours.empty()) vertex_colours.push_back(oss::kWhite);
     OCC_GL_CHECK(glNamedBufferStorage(vertex_colours_, GLsizeiptr(vertex_colours.size() * sizeof(uint32_t)),
                                       vertex_colours.data(), 0));
+    if (vertex_normals.empty()) vertex_normals.push_back(oss::kNoNormal);
+    OCC_GL_CHECK(glNamedBufferStorage(vertex_normals_, GLsizeiptr(vertex_normals.size() * sizeof(uint32_t)),
+                                      vertex_normals.data(), 0));
     glCreateVertexArrays(1, &empty_vao_);
     glCreateVertexArrays(1, &lod_vao_);
     for (uint32_t slot = 0; slot < kSlotCount; ++slot) reserve(slot, 4096);
@@ -236,7 +244,8 @@ SceneRenderer::~SceneRenderer() {
         glDeleteBuffers(1, &slot.buffer);
     }
     const GLuint buffers[] = {world_buffer_, colour_buffer_, box_buffer_, full_vertices_, full_indices_,
-                              full_attributes_, full_commands_, item_vertex_colours_, vertex_colours_};
+                              full_attributes_, full_commands_, item_vertex_colours_, vertex_colours_,
+                              vertex_normals_};
     glDeleteBuffers(GLsizei(std::size(buffers)), buffers);
     const GLuint arrays[] = {empty_vao_, lod_vao_, full_vao_};
     glDeleteVertexArrays(GLsizei(std::size(arrays)), arrays);
@@ -339,6 +348,7 @@ void SceneRenderer::multiDraw(GLuint vao, uint32_t draws, const k::Camera& camer
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kColourBinding, colour_buffer_);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kItemVertexColourBinding, item_vertex_colours_);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kVertexColourBinding, vertex_colours_);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kVertexNormalBinding, vertex_normals_);
     glBindVertexArray(vao);
     glMultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr, GLsizei(draws), 0);
 }

@@ -131,6 +131,7 @@ private:
     GLuint shaded_program_ = 0, box_program_ = 0;
     GLuint world_buffer_ = 0, colour_buffer_ = 0, box_buffer_ = 0, empty_vao_ = 0;
     GLuint item_vertex_colours_ = 0, vertex_colours_ = 0;  // HLODs' vertex colours (ColourMode::Model)
+    GLuint vertex_normals_ = 0;                            // HLODs' vertex normals (oss NORMALS)
     GlSlot slots_[kSlotCount];
     GLsync drawn_ = nullptr;  // after the last frame's draw: the device may write again
     bool writing_ = false;    // between beginDeviceWrites and endDeviceWrites

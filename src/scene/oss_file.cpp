@@ -49,7 +49,7 @@ constexpr SectionKind kKinds[kSectionCount] = {
     {"MESHES", sizeof(MeshRecord)}, {"POSITIONS", 3 * sizeof(float)}, {"ECOL", sizeof(int32_t)},
     {"ERROR", sizeof(float)},        {"TRIANGLES", 3 * sizeof(uint32_t)}, {"MAP", sizeof(uint32_t)},
     {"OBJECTS", sizeof(ObjectDisk)}, {"COS", sizeof(uint32_t)},          {"NODES", sizeof(NodeLink)},
-    {"INNER", sizeof(InnerDisk)},    {"COLOURS", sizeof(uint32_t)},
+    {"INNER", sizeof(InnerDisk)},    {"COLOURS", sizeof(uint32_t)},       {"NORMALS", sizeof(uint32_t)},
 };
 
 }  // namespace
@@ -57,6 +57,28 @@ constexpr SectionKind kKinds[kSectionCount] = {
 const char* sectionName(SectionId id) {
     const uint32_t i = uint32_t(id) - 1;
     return i < kSectionCount ? kKinds[i].name : "UNKNOWN";
+}
+
+uint32_t encodeNormal(const glm::vec3& unit) {
+    // Octahedral map: onto |x| + |y| + |z| = 1, the lower half folded over the diagonals.
+    const float l1 = std::abs(unit.x) + std::abs(unit.y) + std::abs(unit.z);
+    glm::vec2 o = l1 > 0.0f && std::isfinite(l1) ? glm::vec2(unit.x, unit.y) / l1 : glm::vec2(0.0f);
+    if (l1 > 0.0f && unit.z < 0.0f)
+        o = (1.0f - glm::abs(glm::vec2(o.y, o.x))) * glm::vec2(o.x >= 0.0f ? 1.0f : -1.0f, o.y >= 0.0f ? 1.0f : -1.0f);
+    const auto snorm = [](float v) { return uint32_t(uint16_t(int16_t(std::lround(std::clamp(v, -1.0f, 1.0f) * 32767.0f)))); };
+    const uint32_t packed = snorm(o.x) | snorm(o.y) << 16;
+    return packed == kNoNormal ? 1u : packed;  // (0, 0, 1) itself: a hair off, so it is one
+}
+
+glm::vec3 decodeNormal(uint32_t packed) {
+    const glm::vec2 o(std::max(-1.0f, float(int16_t(packed & 0xFFFFu)) / 32767.0f),
+                      std::max(-1.0f, float(int16_t(packed >> 16)) / 32767.0f));
+    glm::vec3 n(o.x, o.y, 1.0f - std::abs(o.x) - std::abs(o.y));
+    if (n.z < 0.0f) {
+        const glm::vec2 f = (1.0f - glm::abs(glm::vec2(o.y, o.x))) * glm::vec2(o.x >= 0.0f ? 1.0f : -1.0f, o.y >= 0.0f ? 1.0f : -1.0f);
+        n.x = f.x, n.y = f.y;
+    }
+    return glm::normalize(n);
 }
 
 ObjectDisk toDisk(const ObjectRecord& o) {
@@ -422,23 +444,25 @@ void requireMeshLayout(const ProgressiveMesh& m, uint64_t index) {
     if (m.map.size() != n + 1) bad("map has " + str(uint64_t(m.map.size())) + " entries, expected " + str(n + 1));
     if (!m.colours.empty() && m.colours.size() != n)
         bad("colours has " + str(uint64_t(m.colours.size())) + " entries, expected 0 or " + str(n));
+    if (!m.normals.empty() && m.normals.size() != n)
+        bad("normals has " + str(uint64_t(m.normals.size())) + " entries, expected 0 or " + str(n));
 }
 
 }  // namespace
 
 struct OssStreamWriter::Impl {
     explicit Impl(const std::string& p)
-        : path(p), file(p), positions(p), ecol(p), error(p), triangles(p), map(p), colours(p) {}
+        : path(p), file(p), positions(p), ecol(p), error(p), triangles(p), map(p), colours(p), normals(p) {}
     std::string path;
     TempFileWriter file;
-    SectionSpool positions, ecol, error, triangles, map, colours;
+    SectionSpool positions, ecol, error, triangles, map, colours, normals;
     std::vector<MeshRecord> records;
     uint64_t vertex_count = 0, triangle_count = 0;
     bool durable = true;
-    // addMeshesOf: the flat file the six per-mesh sections start with, and each one's range in
-    // it (POSITIONS .. MAP, then COLOURS).
+    // addMeshesOf: the flat file the seven per-mesh sections start with, and each one's range in
+    // it (POSITIONS .. MAP, then COLOURS and NORMALS).
     int prefix_fd = -1;
-    uint64_t prefix_offset[6] = {}, prefix_size[6] = {};
+    uint64_t prefix_offset[7] = {}, prefix_size[7] = {};
     ~Impl() {
         if (prefix_fd >= 0) ::close(prefix_fd);
     }
@@ -468,6 +492,13 @@ uint32_t OssStreamWriter::addMesh(const ProgressiveMesh& m) {
     } else {
         w.colours.put(m.colours.data(), m.colours.size() * sizeof(uint32_t));
     }
+    if (m.normals.empty()) {
+        static const std::vector<uint32_t> kNone(4096, kNoNormal);
+        for (uint64_t done = 0; done < m.positions.size(); done += kNone.size())
+            w.normals.put(kNone.data(), std::min<uint64_t>(kNone.size(), m.positions.size() - done) * sizeof(uint32_t));
+    } else {
+        w.normals.put(m.normals.data(), m.normals.size() * sizeof(uint32_t));
+    }
     return uint32_t(i);
 }
 
@@ -482,10 +513,10 @@ void OssStreamWriter::addMeshesOf(const OssFile& flat) {
     w.records.assign(records.begin(), records.end());
     w.vertex_count = flat.vertexCount();
     w.triangle_count = flat.triangleCount();
-    SectionSpool* spools[] = {&w.positions, &w.ecol, &w.error, &w.triangles, &w.map, &w.colours};
+    SectionSpool* spools[] = {&w.positions, &w.ecol, &w.error, &w.triangles, &w.map, &w.colours, &w.normals};
     const std::vector<OssFile::SectionInfo> sections = flat.sections();  // [0] is the header, [id] section id
-    tbb::parallel_for(0, 6, [&](int k) {
-        const uint32_t id = k < 5 ? uint32_t(k + 2) : uint32_t(SectionId::colours);
+    tbb::parallel_for(0, 7, [&](int k) {
+        const uint32_t id = k < 5 ? uint32_t(k + 2) : k == 5 ? uint32_t(SectionId::colours) : uint32_t(SectionId::normals);
         const std::span<const std::byte> bytes = flat.sectionBytes(id);
         w.prefix_offset[k] = sections[size_t(id)].offset;
         w.prefix_size[k] = bytes.size();
@@ -562,17 +593,18 @@ void OssStreamWriter::finish(std::span<const ObjectRecord> objects, std::span<co
         w.put(&d, sizeof d);
     }
     h.sections[9] = w.endSection(SectionId::inner);
-    // COLOURS, last in the file, copied as the five above are.
-    {
-        s.colours.flush();
-        const uint64_t from = alignUp(w.position()), size = s.prefix_size[5] + s.colours.size();
-        std::vector<TempFileWriter::Copy> colour_copies;
-        if (s.prefix_size[5] > 0) colour_copies.push_back({s.prefix_fd, s.prefix_offset[5], s.prefix_size[5], from});
-        if (s.colours.size() > 0) colour_copies.push_back({s.colours.fd(), 0, s.colours.size(), from + s.prefix_size[5]});
+    // COLOURS and NORMALS, last in the file, copied as the five above are.
+    for (int k = 5; k < 7; ++k) {
+        SectionSpool& spool = k == 5 ? s.colours : s.normals;
+        const SectionId id = k == 5 ? SectionId::colours : SectionId::normals;
+        spool.flush();
+        const uint64_t from = alignUp(w.position()), size = s.prefix_size[k] + spool.size();
+        std::vector<TempFileWriter::Copy> tail_copies;
+        if (s.prefix_size[k] > 0) tail_copies.push_back({s.prefix_fd, s.prefix_offset[k], s.prefix_size[k], from});
+        if (spool.size() > 0) tail_copies.push_back({spool.fd(), 0, spool.size(), from + s.prefix_size[k]});
         w.padToAlignment();
-        w.copyRanges(colour_copies, from + size);
-        h.sections[10] = {uint32_t(SectionId::colours), kKinds[uint32_t(SectionId::colours) - 1].element_size, from, size,
-                          s.colours.digest()};
+        w.copyRanges(tail_copies, from + size);
+        h.sections[uint32_t(id) - 1] = {uint32_t(id), kKinds[uint32_t(id) - 1].element_size, from, size, spool.digest()};
     }
     w.padToAlignment();
 
@@ -730,7 +762,7 @@ void OssFile::validate() const {
         fail("HEADER", offsetof(Header, vertex_count), "vertex count " + str(h.vertex_count) + " overflows");
     const uint64_t counts[kSectionCount] = {h.mesh_count, h.vertex_count, h.vertex_count,  h.vertex_count,
                                             h.triangle_count, map_count,  h.object_count, h.cos_count,
-                                            h.node_count, h.inner_count, h.vertex_count};
+                                            h.node_count, h.inner_count, h.vertex_count, h.vertex_count};
     auto requireZeros = [&](const char* section, uint64_t from, uint64_t to, const char* where) {
         for (uint64_t o = from; o < to; ++o)
             if (base_[o] != std::byte{0})
@@ -1077,6 +1109,7 @@ OssFile::MeshView OssFile::mesh(uint32_t i) const {
     m.triangles = {sectionData<uint32_t>(SectionId::triangles) + r.triangle_first * 3, size_t(r.triangle_count) * 3};
     m.map = {sectionData<uint32_t>(SectionId::map) + r.map_first, size_t(r.vertex_count) + 1};
     m.colours = {sectionData<uint32_t>(SectionId::colours) + r.vertex_first, r.vertex_count};
+    m.normals = {sectionData<uint32_t>(SectionId::normals) + r.vertex_first, r.vertex_count};
     m.q = r.q;
     m.refused_faces = r.refused_faces;
     m.source_vertices = r.source_vertices;
@@ -1112,6 +1145,10 @@ std::span<const uint32_t> OssFile::allMaps() const {
 
 std::span<const uint32_t> OssFile::allColours() const {
     return {sectionData<uint32_t>(SectionId::colours), size_t(vertexCount())};
+}
+
+std::span<const uint32_t> OssFile::allNormals() const {
+    return {sectionData<uint32_t>(SectionId::normals), size_t(vertexCount())};
 }
 
 std::span<const uint32_t> OssFile::cos() const { return {sectionData<uint32_t>(SectionId::cos), header().cos_count}; }
@@ -1172,6 +1209,8 @@ ProgressiveMesh OssFile::progressiveMesh(uint32_t i) const {
     // All white reads back as none of its own, as it was written.
     if (std::any_of(v.colours.begin(), v.colours.end(), [](uint32_t c) { return c != kWhite; }))
         m.colours.assign(v.colours.begin(), v.colours.end());
+    if (std::any_of(v.normals.begin(), v.normals.end(), [](uint32_t n) { return n != kNoNormal; }))
+        m.normals.assign(v.normals.begin(), v.normals.end());
     m.q = v.q;
     m.refused_faces = v.refused_faces;
     m.source_vertices = v.source_vertices;

@@ -25,8 +25,9 @@ namespace oss {
 
 inline constexpr char kMagic[8] = {'O', 'C', 'C', 'S', 'W', 'O', 'S', 'S'};
 // 2: the NODES section (the hierarchy); 3: HLOD placement; 4: leaves stored as their object's
-// id alone (NODES), inner nodes' fields in INNER; 5: COLOURS, a colour per vertex (issue 49).
-inline constexpr uint32_t kVersion = 5;
+// id alone (NODES), inner nodes' fields in INNER; 5: COLOURS, a colour per vertex (issue 49);
+// 6: NORMALS, a normal per vertex (an HLOD's: the full detail's it stands for; issue 49).
+inline constexpr uint32_t kVersion = 6;
 inline constexpr uint64_t kAlignment = 64;  // of every section, so any element type can be mapped
 
 // Section ids, also their order in the header's table and in the file.
@@ -42,8 +43,9 @@ enum class SectionId : uint32_t {
     nodes = 9,      // NodeLink per hierarchy node; empty without a hierarchy
     inner = 10,     // InnerDisk per inner node, in node order; empty without a hierarchy
     colours = 11,   // uint32 per vertex, laid out as POSITIONS: RGBA8 (kWhite: the object's colour alone)
+    normals = 12,   // uint32 per vertex, laid out as POSITIONS: octahedral snorm16x2 (kNoNormal: none)
 };
-inline constexpr uint32_t kSectionCount = 11;
+inline constexpr uint32_t kSectionCount = 12;
 const char* sectionName(SectionId id);  // "MESHES", "POSITIONS", ...
 
 // One row of the header's section table.
@@ -56,7 +58,7 @@ struct SectionEntry {
 };
 static_assert(sizeof(SectionEntry) == 32);
 
-// The first 448 bytes of the file.
+// The first 512 bytes of the file.
 struct Header {
     char magic[8];              // kMagic
     uint32_t version;           // kVersion
@@ -72,20 +74,28 @@ struct Header {
     uint32_t node_count;        // hierarchy nodes, 0 (none) or 1 + objects' leaves and more
     SectionEntry sections[kSectionCount];
     uint32_t inner_count;       // the hierarchy's inner nodes (< node_count; 0 without one)
-    uint8_t reserved1[20];      // 0
+    uint8_t reserved1[52];      // 0
     uint64_t header_checksum;   // XXH3_64bits (seed 0) of the bytes before it
 };
-static_assert(sizeof(Header) == 448 && sizeof(Header) % kAlignment == 0);
+static_assert(sizeof(Header) == 512 && sizeof(Header) % kAlignment == 0);
 static_assert(offsetof(Header, version) == 8 && offsetof(Header, file_size) == 16);
 static_assert(offsetof(Header, section_count) == 24 && offsetof(Header, vertex_count) == 40);
 static_assert(offsetof(Header, ct) == 56 && offsetof(Header, node_count) == 60 && offsetof(Header, sections) == 64);
-static_assert(offsetof(Header, inner_count) == 416 && offsetof(Header, reserved1) == 420 &&
-              offsetof(Header, header_checksum) == 440);
+static_assert(offsetof(Header, inner_count) == 448 && offsetof(Header, reserved1) == 452 &&
+              offsetof(Header, header_checksum) == 504);
 
 // A vertex colour in COLOURS: R | G << 8 | B << 16 | A << 24, RGB sRGB-encoded. The shader
 // multiplies it into the object's colour, so kWhite leaves that alone: the objects' meshes are
 // white; an HLOD's vertices carry the colours of the objects they stand for.
 inline constexpr uint32_t kWhite = 0xFFFFFFFFu;
+
+// A vertex normal in NORMALS: the unit vector's octahedral map (x, y in [-1, 1]) as two snorm16,
+// x | y << 16 (GLSL's packSnorm2x16), up to sign: the display lights both sides and turns it to
+// the eye. kNoNormal: the vertex has none (the objects' meshes, and an HLOD vertex whose surface
+// has no one direction, such as a corner), and is lit by its face's normal.
+inline constexpr uint32_t kNoNormal = 0u;
+uint32_t encodeNormal(const glm::vec3& unit);  // never kNoNormal
+glm::vec3 decodeNormal(uint32_t packed);        // unit length; (0, 0, 1) for kNoNormal
 
 // Where one mesh's elements start in the shared per-vertex / per-triangle / map sections. The
 // ranges of consecutive meshes are contiguous (first[i+1] = first[i] + count[i]), from 0.
@@ -254,6 +264,7 @@ public:
         std::span<const uint32_t> triangles;  // 3 corners per triangle
         std::span<const uint32_t> map;        // positions.size() + 1 entries
         std::span<const uint32_t> colours;    // positions.size() entries (oss::kWhite: none of its own)
+        std::span<const uint32_t> normals;    // positions.size() entries (oss::kNoNormal: none)
         uint32_t q = 0;
         uint32_t refused_faces = 0;
         uint32_t source_vertices = 0;
@@ -274,6 +285,7 @@ public:
     std::span<const uint32_t> allTriangles() const;  // 3 corners per triangle, mesh-local numbering
     std::span<const uint32_t> allMaps() const;
     std::span<const uint32_t> allColours() const;  // laid out as allPositions()
+    std::span<const uint32_t> allNormals() const;  // laid out as allPositions()
     ObjectRecord object(uint32_t i) const;             // throws std::out_of_range if i >= objectCount()
     std::span<const uint32_t> cos() const;             // sorted by compactness, highest first
     // The hierarchy (empty without one), breadth-first; inner nodes' HLODs are meshes. Built

@@ -20,6 +20,9 @@ struct ProgressiveMesh {
     // Per vertex, its colour (oss::kWhite layout: RGBA8, sRGB), multiplied into its object's;
     // empty: every vertex white. HLODs carry the colours of the objects they stand for.
     std::vector<uint32_t> colours;
+    // Per vertex, its normal (oss::encodeNormal; oss::kNoNormal: none); empty: none at all.
+    // HLODs carry the normals of the full detail their vertices stand for (hlodVertexNormals).
+    std::vector<uint32_t> normals;
     uint32_t q = 0;                    // vertices never collapsed (locked: non-manifold, where borders meet)
     uint32_t refused_faces = 0;        // faces the collapser could not take (kept, never removed)
     uint32_t source_vertices = 0;      // vertex count of the input, before welding

@@ -8,12 +8,15 @@
 #include "scene/lod_prefix.h"
 #include "prep/prepare.h"
 #include "prep/rearrange.h"
+#include "prep/vertex_normals.h"
 #include "prep/weld.h"
+#include "scene/oss_file.h"
 #include "test_support.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 
 namespace occ {
@@ -454,6 +457,71 @@ TEST(ErrorCalibration, AVanishedComponentCostsItsExtentNotItsDistance) {
         EXPECT_LE(levelError(pm, k), 0.1f) << "level " << k << " of " << pm.vertexCount() << ", uncapped distance " << d;
     }
     EXPECT_GT(vanished, 0u) << "the cube was expected to vanish at some level";
+}
+
+}  // namespace
+}  // namespace occ
+
+namespace occ {
+namespace {
+
+// Issue 49, item 2: an HLOD vertex's normal is the full detail's it stands for. A 10 x 10 plate
+// and a small cube above it: every plate vertex (and every cluster of plate vertices) has the
+// plate's normal up to sign; the cube's corners, where three faces meet, have none. An open
+// 16-sided tube: every vertex has its radial direction.
+TEST(HlodVertexNormals, APlateHasItsNormalACornerNoneATubeItsRadii) {
+    Mesh mesh;
+    for (int y = 0; y <= 10; ++y)
+        for (int x = 0; x <= 10; ++x) mesh.positions.push_back({float(x), float(y), 0.0f});
+    for (uint32_t y = 0; y < 10; ++y)
+        for (uint32_t x = 0; x < 10; ++x) {
+            const uint32_t v = y * 11 + x;
+            mesh.indices.insert(mesh.indices.end(), {v, v + 1, v + 12, v, v + 12, v + 11});
+        }
+    const uint32_t b = uint32_t(mesh.positions.size());
+    for (int i = 0; i < 8; ++i)
+        mesh.positions.push_back(glm::vec3(5.2f, 5.2f, 3.0f) + 0.5f * glm::vec3(i & 1 ? 1 : -1, i & 2 ? 1 : -1, i & 4 ? 1 : -1));
+    for (const uint32_t c : {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5})
+        mesh.indices.push_back(b + c);
+    const ProgressiveMesh pm = buildClusteredProgressiveMesh(mesh);
+    const std::vector<uint32_t> normals = hlodVertexNormals(pm);
+    ASSERT_EQ(normals.size(), pm.vertexCount());
+    uint32_t plate = 0, corners = 0;
+    for (uint32_t v = 0; v < pm.vertexCount(); ++v) {
+        const glm::vec3& p = pm.positions[v];
+        if (std::abs(p.z) < 1e-4f) {
+            // A plate vertex, or a cluster of plate vertices placed on the plate.
+            if (normals[v] == oss::kNoNormal) continue;  // a cluster that took a cube corner too
+            ++plate;
+            EXPECT_GT(std::abs(oss::decodeNormal(normals[v]).z), 0.9999f) << "vertex " << v;
+        } else if (std::abs(std::abs(p.x - 5.2f) - 0.5f) < 1e-4f && std::abs(std::abs(p.y - 5.2f) - 0.5f) < 1e-4f &&
+                   std::abs(std::abs(p.z - 3.0f) - 0.5f) < 1e-4f) {
+            ++corners;
+            EXPECT_EQ(normals[v], oss::kNoNormal) << "cube corner " << v;
+        }
+    }
+    EXPECT_GE(plate, 121u);
+    EXPECT_EQ(corners, 8u);
+
+    Mesh tube;
+    constexpr int kSides = 16;
+    for (int ring = 0; ring <= 4; ++ring)
+        for (int s = 0; s < kSides; ++s) {
+            const float a = 2.0f * 3.14159265f * float(s) / kSides;
+            tube.positions.push_back({std::cos(a), std::sin(a), float(ring)});
+        }
+    for (uint32_t ring = 0; ring < 4; ++ring)
+        for (uint32_t s = 0; s < kSides; ++s) {
+            const uint32_t a = ring * kSides + s, b2 = ring * kSides + (s + 1) % kSides;
+            tube.indices.insert(tube.indices.end(), {a, b2, b2 + kSides, a, b2 + kSides, a + kSides});
+        }
+    const ProgressiveMesh tube_pm = buildProgressiveMesh(tube, Collapser::Fast);
+    const std::vector<uint32_t> tube_normals = hlodVertexNormals(tube_pm);
+    for (uint32_t v = 0; v < tube_pm.vertexCount(); ++v) {
+        ASSERT_NE(tube_normals[v], oss::kNoNormal) << "tube vertex " << v;
+        const glm::vec3 radial = glm::normalize(glm::vec3(tube_pm.positions[v].x, tube_pm.positions[v].y, 0.0f));
+        EXPECT_GT(std::abs(glm::dot(oss::decodeNormal(tube_normals[v]), radial)), 0.99f) << "tube vertex " << v;
+    }
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 #include "prep/rearrange.h"
 #include "prep/hierarchy.h"
 #include "scene/lod_prefix.h"
+#include "scene/oss_file.h"
 #include "prep/prepare.h"
 #include "test_support.h"
 #include "view/camera.h"
@@ -233,6 +234,37 @@ void checkHlodColours(bool colour_borders) {
     if (!colour_borders) {
         EXPECT_GT(mixed, 0u) << "clusters were expected to mix colours somewhere";
     }
+}
+
+// Issue 49, item 2: every HLOD carries a normal per vertex, most of them one (the plant's pipes,
+// walls and floors have a direction almost everywhere), and each a unit direction; and --hlod-
+// normals off leaves them out.
+TEST(Hierarchy, HlodVerticesCarryNormals) {
+    const BuiltHlods built;
+    uint64_t vertices = 0, with = 0;
+    for (const SceneNode& node : built.h.nodes) {
+        if (node.child_count == 0) continue;
+        const ProgressiveMesh& p = built.made[node.mesh];
+        ASSERT_EQ(p.normals.size(), p.vertexCount());
+        for (uint32_t n : p.normals) {
+            ++vertices;
+            if (n == oss::kNoNormal) continue;
+            ++with;
+            EXPECT_NEAR(glm::length(oss::decodeNormal(n)), 1.0f, 1e-5f);
+        }
+    }
+    EXPECT_GT(with, vertices / 2) << with << " of " << vertices << " HLOD vertices have a normal";
+    const HierarchyFixture& f = fixture();
+    ObjectHierarchy h = buildObjectHierarchy(f.boxes, f.triangles, 8);
+    HlodOptions options;
+    options.node_triangles = 600;
+    options.normals = false;
+    std::vector<ProgressiveMesh> made;
+    buildHlods(*f.file, h, options, [&](ProgressiveMesh&& p) {
+        made.push_back(std::move(p));
+        return uint32_t(made.size() - 1);
+    });
+    for (const ProgressiveMesh& p : made) EXPECT_TRUE(p.normals.empty());
 }
 
 TEST(Hierarchy, HlodVerticesCarryTheColoursOfTheObjectsTheyStandFor) { checkHlodColours(true); }

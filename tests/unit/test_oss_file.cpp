@@ -16,6 +16,7 @@
 #include <functional>
 #include <set>
 #include <string>
+#include <random>
 #include <vector>
 
 #include <sys/resource.h>
@@ -314,7 +315,8 @@ TEST(OssFile, SectionsAreAlignedInOrderAndCoverTheFile) {
     const OssFile f = OssFile::open(path);
     const std::vector<OssFile::SectionInfo> s = f.sections();
     const std::vector<std::string> names = {"HEADER",    "MESHES", "POSITIONS", "ECOL",  "ERROR", "TRIANGLES",
-                                            "MAP",       "OBJECTS", "COS",      "NODES", "INNER", "COLOURS"};
+                                            "MAP",       "OBJECTS", "COS",      "NODES", "INNER", "COLOURS",
+                                            "NORMALS"};
     ASSERT_EQ(s.size(), names.size());
     for (size_t i = 0; i < s.size(); ++i) {
         EXPECT_EQ(s[i].name, names[i]);
@@ -407,7 +409,7 @@ TEST(OssFile, ErrorsNameFileSectionAndOffset) {
                                    ": checksum mismatch (corrupt data)");
     writeBytes(path, bytes, 100);
     EXPECT_EQ(openError(path), path + ": section HEADER at offset 0: file is 100 bytes, shorter than the "
-                                      "448-byte header (truncated, or not an .oss file)");
+                                      "512-byte header (truncated, or not an .oss file)");
     EXPECT_NE(openError(scratch("missing.oss")).find("cannot open"), std::string::npos);
 }
 
@@ -415,12 +417,12 @@ TEST(OssFile, FutureVersionIsNamed) {
     const std::string good = scratch("version_source.oss"), path = scratch("version.oss");
     writeOss(good, smallScene());
     std::vector<char> bytes = readBytes(good);
-    bytes[8] = 6;
+    bytes[8] = 7;
     writeBytes(path, bytes, bytes.size());
-    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 6, this build reads version 5");
-    bytes[8] = 4;  // a file of an older build (no COLOURS): prepared again
+    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 7, this build reads version 6");
+    bytes[8] = 5;  // a file of an older build (no NORMALS): prepared again
     writeBytes(path, bytes, bytes.size());
-    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 4, this build reads version 5 "
+    EXPECT_EQ(openError(path), path + ": section HEADER at offset 8: format version 5, this build reads version 6 "
                                       "(prepare the model again: occswitch prep)");
     bytes[0] = 'X';
     writeBytes(path, bytes, bytes.size());
@@ -605,9 +607,9 @@ TEST(OssFile, AnInnerCountThatDisagreesIsRejected) {
         return openError(path);
     };
     EXPECT_EQ(withInnerCount(2), "");  // the file as written: the root and node 1
-    EXPECT_EQ(withInnerCount(0), path + ": section HEADER at offset 416: 0 inner nodes for 5 nodes (none without a "
+    EXPECT_EQ(withInnerCount(0), path + ": section HEADER at offset 448: 0 inner nodes for 5 nodes (none without a "
                                         "hierarchy; else at least the root, and fewer than the nodes)");
-    EXPECT_EQ(withInnerCount(5), path + ": section HEADER at offset 416: 5 inner nodes for 5 nodes (none without a "
+    EXPECT_EQ(withInnerCount(5), path + ": section HEADER at offset 448: 5 inner nodes for 5 nodes (none without a "
                                         "hierarchy; else at least the root, and fewer than the nodes)");
     EXPECT_NE(withInnerCount(1).find("section INNER at offset "), std::string::npos) << withInnerCount(1);
     EXPECT_NE(withInnerCount(1).find("size 208 bytes, expected 1 elements * 104 bytes = 104"), std::string::npos);
@@ -820,6 +822,43 @@ TEST(OssFile, VertexColoursRoundTripAndAMeshWithoutThemIsWhite) {
     EXPECT_EQ(f.allColours().size(), f.vertexCount());
     scene.meshes[0].colours.pop_back();
     EXPECT_THROW(writeOss(scratch("colours_short.oss"), scene), std::invalid_argument);
+}
+
+// Version 6's NORMALS: a mesh's vertex normals come back as written; a mesh written without them
+// has kNoNormal in the file and reads back without them.
+TEST(OssFile, VertexNormalsRoundTripAndAMeshWithoutThemHasNone) {
+    PreparedScene scene = smallScene();
+    ASSERT_GE(scene.meshes.size(), 2u);
+    ProgressiveMesh& lit = scene.meshes[1];
+    lit.normals.resize(lit.positions.size());
+    for (size_t v = 0; v < lit.normals.size(); ++v)
+        lit.normals[v] = v == 1 ? oss::kNoNormal : oss::encodeNormal(glm::normalize(glm::vec3(float(v), 1.0f, -2.0f)));
+    scene.meshes[0].normals.clear();
+    const std::string path = scratch("normals.oss");
+    writeOss(path, scene);
+    const OssFile f = OssFile::open(path);
+    EXPECT_EQ(f.progressiveMesh(1).normals, lit.normals);
+    EXPECT_TRUE(f.progressiveMesh(0).normals.empty());
+    for (uint32_t n : f.mesh(0).normals) EXPECT_EQ(n, oss::kNoNormal);
+    EXPECT_EQ(f.allNormals().size(), f.vertexCount());
+    scene.meshes[1].normals.push_back(1u);
+    EXPECT_THROW(writeOss(scratch("normals_long.oss"), scene), std::invalid_argument);
+}
+
+// The octahedral encoding: within 1e-4 of every direction (snorm16 steps are 3e-5 of the
+// octahedron's span), never kNoNormal, the poles and axes exact.
+TEST(OssFile, NormalsEncodeWithinATenThousandth) {
+    std::mt19937 random(6);
+    std::normal_distribution<float> gauss;
+    std::vector<glm::vec3> directions = {{0, 0, 1}, {0, 0, -1}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}};
+    for (int i = 0; i < 2000; ++i) directions.push_back(glm::normalize(glm::vec3(gauss(random), gauss(random), gauss(random))));
+    for (const glm::vec3& d : directions) {
+        const uint32_t packed = oss::encodeNormal(d);
+        ASSERT_NE(packed, oss::kNoNormal);
+        const glm::vec3 back = oss::decodeNormal(packed);
+        EXPECT_NEAR(glm::length(back), 1.0f, 1e-5f);
+        EXPECT_GT(glm::dot(back, d), 1.0f - 1e-4f) << d.x << " " << d.y << " " << d.z;
+    }
 }
 
 }  // namespace

@@ -1,10 +1,14 @@
 #version 450 core
 // Headlight shading from the face normal (screen-space derivatives of the world position, so
-// no normals are stored or streamed), both sides lit: CAD meshes are often open. base_colour is
+// no normals are stored or streamed), both sides lit: CAD meshes are often open. An HLOD's
+// triangle whose three vertices carry the normals of the full detail they stand for is lit by
+// their interpolation instead, where it is within 60 degrees of the face's. base_colour is
 // linear (glTF's baseColorFactor is); lighting happens in linear light and the result is written
 // sRGB-encoded, as a glTF viewer shows it.
 in vec3 world_position;
 in vec3 base_colour;
+in vec3 vertex_normal_world;
+in float normal_weight;
 flat in uint item;
 // The window depth of the object's box's nearest point (0 when the box reaches the near
 // plane). No surface of the object is nearer, but a rasteriser interpolating depth at a pixel
@@ -25,6 +29,10 @@ vec3 linearToSrgb(vec3 c) {
 
 void main() {
     vec3 n = normalize(cross(dFdx(world_position), dFdy(world_position)));
+    if (normal_weight > 0.999) {
+        const vec3 smooth_n = normalize(vertex_normal_world);
+        if (abs(dot(smooth_n, n)) > 0.5) n = smooth_n;
+    }
     vec3 to_eye = normalize(eye - world_position);
     float lambert = abs(dot(n, to_eye));
     frag_colour = vec4(linearToSrgb(base_colour * (0.2 + 0.8 * lambert)), 1.0);
