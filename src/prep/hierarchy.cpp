@@ -583,9 +583,12 @@ void buildHlods(const OssFile& file, ObjectHierarchy& h, const HlodOptions& opti
                     } else {
                         p = buildProgressiveMesh(merged, Collapser::Fast, merged_colours);
                     }
-                    if (options.normals) p.normals = hlodVertexNormals(p);
-                    if (options.fine_input)
-                        error += truncateLevels(p, levelWithAtMost(p.map, p.q, std::max<uint64_t>(1, node.triangles / std::max(1u, options.reduction))));
+                    // The levels kept: with fine input up to 1 / reduction of the subtree.
+                    const uint32_t keep = options.fine_input
+                        ? levelWithAtMost(p.map, p.q, std::max<uint64_t>(1, node.triangles / std::max(1u, options.reduction)))
+                        : p.vertexCount();
+                    if (options.normals) p.normals = hlodVertexNormals(p, 0.8f, keep);
+                    if (options.fine_input) error += truncateLevels(p, keep);
                     h.nodes[n].error = error;
                     if (parent[n] != UINT32_MAX) handUp(n, p, glm::mat4(1.0f), error, 1.0f);
                     if (progress) ++progress->done;

@@ -4,12 +4,13 @@
 #include "prep/symmetric_eigen.h"
 #include "scene/oss_file.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 
 namespace occ {
 
-std::vector<uint32_t> hlodVertexNormals(const ProgressiveMesh& pm, float planarity) {
+std::vector<uint32_t> hlodVertexNormals(const ProgressiveMesh& pm, float planarity, uint32_t keep) {
     const uint32_t n = pm.vertexCount();
     // Upper triangle of the symmetric tensor: xx, xy, xz, yy, yz, zz.
     std::vector<std::array<double, 6>> tensor(n, std::array<double, 6>{});
@@ -36,7 +37,7 @@ std::vector<uint32_t> hlodVertexNormals(const ProgressiveMesh& pm, float planari
             for (int k = 0; k < 6; ++k) tensor[uint32_t(into)][k] += tensor[v][k];
     }
     std::vector<uint32_t> normals(n, oss::kNoNormal);
-    for (uint32_t v = 0; v < n; ++v) {
+    for (uint32_t v = 0; v < std::min(n, keep); ++v) {
         const std::array<double, 6>& t = tensor[v];
         const double trace = t[0] + t[3] + t[5];
         if (!(trace > 0.0) || !std::isfinite(trace)) continue;

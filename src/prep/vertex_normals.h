@@ -16,6 +16,9 @@ namespace occ {
 // surface there has no one direction: the axis holds less than `planarity` of the tensor's trace
 // (a box's corner 1/3, its edge 1/2, two faces of a 16-sided pipe 0.96), or no face at all. Such
 // vertices are lit by their faces' normals, as the full detail is.
-std::vector<uint32_t> hlodVertexNormals(const ProgressiveMesh& pm, float planarity = 0.8f);
+// Only the first `keep` vertices get one (those past it are left kNoNormal: the caller drops
+// them, as truncateLevels does), though every full-detail face still counts.
+std::vector<uint32_t> hlodVertexNormals(const ProgressiveMesh& pm, float planarity = 0.8f,
+                                        uint32_t keep = UINT32_MAX);
 
 }  // namespace occ
