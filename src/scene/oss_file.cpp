@@ -450,6 +450,22 @@ void requireMeshLayout(const ProgressiveMesh& m, uint64_t index) {
 
 }  // namespace
 
+namespace {
+
+// A per-vertex u32 section's part for one mesh of n vertices: its values, or n times `none`
+// where the mesh has none.
+void putPerVertex(SectionSpool& spool, const std::vector<uint32_t>& values, uint64_t n, uint32_t none) {
+    if (!values.empty()) {
+        spool.put(values.data(), values.size() * sizeof(uint32_t));
+        return;
+    }
+    const std::vector<uint32_t> fill(std::min<uint64_t>(n, 4096), none);
+    for (uint64_t done = 0; done < n; done += fill.size())
+        spool.put(fill.data(), std::min<uint64_t>(fill.size(), n - done) * sizeof(uint32_t));
+}
+
+}  // namespace
+
 struct OssStreamWriter::Impl {
     explicit Impl(const std::string& p)
         : path(p), file(p), positions(p), ecol(p), error(p), triangles(p), map(p), colours(p), normals(p) {}
@@ -485,20 +501,8 @@ uint32_t OssStreamWriter::addMesh(const ProgressiveMesh& m) {
     w.error.put(m.error.data(), m.error.size() * sizeof(float));
     w.triangles.put(m.triangles.data(), m.triangles.size() * sizeof(uint32_t));
     w.map.put(m.map.data(), m.map.size() * sizeof(uint32_t));
-    if (m.colours.empty()) {
-        static const std::vector<uint32_t> kWhites(4096, kWhite);
-        for (uint64_t done = 0; done < m.positions.size(); done += kWhites.size())
-            w.colours.put(kWhites.data(), std::min<uint64_t>(kWhites.size(), m.positions.size() - done) * sizeof(uint32_t));
-    } else {
-        w.colours.put(m.colours.data(), m.colours.size() * sizeof(uint32_t));
-    }
-    if (m.normals.empty()) {
-        static const std::vector<uint32_t> kNone(4096, kNoNormal);
-        for (uint64_t done = 0; done < m.positions.size(); done += kNone.size())
-            w.normals.put(kNone.data(), std::min<uint64_t>(kNone.size(), m.positions.size() - done) * sizeof(uint32_t));
-    } else {
-        w.normals.put(m.normals.data(), m.normals.size() * sizeof(uint32_t));
-    }
+    putPerVertex(w.colours, m.colours, m.positions.size(), kWhite);
+    putPerVertex(w.normals, m.normals, m.positions.size(), kNoNormal);
     return uint32_t(i);
 }
 

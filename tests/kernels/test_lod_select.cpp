@@ -283,32 +283,42 @@ TEST_F(LodSelect, MatchesTheScalarReferenceOnRandomScenes) {
     }
 }
 
+// Two objects on kNearBox for the error bound (described at its first test below): meshes of
+// 1000 and 125 vertices, level k of mesh m with m + 2 triangles per vertex and error (vertices_m
+// - k) * 0.001, scale 1, and 0.0095 given up by each item's input.
+struct ErrorBoundScene {
+    const std::vector<ObjectInfo> objects{object(kNearBox, 0, 1000, 4), object(kNearBox, 1, 125, 4)};
+    DeviceArray<ObjectInfo> objects_d = toDevice(objects);
+    DeviceArray<uint32_t> ids_d = toDevice(std::vector<uint32_t>{0, 1});
+    DeviceArray<uint64_t> map_first_d = toDevice(std::vector<uint64_t>{0, 1001});
+    DeviceArray<uint32_t> maps_d;
+    DeviceArray<float> lod_error_d, scale_d = toDevice(std::vector<float>{1, 1}),
+                       offset_d = toDevice(std::vector<float>{0.0095f, 0.0095f});
+    ErrorBoundScene() {
+        std::vector<uint32_t> maps;
+        std::vector<float> lod_error;
+        for (uint32_t m = 0; m < 2; ++m)
+            for (uint32_t k = 0; k <= objects[m].vertex_count; ++k) {
+                maps.push_back((m + 2) * k);
+                lod_error.push_back(float(objects[m].vertex_count - k) * 0.001f);
+            }
+        maps_d = toDevice(maps);
+        lod_error_d = toDevice(lod_error);
+    }
+};
+
 // The budget rule's floor with a hierarchy (issue 49): a level coarser than tau allows is raised
 // to the error rule's level, a finer one stays. On kNearBox (D = 2) a world unit is 25 px, so
 // tau = 1 px allows 0.04 units; the items' input already gave up 0.0095 (error_offset), leaving
 // 0.0305 to the level. Level k of mesh m has error (vertices_m - k) * 0.001, so the bound needs
 // k >= vertices_m - 30 (half a level from the edge: float rounding cannot move it).
 TEST_F(LodSelect, TheErrorBoundRaisesACoarserLevelAndKeepsAFinerOne) {
-    const std::vector<ObjectInfo> objects{object(kNearBox, 0, 1000, 4), object(kNearBox, 1, 125, 4)};
-    const std::vector<uint64_t> map_first{0, 1001};
-    std::vector<uint32_t> maps;
-    std::vector<float> lod_error;
-    for (uint32_t m = 0; m < 2; ++m)
-        for (uint32_t k = 0; k <= objects[m].vertex_count; ++k) {
-            maps.push_back((m + 2) * k);
-            lod_error.push_back(float(objects[m].vertex_count - k) * 0.001f);
-        }
-    const DeviceArray<ObjectInfo> objects_d = toDevice(objects);
-    const DeviceArray<uint32_t> ids_d = toDevice(std::vector<uint32_t>{0, 1});
-    const DeviceArray<uint64_t> map_first_d = toDevice(map_first);
-    const DeviceArray<uint32_t> maps_d = toDevice(maps);
-    const DeviceArray<float> lod_error_d = toDevice(lod_error), scale_d = toDevice(std::vector<float>{1, 1}),
-                             offset_d = toDevice(std::vector<float>{0.0095f, 0.0095f});
+    const ErrorBoundScene scene;
     // The budget chose 400 of object 0's 1000 vertices and all 125 of object 1's.
     DeviceArray<uint32_t> vc = toDevice(std::vector<uint32_t>{400, 125}), tc = toDevice(std::vector<uint32_t>{800, 375});
-    const uint64_t total = lodRaiseToErrorBound(objects_d.ptr(), ids_d.ptr(), 2, testCamera(), 1.0f, 1.0f, nullptr,
-                                                map_first_d.ptr(), lod_error_d.ptr(), scale_d.ptr(), offset_d.ptr(),
-                                                maps_d.ptr(), vc.ptr(), tc.ptr());
+    const uint64_t total = lodRaiseToErrorBound(scene.objects_d.ptr(), scene.ids_d.ptr(), 2, testCamera(), 1.0f, 1.0f, nullptr,
+                                                scene.map_first_d.ptr(), scene.lod_error_d.ptr(), scene.scale_d.ptr(), scene.offset_d.ptr(),
+                                                scene.maps_d.ptr(), vc.ptr(), tc.ptr());
     EXPECT_EQ(toHost(vc), (std::vector<uint32_t>{970, 125}));
     EXPECT_EQ(toHost(tc), (std::vector<uint32_t>{2 * 970, 3 * 125}));
     EXPECT_EQ(total, 970u + 125u);
@@ -335,28 +345,14 @@ TEST(LevelWithinErrorNear, EqualsThePlainSearchFromEveryHint) {
 // With a hint array the raise chooses the same levels, records them for the next call, and a
 // second call from those hints (and from stale ones) chooses them again.
 TEST_F(LodSelect, TheErrorBoundsHintsChangeNoLevel) {
-    const std::vector<ObjectInfo> objects{object(kNearBox, 0, 1000, 4), object(kNearBox, 1, 125, 4)};
-    const std::vector<uint64_t> map_first{0, 1001};
-    std::vector<uint32_t> maps;
-    std::vector<float> lod_error;
-    for (uint32_t m = 0; m < 2; ++m)
-        for (uint32_t k = 0; k <= objects[m].vertex_count; ++k) {
-            maps.push_back((m + 2) * k);
-            lod_error.push_back(float(objects[m].vertex_count - k) * 0.001f);
-        }
-    const DeviceArray<ObjectInfo> objects_d = toDevice(objects);
-    const DeviceArray<uint32_t> ids_d = toDevice(std::vector<uint32_t>{0, 1});
-    const DeviceArray<uint64_t> map_first_d = toDevice(map_first);
-    const DeviceArray<uint32_t> maps_d = toDevice(maps);
-    const DeviceArray<float> lod_error_d = toDevice(lod_error), scale_d = toDevice(std::vector<float>{1, 1}),
-                             offset_d = toDevice(std::vector<float>{0.0095f, 0.0095f});
+    const ErrorBoundScene scene;
     for (const std::vector<uint32_t>& start : {std::vector<uint32_t>{0, 0}, std::vector<uint32_t>{999, 7},
                                                std::vector<uint32_t>{970, 125}}) {
         DeviceArray<uint32_t> hint = toDevice(start);
         for (int call = 0; call < 2; ++call) {
             DeviceArray<uint32_t> vc = toDevice(std::vector<uint32_t>{400, 0}), tc = toDevice(std::vector<uint32_t>{800, 0});
-            lodRaiseToErrorBound(objects_d.ptr(), ids_d.ptr(), 2, testCamera(), 1.0f, 1.0f, nullptr, map_first_d.ptr(),
-                                 lod_error_d.ptr(), scale_d.ptr(), offset_d.ptr(), maps_d.ptr(), vc.ptr(), tc.ptr(),
+            lodRaiseToErrorBound(scene.objects_d.ptr(), scene.ids_d.ptr(), 2, testCamera(), 1.0f, 1.0f, nullptr, scene.map_first_d.ptr(),
+                                 scene.lod_error_d.ptr(), scene.scale_d.ptr(), scene.offset_d.ptr(), scene.maps_d.ptr(), vc.ptr(), tc.ptr(),
                                  hint.ptr());
             // Object 1 had no level (0): raised to the bound's 125 - 30 = 95.
             EXPECT_EQ(toHost(vc), (std::vector<uint32_t>{970, 95}));

@@ -430,11 +430,8 @@ TEST(ErrorCalibration, SampledLevelErrorsConvergeWithTheSampleCount) {
     EXPECT_GT(mean_ratio[3], 0.9);
 }
 
-// An HLOD's small objects vanish under clustering; the picture then changes only within each
-// one's extent, however far the nearest surface left. A 10 x 10 plate and a cube 0.02 wide 5
-// above it (the plate simplifies without error): the levels without the cube are over 5 away
-// from the full detail, uncapped; their calibrated errors are the cube's extent, 0.035.
-TEST(ErrorCalibration, AVanishedComponentCostsItsExtentNotItsDistance) {
+// A 10 x 10 plate of unit squares in z = 0 and a closed cube of half-width `half` at `centre`.
+Mesh plateAndCube(const glm::vec3& centre, float half) {
     Mesh mesh;
     for (int y = 0; y <= 10; ++y)
         for (int x = 0; x <= 10; ++x) mesh.positions.push_back({float(x), float(y), 0.0f});
@@ -445,9 +442,18 @@ TEST(ErrorCalibration, AVanishedComponentCostsItsExtentNotItsDistance) {
         }
     const uint32_t b = uint32_t(mesh.positions.size());
     for (int i = 0; i < 8; ++i)
-        mesh.positions.push_back(glm::vec3(5.2f, 5.2f, 5.2f) + 0.01f * glm::vec3(i & 1 ? 1 : -1, i & 2 ? 1 : -1, i & 4 ? 1 : -1));
+        mesh.positions.push_back(centre + half * glm::vec3(i & 1 ? 1 : -1, i & 2 ? 1 : -1, i & 4 ? 1 : -1));
     for (const uint32_t c : {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5})
         mesh.indices.push_back(b + c);
+    return mesh;
+}
+
+// An HLOD's small objects vanish under clustering; the picture then changes only within each
+// one's extent, however far the nearest surface left. A 10 x 10 plate and a cube 0.02 wide 5
+// above it (the plate simplifies without error): the levels without the cube are over 5 away
+// from the full detail, uncapped; their calibrated errors are the cube's extent, 0.035.
+TEST(ErrorCalibration, AVanishedComponentCostsItsExtentNotItsDistance) {
+    const Mesh mesh = plateAndCube(glm::vec3(5.2f, 5.2f, 5.2f), 0.01f);
     const ProgressiveMesh pm = buildClusteredProgressiveMesh(mesh);
     uint32_t vanished = 0;
     for (uint32_t k = pm.vertexCount(); k >= pm.q && k > 0; --k) {
@@ -470,19 +476,7 @@ namespace {
 // plate's normal up to sign; the cube's corners, where three faces meet, have none. An open
 // 16-sided tube: every vertex has its radial direction.
 TEST(HlodVertexNormals, APlateHasItsNormalACornerNoneATubeItsRadii) {
-    Mesh mesh;
-    for (int y = 0; y <= 10; ++y)
-        for (int x = 0; x <= 10; ++x) mesh.positions.push_back({float(x), float(y), 0.0f});
-    for (uint32_t y = 0; y < 10; ++y)
-        for (uint32_t x = 0; x < 10; ++x) {
-            const uint32_t v = y * 11 + x;
-            mesh.indices.insert(mesh.indices.end(), {v, v + 1, v + 12, v, v + 12, v + 11});
-        }
-    const uint32_t b = uint32_t(mesh.positions.size());
-    for (int i = 0; i < 8; ++i)
-        mesh.positions.push_back(glm::vec3(5.2f, 5.2f, 3.0f) + 0.5f * glm::vec3(i & 1 ? 1 : -1, i & 2 ? 1 : -1, i & 4 ? 1 : -1));
-    for (const uint32_t c : {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5})
-        mesh.indices.push_back(b + c);
+    const Mesh mesh = plateAndCube(glm::vec3(5.2f, 5.2f, 3.0f), 0.5f);
     const ProgressiveMesh pm = buildClusteredProgressiveMesh(mesh);
     const std::vector<uint32_t> normals = hlodVertexNormals(pm);
     ASSERT_EQ(normals.size(), pm.vertexCount());
